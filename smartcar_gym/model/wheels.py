@@ -1,0 +1,115 @@
+"""Find the drive wheels of a URDF robot from its kinematics and collision shapes."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+from smartcar_gym.model.errors import ModelError
+from smartcar_gym.model.kinematics import link_frames
+from smartcar_gym.model.urdf import Joint, UrdfRobot, Vec3
+
+Side = Literal["left", "right"]
+LATERAL_MIN = 0.9  # |axis_y| in base_link above which a wheel axle counts as lateral
+
+
+@dataclass(frozen=True)
+class Wheel:
+    """A drive wheel. Positive joint velocity times ``forward_sign`` rolls the robot forward."""
+
+    joint: str
+    link: str
+    side: Side
+    radius_m: float
+    position_m: Vec3  # wheel (child link) origin in the base_link frame
+    forward_sign: int
+
+
+def _radius(robot: UrdfRobot, link: str) -> float | None:
+    for shape in robot.links[link].collisions:
+        if shape.geometry.radius is not None:
+            return shape.geometry.radius
+    return None
+
+
+def _unlimited(joint: Joint) -> bool:
+    if joint.type == "continuous":
+        return True
+    if joint.type != "revolute":
+        return False
+    return joint.lower is None or joint.upper is None or joint.lower >= joint.upper
+
+
+def _assess(robot: UrdfRobot, joint: Joint, frames: dict[str, np.ndarray],
+            side: Side | None = None) -> Wheel | str:
+    """The Wheel on ``joint``, or why it is none (``side`` given: the user's choice)."""
+    if not _unlimited(joint):
+        limits = "with limits" if joint.type == "revolute" else "joint"
+        return f"'{joint.name}' ({joint.type} {limits}; expected continuous or unlimited revolute)"
+    frame = frames[joint.child]
+    axis = frame[:3, :3] @ np.asarray(joint.axis, dtype=float)
+    axis /= np.linalg.norm(axis)
+    if abs(axis[1]) <= LATERAL_MIN:
+        shown = "(" + ", ".join(f"{v:.3g}" for v in axis + 0.0) + ")"
+        return f"'{joint.name}' (axis {shown} in {robot.base_link} is not lateral: |y| <= 0.9)"
+    radius = _radius(robot, joint.child)
+    if radius is None:
+        return (f"'{joint.name}' (child link '{joint.child}' has no cylinder or sphere "
+                "collision)")
+    position = tuple(float(v) for v in frame[:3, 3])
+    if side is None:
+        if abs(position[1]) < 1e-9:
+            return f"'{joint.name}' (on the centre line y = 0: neither left nor right)"
+        side = "left" if position[1] > 0 else "right"
+    return Wheel(joint.name, joint.child, side, float(radius), position,  # type: ignore[arg-type]
+                 1 if axis[1] > 0 else -1)
+
+
+def _from_overrides(robot: UrdfRobot, overrides: Mapping[str, Sequence[str]],
+                    frames: dict[str, np.ndarray]) -> tuple[Wheel, ...]:
+    unknown_sides = set(overrides) - {"left", "right"}
+    if unknown_sides or not overrides.get("left") or not overrides.get("right"):
+        raise ModelError(f"wheels={dict(overrides)!r}: expected {{'left': [joint, ...], "
+                         "'right': [joint, ...]} with at least one joint per side")
+    names = [n for side in ("left", "right") for n in overrides[side]]
+    unknown = [n for n in names if n not in robot.joints]
+    if unknown:
+        raise ModelError(f"wheels: unknown joint(s) {', '.join(unknown)}; the robot's joints "
+                         f"are: {', '.join(robot.joints)}")
+    result = []
+    for side in ("left", "right"):
+        for name in overrides[side]:
+            wheel = _assess(robot, robot.joints[name], frames, side)  # type: ignore[arg-type]
+            if isinstance(wheel, str):
+                raise ModelError(f"wheels: joint {wheel} cannot be a drive wheel")
+            result.append(wheel)
+    return tuple(result)
+
+
+def find_wheels(robot: UrdfRobot,
+                overrides: Mapping[str, Sequence[str]] | None = None) -> tuple[Wheel, ...]:
+    """Drive wheels: lateral-axis continuous joints with a round collision, or the named ones."""
+    frames = link_frames(robot)
+    if overrides is not None:
+        return _from_overrides(robot, overrides, frames)
+    wheels, rejected = [], []
+    for joint in robot.joints.values():
+        if joint.type == "fixed":
+            continue
+        found = _assess(robot, joint, frames)
+        (rejected if isinstance(found, str) else wheels).append(found)
+    sides = {s: [w.joint for w in wheels if w.side == s] for s in ("left", "right")}
+    if not sides["left"] or not sides["right"]:
+        raise ModelError(
+            "no drivable wheels: expected at least one left and one right wheel (a continuous "
+            f"or unlimited revolute joint whose axis is lateral in {robot.base_link} and whose "
+            "child link has a cylinder or sphere collision); found left: "
+            f"{', '.join(sides['left']) or 'none'}; right: {', '.join(sides['right']) or 'none'}"
+            f"; rejected: {', '.join(rejected) or ('none' if wheels else 'no movable joints')}"
+            "; name the wheel joints "
+            "with wheels={'left': [...], 'right': [...]}"
+        )
+    return tuple(wheels)

@@ -1,0 +1,218 @@
+"""Run the real ``xacro`` package in-process, without ROS, with legacy-xacro support.
+
+xacro keeps its state in module globals, so each run holds a module lock and, inside it,
+temporarily replaces: ``$(find)`` (-> :func:`find_package`), ``xacro.parse`` (-> legacy tag
+upgrade of every file read), ``xacro.handle_macro_call`` (-> unprefixed macro calls) and
+xacro's stderr printing (-> warnings). Everything is restored afterwards and xacro's
+exceptions become :class:`ModelError` with file and line where they can be found.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import re
+import threading
+import warnings
+import xml.parsers.expat
+from collections.abc import Iterator, Mapping
+from pathlib import Path
+
+import xacro
+import xacro.color
+import xacro.substitution_args as substitution_args
+
+from smartcar_gym.model.errors import ModelError, XacroWarning, xml_syntax_error
+from smartcar_gym.model.legacy import LegacyReport, is_call_candidate, upgrade_tags
+from smartcar_gym.model.packages import PackagePath, find_package
+
+_LOCK = threading.RLock()
+
+
+class _Session:
+    """State of one xacro run: files read, legacy upgrades, package search path."""
+
+    def __init__(self, package_path: PackagePath, legacy: bool) -> None:
+        self.package_path = package_path
+        self.legacy = legacy
+        self.report = LegacyReport()
+        self.files: list[str] = []
+        self.packages: dict[str, str] = {}
+
+    # -- hooks ---------------------------------------------------------------------------
+    def find(self, pkg: str) -> str:
+        """``$(find pkg)``: the package folder, searched like ROS would (cached per run)."""
+        if pkg not in self.packages:
+            asker = current_file()
+            line = locate_line(asker, f"$(find {pkg})") if asker else None
+            found = find_package(pkg, self.package_path, requested_by=asker, line=line)
+            self.packages[pkg] = str(found)
+        return self.packages[pkg]
+
+    def parse(self, original, inp, filename=None):
+        """xacro.parse, with XML errors located and legacy tags upgraded."""
+        try:
+            doc = original(inp, filename)
+        except xml.parsers.expat.ExpatError as exc:
+            stack = [f for f in (xacro.filestack or []) if f]
+            parent = f" (included from {stack[-2]})" if len(stack) > 1 else ""
+            raise xml_syntax_error(exc, filename or current_file(), parent) from None
+        if filename is not None:
+            self.files.append(str(filename))
+            if self.legacy:
+                self.report.add_tags(str(filename), upgrade_tags(doc))
+        return doc
+
+    def handle_macro_call(self, original, node, macros, symbols):
+        """xacro.handle_macro_call, also taking ``<name/>`` for a call of defined macro name."""
+        tag = node.tagName
+        if self.legacy and is_call_candidate(tag):
+            try:
+                xacro.resolve_macro(tag, macros, symbols)
+            except (KeyError, TypeError, AttributeError):
+                pass
+            else:
+                self.report.add_call(current_file() or "<string>", tag)
+                node.tagName = node.nodeName = f"xacro:{tag}"
+        return original(node, macros, symbols)
+
+
+def current_file() -> str | None:
+    """The file xacro is working on: the innermost macro's definition file, else the top file."""
+    for macro in reversed(xacro.macrostack or []):
+        if macro.history and macro.history[-1] and macro.history[-1][-1]:
+            return str(macro.history[-1][-1])
+    stack = [f for f in (xacro.filestack or []) if f]
+    return str(stack[-1]) if stack else None
+
+
+def locate_line(file: str | os.PathLike, needle: str) -> int | None:
+    """First line (1-based) of ``file`` containing ``needle``, or None."""
+    try:
+        text = Path(file).read_text(encoding="utf-8", errors="replace")
+    except OSError:
+        return None
+    for number, line in enumerate(text.splitlines(), start=1):
+        if needle in line:
+            return number
+    return None
+
+
+def _xacro_message(*args, **kwargs) -> None:
+    text = " ".join(str(a) for a in args).strip()
+    if text:
+        where = current_file()
+        warnings.warn(f"xacro: {text}" + (f" ({where})" if where else ""), XacroWarning, 3)
+
+
+@contextlib.contextmanager
+def _hooked(session: _Session) -> Iterator[None]:
+    """Install the session's hooks into xacro's globals; restore all of them afterwards."""
+    with _LOCK:
+        saved = {
+            "parse": xacro.parse,
+            "handle_macro_call": xacro.handle_macro_call,
+            "print_location": xacro.print_location,
+            "filestack": xacro.filestack,
+            "macrostack": xacro.macrostack,
+            "verbosity": xacro.verbosity,
+            "all_includes": list(xacro.all_includes),
+            "context": dict(xacro.substitution_args_context),
+        }
+        saved_message = xacro.color.message
+        saved_find = substitution_args._eval_find
+        saved_eval_find = substitution_args._eval_dict.get("find")
+        parse, call = saved["parse"], saved["handle_macro_call"]
+        try:
+            xacro.parse = lambda inp, filename=None: session.parse(parse, inp, filename)
+            xacro.handle_macro_call = lambda n, m, s: session.handle_macro_call(call, n, m, s)
+            xacro.print_location = lambda: None
+            xacro.color.message = _xacro_message
+            substitution_args._eval_find = session.find
+            substitution_args._eval_dict["find"] = session.find
+            yield
+        finally:
+            for name in ("parse", "handle_macro_call", "print_location", "filestack"):
+                setattr(xacro, name, saved[name])
+            xacro.macrostack = saved["macrostack"]
+            xacro.verbosity = saved["verbosity"]
+            xacro.all_includes[:] = saved["all_includes"]
+            xacro.substitution_args_context.clear()
+            xacro.substitution_args_context.update(saved["context"])
+            xacro.color.message = saved_message
+            substitution_args._eval_find = saved_find
+            if saved_eval_find is not None:
+                substitution_args._eval_dict["find"] = saved_eval_find
+
+
+def _innermost(exc: BaseException) -> BaseException:
+    """Unwrap XacroException chains down to the exception that caused them."""
+    while isinstance(exc, xacro.XacroException) and exc.exc is not None:
+        exc = exc.exc
+    return exc
+
+
+_NEEDLES = (
+    (re.compile(r"when evaluating expression '(.*)'", re.S), "${{{}}}"),
+    (re.compile(r"unknown macro name: (\S+)"), "<{}"),
+    (re.compile(r"Undefined substitution argument (\S+)"), "$(arg {})"),
+    (re.compile(r"Undefined block \"(.*?)\""), 'name="{}"'),
+)
+
+
+def _to_model_error(exc: Exception, session: _Session) -> ModelError:
+    """A ModelError for an exception raised inside xacro, located as well as we can."""
+    inner = _innermost(exc)
+    if isinstance(inner, ModelError):
+        return inner
+    where = current_file()
+    if isinstance(inner, OSError) and inner.filename:
+        message = f"cannot read included file {inner.filename}: {inner.strerror}"
+        needle = Path(inner.filename).name
+    else:
+        text = " ".join(str(exc).split())
+        message = f"xacro: {text}" if isinstance(exc, xacro.XacroException) else (
+            f"xacro: {type(exc).__name__}: {text}"
+        )
+        needle = None
+        for pattern, template in _NEEDLES:
+            match = pattern.search(str(exc))
+            if match:
+                needle = template.format(match.group(1).strip())
+                break
+    line = None
+    if needle:
+        for file in dict.fromkeys([f for f in (where, *reversed(session.files)) if f]):
+            line = locate_line(file, needle)
+            if line is not None:
+                where = file
+                break
+    if xacro.macrostack:
+        names = [m.body.getAttribute("name") for m in xacro.macrostack if m.body is not None]
+        message += f" (while expanding macro {' -> '.join(names)})"
+    return ModelError(message, file=where, line=line)
+
+
+def expand_xacro(
+    path: str | os.PathLike,
+    *,
+    mappings: Mapping[str, object] | None = None,
+    package_path: PackagePath = None,
+    legacy: bool = True,
+) -> str:
+    """URDF text of the xacro file ``path`` (xacro args from ``mappings``)."""
+    source = Path(path).resolve()
+    if not source.is_file():
+        raise FileNotFoundError(f"no such xacro file: {source}")
+    args = {str(k): str(v) for k, v in (mappings or {}).items()}
+    session = _Session(package_path, legacy)
+    with _hooked(session):
+        try:
+            doc = xacro.process_file(str(source), mappings=args, verbosity=0)
+        except ModelError:
+            raise
+        except Exception as exc:  # xacro raises XacroException, RuntimeError, NameError...
+            raise _to_model_error(exc, session) from exc
+        finally:
+            session.report.warn()
+    return doc.toprettyxml(indent="  ")

@@ -1,0 +1,126 @@
+"""The ArbotiX board firmware's base controller (``ros.ino`` + ``diff_controller.h``).
+
+An incremental integer PID per wheel, run in frames of at least ``FRAME_RATE + 1`` ms while
+the base is moving, with the firmware's start/stop semantics and AVR integer widths (``int``
+16-bit, ``long`` 32-bit, division truncating toward zero).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from typing import Any
+
+from smartcar_gym.controller._cint import c_div, wrap_int16, wrap_int32
+
+MAX_OUTPUT = 255  # MAXOUTPUT: PWM limit
+FRAME_RATE_MS = 33  # FRAME_RATE
+BOOT_GAINS = (25, 30, 0, 100)  # setupPID(): Kp, Kd, Ki, Ko until the driver's setup packet
+
+
+@dataclass
+class WheelPID:
+    """The firmware's ``SetPointInfo`` for one wheel (ticks per frame, ticks, PWM)."""
+
+    velocity: int = 0  # int: target ticks/frame
+    encoder: int = 0  # long: count read at the last frame
+    prev_enc: int = 0  # long
+    prev_err: int = 0  # int
+    ierror: int = 0  # int
+    output: int = 0  # int: current PWM, -255..255
+
+
+class ArbotixBoard:
+    """The board side of the ArbotiX base: setup/write packets in, PWM per side out."""
+
+    def __init__(self, frame_ms: int = FRAME_RATE_MS) -> None:
+        if isinstance(frame_ms, bool) or not isinstance(frame_ms, int) or frame_ms < 1:
+            raise ValueError(f"frame_ms must be a positive integer, got {frame_ms!r}")
+        self.frame_ms = frame_ms
+        self.kp, self.kd, self.ki, self.ko = BOOT_GAINS
+        self.f_time = 0  # setupPID(): f_time = 0
+        self.moving = False
+        self.pid_mode = False
+        self.left = WheelPID()
+        self.right = WheelPID()
+
+    def setup(self, kp: int, kd: int, ki: int, ko: int) -> None:
+        """The setup packet ``[10, Kp, Kd, Ki, Ko]``: one byte per gain, ``Ko`` >= 1."""
+        for name, gain in (("Kp", kp), ("Kd", kd), ("Ki", ki), ("Ko", ko)):
+            if isinstance(gain, bool) or not isinstance(gain, int) or not 0 <= gain <= 255:
+                raise ValueError(f"{name} must be an integer in 0..255, got {gain!r}")
+        if ko == 0:
+            raise ValueError("Ko must be >= 1: the firmware divides by it")
+        self.kp, self.kd, self.ki, self.ko = kp, kd, ki, ko
+
+    def write(self, left: int, right: int, encoders: tuple[int, int]) -> None:
+        """The write packet: target ticks/frame per wheel, sent as 16-bit two's complement.
+
+        Both 0: motors off and ``ClearPID`` (PID idle). From rest (both previous targets 0):
+        arm the PID with ``PrevEnc`` = the current ``encoders`` counts. Otherwise only the
+        targets change; the PID state is kept.
+        """
+        left, right = wrap_int16(left), wrap_int16(right)
+        if left == 0 and right == 0:
+            self._clear_pid()  # drive.set(0, 0); ClearPID()
+        elif self.left.velocity == 0 and self.right.velocity == 0:
+            self.pid_mode = self.moving = True
+            self.left.prev_enc = wrap_int32(encoders[0])
+            self.right.prev_enc = wrap_int32(encoders[1])
+        self.left.velocity = left
+        self.right.velocity = right
+
+    def frame_due(self, now_ms: int) -> bool:
+        """Whether ``updatePID`` would run a frame at ``millis() == now_ms``."""
+        return self.moving and self.pid_mode and now_ms > self.f_time
+
+    def tick(self, now_ms: int, encoders: tuple[int, int]) -> bool:
+        """One pass of ``updatePID``: run a PID frame if due; return whether one ran."""
+        if not self.frame_due(now_ms):
+            return False
+        self.left.encoder = wrap_int32(encoders[0])
+        self.right.encoder = wrap_int32(encoders[1])
+        self._do_pid(self.left)
+        self._do_pid(self.right)
+        self.f_time = now_ms + self.frame_ms
+        return True
+
+    @property
+    def pwm(self) -> tuple[int, int]:
+        """The signed PWM on the (left, right) motor channels, -255..255."""
+        return self.left.output, self.right.output
+
+    def state(self) -> dict[str, Any]:
+        """Gains, timing and per-wheel PID internals, for debugging."""
+        return {
+            "gains": (self.kp, self.kd, self.ki, self.ko),
+            "moving": self.moving,
+            "f_time_ms": self.f_time,
+            "pwm": self.pwm,
+            "left": asdict(self.left),
+            "right": asdict(self.right),
+        }
+
+    def _do_pid(self, p: WheelPID) -> None:
+        """``DoPid``: velocity-form PID with ``long`` error/output and ``int`` state."""
+        perror = wrap_int32(p.velocity - wrap_int32(p.encoder - p.prev_enc))
+        numerator = wrap_int32(
+            wrap_int32(self.kp * perror)
+            + wrap_int32(self.kd * wrap_int32(perror - p.prev_err))
+            + wrap_int16(self.ki * p.ierror)  # int * int: 16-bit product
+        )
+        output = wrap_int32(c_div(numerator, self.ko) + p.output)
+        p.prev_err = wrap_int16(perror)
+        p.prev_enc = p.encoder
+        if output >= MAX_OUTPUT:
+            output = MAX_OUTPUT
+        elif output <= -MAX_OUTPUT:
+            output = -MAX_OUTPUT
+        else:
+            p.ierror = wrap_int16(p.ierror + perror)  # anti-windup: only while unsaturated
+        p.output = output
+
+    def _clear_pid(self) -> None:
+        """``ClearPID``: idle, and zero error history and output (``PrevEnc`` is kept)."""
+        self.pid_mode = self.moving = False
+        for p in (self.left, self.right):
+            p.prev_err = p.ierror = p.output = 0

@@ -1,0 +1,303 @@
+"""SmartCar-v0: drive the ROS tutorial smartcar to a goal through an emulated ArbotiX base."""
+
+from __future__ import annotations
+
+import math
+import os
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from smartcar_gym.controller import ArbotixConfig, load_controller_config
+from smartcar_gym.envs.task import GoalReachingTask
+from smartcar_gym.model import RobotModel, load_model
+from smartcar_gym.sim.markers import SceneMarkers
+from smartcar_gym.sim.robot import MODES, SmartCarRobot
+from smartcar_gym.sim.simulator import Simulator
+
+OBS_NAMES = (
+    "odom_x", "odom_y", "odom_cos_yaw", "odom_sin_yaw", "odom_v", "odom_omega",
+    "lf_wheel_angle", "rf_wheel_angle", "lb_wheel_angle", "rb_wheel_angle",
+    "lf_wheel_velocity", "rf_wheel_velocity", "lb_wheel_velocity", "rb_wheel_velocity",
+    "goal_x_base", "goal_y_base", "goal_distance", "prev_linear", "prev_angular",
+)
+
+
+class SmartCarEnv(gym.Env):
+    """## Description
+
+    The smartcar of the classic ROS indigo tutorial (a 0.25 x 0.16 m box on four 25 mm wheels)
+    in pybullet, driven like the real robot: every action is a ``cmd_vel`` Twist sent to an
+    emulation of the ArbotiX ROS ``diff_controller`` (configured by ``smartcar_arbotix.yaml``),
+    which turns it into wheel speeds in encoder ticks per frame, slews them by ``accel_limit``,
+    and hands them to the board's integer PID, whose PWM drives one DC gearmotor per wheel.
+    The robot sees only what the real one would: the controller's odometry (from the wheel
+    encoders) and the wheel joint states. The task is to reach a goal on the ground.
+
+    ## Action Space
+
+    ``Box(-1, 1, (2,), float32)``, scaled and published as a ``geometry_msgs/Twist`` on cmd_vel:
+
+    | Num | Action                          | Min | Max | Unit                  |
+    |-----|---------------------------------|-----|-----|-----------------------|
+    | 0   | linear.x  = a[0] * max_linear   | -1  | 1   | m/s after scaling     |
+    | 1   | angular.z = a[1] * max_angular  | -1  | 1   | rad/s after scaling   |
+
+    Out-of-range values are clipped to [-1, 1]. A wrong shape or a NaN/inf raises ``ValueError``.
+    One step is one controller update period (``1 / rate``: 0.1 s with the shipped config): the
+    command arrives, the world runs for one period, then the controller fires (odometry, 1 s
+    timeout, ramp, write to the board). As on the robot, a command therefore reaches the wheels
+    at the next controller update.
+
+    ## Observation Space
+
+    ``Box(low, high, (19,), float32)`` with finite bounds (values are clipped into them):
+
+    | Num   | Observation                                              | Min    | Max   | Unit  |
+    |-------|----------------------------------------------------------|--------|-------|-------|
+    | 0, 1  | odom pose x, y (``odom`` -> ``base_link``)               | -2A    | 2A    | m     |
+    | 2, 3  | cos, sin of odom yaw                                     | -1     | 1     |       |
+    | 4     | odom twist linear.x                                      | -5     | 5     | m/s   |
+    | 5     | odom twist angular.z                                     | -50    | 50    | rad/s |
+    | 6-9   | wheel joint positions, wrapped (lf, rf, lb, rb)          | -pi    | pi    | rad   |
+    | 10-13 | wheel joint velocities (lf, rf, lb, rb)                  | -200   | 200   | rad/s |
+    | 14,15 | goal in the odometry base_link frame (ahead, left)       | -4A    | 4A    | m     |
+    | 16    | goal distance from the odometry pose                     | 0      | 4A    | m     |
+    | 17,18 | previous action                                          | -1     | 1     |       |
+
+    where A = ``arena_size / 2``. Wheels are listed left then right, front then back, as the
+    model's wheels are found; ``info`` has nothing the observation needs.
+
+    ## Rewards
+
+    ``10 * (d_prev - d) - 0.01 - 0.01 * |a|^2``, plus ``+10`` on reaching the goal and ``-10``
+    on flipping over or leaving the arena, where d is the ground-truth distance (m) from
+    base_link to the goal.
+
+    ## Starting State
+
+    The world is rebuilt (``resetSimulation``), the car is placed at the origin facing +x, left
+    to settle for 0.1 s, and the controller starts: the start pose is the odometry origin. The
+    goal is drawn with ``self.np_random`` at a uniform distance in ``goal_range`` and a uniform
+    bearing. ``reset(options={"goal": (x, y)})`` sets it instead.
+
+    ## Episode End
+
+    Terminated when the ground-truth distance is under ``goal_tolerance`` (success), when the
+    car flips over (base_link z axis tilted more than 60 degrees) or when it leaves the square
+    arena. Truncated by the ``TimeLimit`` (200 steps = 20 s for SmartCar-v0).
+
+    ``info``: ``is_success`` (bool), ``distance`` (ground truth, m), ``pose`` (ground-truth
+    x, y, yaw), ``odom_pose`` (odometry x, y, yaw), ``odom_error`` (m between the two).
+
+    ## Arguments
+
+    | kwarg             | default        | meaning                                              |
+    |-------------------|----------------|------------------------------------------------------|
+    | model             | shipped xacro  | .urdf / .xacro robot description                     |
+    | package_path      | None           | folders searched for ``$(find pkg)``                 |
+    | wheels            | None (auto)    | ``{"left": [joints], "right": [joints]}``            |
+    | controller_config | shipped YAML   | arbotix YAML (``controllers: {..: diff_controller}``)|
+    | controller_mode   | "hardware"     | "hardware" (PID, encoders, motors) or "sim"          |
+    | render_mode       | None           | None, "human" (pybullet GUI) or "rgb_array"          |
+    | max_linear        | 0.5            | m/s for a[0] = 1                                     |
+    | max_angular       | 2.0            | rad/s for a[1] = 1                                   |
+    | goal_range        | (0.5, 1.5)     | min, max goal distance from the start (m)            |
+    | goal_tolerance    | 0.1            | success radius (m)                                   |
+    | arena_size        | 5.0            | side of the square arena centred on the start (m)    |
+    | physics_hz        | 500            | physics rate; must divide into the controller period |
+    | render_width/height | 480, 360     | rgb_array image size (px)                            |
+
+    ## Version History
+
+    * v0: initial version.
+    """
+
+    metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 10}
+
+    def __init__(
+        self,
+        model: str | os.PathLike | RobotModel | None = None,
+        controller_config: str | os.PathLike | ArbotixConfig | None = None,
+        controller_mode: str = "hardware",
+        render_mode: str | None = None,
+        max_linear: float = 0.5,
+        max_angular: float = 2.0,
+        goal_range: tuple[float, float] = (0.5, 1.5),
+        goal_tolerance: float = 0.1,
+        arena_size: float = 5.0,
+        physics_hz: float = 500.0,
+        package_path: list[str | os.PathLike] | None = None,
+        wheels: dict[str, list[str]] | None = None,
+        render_width: int = 480,
+        render_height: int = 360,
+    ) -> None:
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(
+                f"render_mode must be None or one of {self.metadata['render_modes']}, "
+                f"got {render_mode!r}"
+            )
+        if controller_mode not in MODES:
+            raise ValueError(f"controller_mode must be one of {MODES}, got {controller_mode!r}")
+        for key, value in (("max_linear", max_linear), ("max_angular", max_angular)):
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise ValueError(f"{key} must be a positive number, got {value!r}")
+        self.render_mode = render_mode
+        self.max_linear = float(max_linear)
+        self.max_angular = float(max_angular)
+        self.render_width, self.render_height = int(render_width), int(render_height)
+
+        self.robot_model = (
+            model if isinstance(model, RobotModel)
+            else load_model(model, package_path=package_path, wheels=wheels)
+        )
+        self.controller_config = (
+            controller_config if isinstance(controller_config, ArbotixConfig)
+            else load_controller_config(controller_config)
+        )
+        rate = self.controller_config.rate_hz
+        ticks = physics_hz / rate
+        if not (math.isfinite(ticks) and ticks >= 1 and abs(ticks - round(ticks)) < 1e-9):
+            raise ValueError(
+                f"physics_hz={physics_hz} must be a whole multiple of the controller rate "
+                f"{rate} Hz ({self.controller_config.source}), e.g. {int(rate) * 50}"
+            )
+        self.ticks_per_step = round(ticks)
+        self.metadata = {**self.metadata, "render_fps": rate}
+        half = float(arena_size) / 2.0
+        self.task = GoalReachingTask(
+            goal_range_m=tuple(float(g) for g in goal_range),
+            goal_tolerance_m=float(goal_tolerance),
+            arena_half_size_m=half,
+        )
+
+        self.sim = Simulator(physics_hz=physics_hz, gui=render_mode == "human")
+        self.robot = SmartCarRobot(
+            self.sim, self.robot_model, self.controller_config, mode=controller_mode
+        )
+        n = len(self.robot.wheels)
+        high = np.concatenate([
+            [2 * half, 2 * half, 1, 1, 5, 50], [math.pi] * n, [200] * n,
+            [4 * half, 4 * half, 4 * half], [1, 1],
+        ]).astype(np.float32)
+        low = -high
+        low[6 + 2 * n + 2] = 0.0  # goal distance
+        self.observation_space = spaces.Box(low, high, dtype=np.float32)
+        self.action_space = spaces.Box(-1.0, 1.0, (2,), dtype=np.float32)
+        self.markers = (
+            SceneMarkers(self.sim, self.task.goal_tolerance_m) if render_mode is not None
+            else None
+        )
+        self.goal = np.zeros(2)
+        self._distance = 0.0
+        self._prev_action = np.zeros(2, dtype=np.float32)
+        self._odom = None
+
+    # -- gymnasium API -----------------------------------------------------------------------
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
+        super().reset(seed=seed)
+        options = options or {}
+        self.sim.reset()
+        self.robot.spawn(0.0, 0.0, 0.0)
+        if "goal" in options:
+            goal = np.asarray(options["goal"], dtype=float)
+            if goal.shape != (2,) or not np.all(np.isfinite(goal)):
+                raise ValueError(f"options['goal'] must be a finite (x, y) pair, got {goal!r}")
+            self.goal = goal
+        else:
+            self.goal = self.task.sample_goal(self.np_random, np.zeros(2))
+        self._prev_action = np.zeros(2, dtype=np.float32)
+        self._odom = self.robot.base.odometry
+        pose = self.robot.pose()
+        self._distance = float(self.task.distance(np.array([pose.x, pose.y]), self.goal))
+        if self.markers is not None:
+            self.markers.create(self.goal)
+            self.markers.add_pose(self._odom.x, self._odom.y, self._odom.theta)
+        if self.render_mode == "human":
+            self.render()
+        return self._observation(), self._info(pose, False)
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        action = self._validate_action(action)
+        self._odom = self.robot.advance(
+            float(action[0]) * self.max_linear, float(action[1]) * self.max_angular,
+            self.ticks_per_step,
+        )
+        pose = self.robot.pose()
+        position = np.array([pose.x, pose.y])
+        distance = float(self.task.distance(position, self.goal))
+        success = bool(self.task.is_success(distance))
+        failure = bool(pose.up_z < 0.5 or self.task.is_outside(position))
+        reward = float(self.task.reward(self._distance, distance, action, success, failure))
+        self._distance = distance
+        self._prev_action = action.astype(np.float32)
+        if self.markers is not None:
+            self.markers.add_pose(self._odom.x, self._odom.y, self._odom.theta)
+        if self.render_mode == "human":
+            self.render()
+        return self._observation(), reward, success or failure, False, self._info(pose, success)
+
+    def render(self) -> np.ndarray | None:
+        if self.render_mode is None:
+            gym.logger.warn(
+                "render() called without a render_mode; pass render_mode='rgb_array' or 'human' "
+                "to gym.make('SmartCar-v0', ...)"
+            )
+            return None
+        self.markers.draw()
+        pose = self.robot.pose()
+        target = (np.array([pose.x, pose.y]) + self.goal) / 2.0
+        span = float(np.linalg.norm(self.goal - np.array([pose.x, pose.y])))
+        distance = max(0.9, 1.1 * span + 0.5)
+        target3 = (float(target[0]), float(target[1]), 0.0)
+        if self.render_mode == "human":
+            self.sim.client.resetDebugVisualizerCamera(distance, 0.0, -60.0, target3)
+            return None
+        return self.sim.render(
+            self.render_width, self.render_height, target3, distance, yaw_deg=0.0, pitch_deg=-60.0
+        )
+
+    def close(self) -> None:
+        if getattr(self, "sim", None) is not None:
+            self.sim.close()
+            self.sim = None
+
+    # -- helpers -------------------------------------------------------------------------------
+    def _validate_action(self, action: Any) -> np.ndarray:
+        try:
+            arr = np.asarray(action, dtype=np.float64)
+        except (TypeError, ValueError) as err:
+            raise ValueError(f"action must be 2 numbers (linear, angular), got {action!r}") from err
+        if arr.shape != (2,):
+            raise ValueError(
+                f"action must have shape (2,) (linear, angular), got shape {arr.shape}: {action!r}"
+            )
+        if not np.all(np.isfinite(arr)):
+            raise ValueError(f"action must be finite, got {arr.tolist()}")
+        return np.clip(arr, -1.0, 1.0)
+
+    def _observation(self) -> np.ndarray:
+        odom = self._odom
+        joints = self.robot.joint_states()
+        dx, dy = self.goal[0] - odom.x, self.goal[1] - odom.y
+        c, s = math.cos(odom.theta), math.sin(odom.theta)
+        wrapped = (joints.position + math.pi) % (2 * math.pi) - math.pi
+        obs = np.concatenate([
+            [odom.x, odom.y, c, s, odom.v, odom.omega], wrapped, joints.velocity,
+            [c * dx + s * dy, -s * dx + c * dy, math.hypot(dx, dy)], self._prev_action,
+        ]).astype(np.float32)
+        return np.clip(obs, self.observation_space.low, self.observation_space.high)
+
+    def _info(self, pose: Any, success: bool) -> dict[str, Any]:
+        odom = self._odom
+        return {
+            "is_success": success,
+            "distance": self._distance,
+            "pose": np.array([pose.x, pose.y, pose.yaw]),
+            "odom_pose": np.array([odom.x, odom.y, odom.theta]),
+            "odom_error": math.hypot(odom.x - pose.x, odom.y - pose.y),
+        }

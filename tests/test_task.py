@@ -1,0 +1,57 @@
+"""The goal-reaching task as pure functions: sampling, success, arena, reward."""
+
+import math
+
+import numpy as np
+import pytest
+
+from smartcar_gym.envs.task import GoalReachingTask
+
+
+def test_goal_sampling_respects_range_and_is_seeded():
+    task = GoalReachingTask(goal_range_m=(0.5, 1.5))
+    goals = np.array([task.sample_goal(np.random.default_rng(i), np.zeros(2)) for i in range(200)])
+    dist = np.linalg.norm(goals, axis=1)
+    assert dist.min() >= 0.5 and dist.max() <= 1.5
+    # bearings cover all four quadrants
+    assert {(x > 0, y > 0) for x, y in goals} == {(a, b) for a in (0, 1) for b in (0, 1)}
+    a = task.sample_goal(np.random.default_rng(7), np.array([1.0, 2.0]))
+    b = task.sample_goal(np.random.default_rng(7), np.array([1.0, 2.0]))
+    assert np.array_equal(a, b)
+    assert 0.5 <= math.dist(a, (1.0, 2.0)) <= 1.5
+
+
+def test_distance_success_and_arena_work_on_batches():
+    task = GoalReachingTask(goal_tolerance_m=0.1, arena_half_size_m=2.0)
+    pos = np.array([[0.0, 0.0], [1.0, 0.95], [2.5, 0.0]])
+    goal = np.array([1.0, 1.0])
+    d = task.distance(pos, goal)
+    np.testing.assert_allclose(d, [math.sqrt(2), 0.05, math.hypot(1.5, 1.0)])
+    assert task.is_success(d).tolist() == [False, True, False]
+    assert task.is_outside(pos).tolist() == [False, False, True]
+
+
+def test_reward_hand_computed():
+    task = GoalReachingTask()
+    # 0.2 m of progress with action (0.5, -0.5): 10*0.2 - 0.01 - 0.01*0.5 = 1.985
+    assert task.reward(1.0, 0.8, np.array([0.5, -0.5]), False, False) == pytest.approx(1.985)
+    # success adds 10, failure subtracts 10
+    assert task.reward(0.15, 0.05, np.zeros(2), True, False) == pytest.approx(1.0 - 0.01 + 10)
+    assert task.reward(1.0, 1.1, np.ones(2), False, True) == pytest.approx(-1.0 - 0.03 - 10)
+    batch = task.reward(np.array([1.0, 1.0]), np.array([0.9, 1.0]), np.zeros((2, 2)),
+                        np.array([False, False]), np.array([False, True]))
+    np.testing.assert_allclose(batch, [0.99, -10.01])
+
+
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        ({"goal_range_m": (1.5, 0.5)}, "goal_range"),
+        ({"goal_range_m": (-1.0, 0.5)}, "goal_range"),
+        ({"goal_tolerance_m": 0.0}, "goal_tolerance"),
+        ({"goal_range_m": (0.5, 3.0), "arena_half_size_m": 2.5}, "inside the arena"),
+    ],
+)
+def test_bad_task_parameters_are_rejected(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        GoalReachingTask(**kwargs)

@@ -29,7 +29,7 @@ class WheelDrive(Protocol):
         ...
 
     def set_motor_output(self, left: MotorOutput, right: MotorOutput) -> None:
-        """Apply each side's output to every wheel of that side until the next call.
+        """Apply each side's output, shared by the wheels of that side, until the next call.
 
         Each physics step the simulator applies ``drive - damping*omega`` per wheel.
         """

@@ -123,6 +123,7 @@ _OWN_KEYS: dict[str, dict[str, tuple[str, Checker]]] = {
         "stall_torque": ("stall_torque_nm", _positive),
         "no_load_speed": ("no_load_speed_rad_s", _positive),
         "reflected_inertia": ("reflected_inertia_kg_m2", _non_negative),
+        "friction_torque": ("friction_torque_nm", _non_negative),
     },
     "encoder": {"left": ("encoder_left", _text), "right": ("encoder_right", _text)},
     "board": {"frame_ms": ("frame_ms", _frame_ms), "pwm_zero": ("pwm_zero", _pwm_zero)},
@@ -131,21 +132,24 @@ _OWN_KEYS: dict[str, dict[str, tuple[str, Checker]]] = {
 
 @dataclass(frozen=True)
 class MotorConfig:
-    """One wheel's DC gearmotor, seen at the wheel, and what the driver does at PWM 0.
+    """A side's DC gearmotor, seen at the wheels it drives, and what the driver does at PWM 0.
 
-    Every motor of a side is wired in parallel to that side's ArbotiX channel, so each wheel
-    gets this curve. ``pwm_zero`` comes from ``smartcar_gym.board.pwm_zero`` in the YAML.
+    One motor per ArbotiX channel drives all wheels of its side through a 1:1 chain.
+    ``pwm_zero`` comes from ``smartcar_gym.board.pwm_zero`` in the YAML.
     """
 
-    stall_torque_nm: float = 0.17  # at the wheel, PWM 255
-    no_load_speed_rad_s: float = 33.5  # at the wheel, PWM 255
+    stall_torque_nm: float = 0.34  # at the wheels, PWM 255
+    no_load_speed_rad_s: float = 33.5  # at the wheels, PWM 255
     pwm_zero: str = "coast"  # "coast": output disconnected at PWM 0; "brake": shorted
     # Rotor inertia seen at the wheel (x gear ratio squared), added to the wheel's spin inertia
-    reflected_inertia_kg_m2: float = 1.0e-3
+    reflected_inertia_kg_m2: float = 2.0e-3
+    # Coulomb friction of the gearbox, seen at the wheels: what stops a coasting car
+    friction_torque_nm: float = 0.03
 
     def __post_init__(self) -> None:
         _positive(self.stall_torque_nm, "MotorConfig.stall_torque_nm")
         _non_negative(self.reflected_inertia_kg_m2, "MotorConfig.reflected_inertia_kg_m2")
+        _non_negative(self.friction_torque_nm, "MotorConfig.friction_torque_nm")
         _positive(self.no_load_speed_rad_s, "MotorConfig.no_load_speed_rad_s")
         _pwm_zero(self.pwm_zero, "MotorConfig.pwm_zero")
 
@@ -254,7 +258,10 @@ def parse_controller_config(data: dict, source: str) -> ArbotixConfig:
     kwargs["name"] = name
     kwargs.update(_parse_controller(controller, f"{source}: controllers.{name}"))
     kwargs.update(_parse_own_section(data.get("smartcar_gym", {}), source))
-    motor_keys = ("stall_torque_nm", "no_load_speed_rad_s", "pwm_zero", "reflected_inertia_kg_m2")
+    motor_keys = (
+        "stall_torque_nm", "no_load_speed_rad_s", "pwm_zero", "reflected_inertia_kg_m2",
+        "friction_torque_nm",
+    )
     kwargs["motor"] = MotorConfig(**{k: kwargs.pop(k) for k in motor_keys if k in kwargs})
     config = ArbotixConfig(**kwargs)
     if config.max_accel == 0:

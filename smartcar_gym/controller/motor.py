@@ -1,4 +1,4 @@
-"""A side's DC gearmotors driven by the ArbotiX PWM: a linear torque-speed curve per wheel."""
+"""A side's DC gearmotor driven by the ArbotiX PWM: a linear torque-speed curve."""
 
 from __future__ import annotations
 
@@ -11,13 +11,13 @@ MAX_PWM = 255
 
 @dataclass(frozen=True)
 class MotorOutput:
-    """What the simulator applies to every wheel of a side: ``drive - damping*omega`` (N m)."""
+    """What the simulator applies to a side's wheels in all: ``drive - damping*omega`` (N m)."""
 
     drive_torque_nm: float
     damping_nm_s_per_rad: float
 
     def torque(self, omega_rad_s: float) -> float:
-        """Wheel torque (N m) at wheel speed ``omega_rad_s`` (forward-positive)."""
+        """Torque (N m) at wheel speed ``omega_rad_s`` (forward-positive)."""
         return self.drive_torque_nm - self.damping_nm_s_per_rad * omega_rad_s
 
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import tempfile
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -82,6 +83,9 @@ class SmartCarRobot:
         self._wheel_idx: list[int] = []
         self._signs = np.array([w.forward_sign for w in self.wheels], dtype=float)
         self._left = np.array([w.side == "left" for w in self.wheels])
+        # Each side's motor drives its wheels through a 1:1 chain: they share its output.
+        n_left = int(self._left.sum())
+        self._share = np.where(self._left, 1.0 / n_left, 1.0 / (len(self.wheels) - n_left))
         self._torque = np.zeros(len(self.wheels))
         self._damping = np.zeros(len(self.wheels))
         self._com_to_link: tuple = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))
@@ -115,19 +119,22 @@ class SmartCarRobot:
             self._body = sim.load_urdf(self.name, urdf_path, (x, y, self.spawn_z), yaw)
         self._joint_index = sim.joint_indices(self.name)
         self._wheel_idx = [self._joint_index[w.joint] for w in self.wheels]
-        # pybullet puts a velocity motor on every joint: release them, the DC motors drive.
+        # pybullet's velocity motor on each wheel, held at speed 0 with at most the gearbox's
+        # friction torque, is the gearbox's Coulomb friction; the DC motors add their torque.
         c.setJointMotorControlArray(
-            self._body, self._wheel_idx, pybullet.VELOCITY_CONTROL, forces=[0.0] * len(self.wheels)
+            self._body, self._wheel_idx, pybullet.VELOCITY_CONTROL,
+            targetVelocities=[0.0] * len(self.wheels),
+            forces=list(self._share * self.config.motor.friction_torque_nm),
         )
-        extra = self.config.motor.reflected_inertia_kg_m2
-        for wheel, idx in zip(self.wheels, self._wheel_idx, strict=False):
-            # The gearmotor's rotor, seen through the gearbox, spins with the wheel: add its
-            # inertia about the wheel axle (the joint axis, which is the link's z axis here).
+        for wheel, idx, share in zip(self.wheels, self._wheel_idx, self._share, strict=True):
+            # The side's gearmotor rotor, seen through the gearbox, spins with the wheels: add
+            # this wheel's share of its inertia about the axle (the joint axis).
             inertia = list(c.getDynamicsInfo(self._body, idx)[2])
             axis = int(np.argmax(np.abs(self.model.joints[wheel.joint].axis)))
-            inertia[axis] += extra
+            inertia[axis] += share * self.config.motor.reflected_inertia_kg_m2
             c.changeDynamics(self._body, idx, jointDamping=0.0, linearDamping=0.0,
                              angularDamping=0.0, localInertiaDiagonal=inertia)
+        self._chain_wheels()
         c.changeDynamics(self._body, -1, linearDamping=0.0, angularDamping=0.0)
         info = c.getDynamicsInfo(self._body, -1)
         self._link_to_com = (tuple(info[3]), tuple(info[4]))
@@ -138,6 +145,20 @@ class SmartCarRobot:
             sim.step(round(settle_s * sim.physics_hz))
         sim.restart_clock()
         self.base.reset(0.0)
+
+    def _chain_wheels(self) -> None:
+        """Link each side's wheels to its first wheel 1:1 with gear constraints (the chain)."""
+        c = self.sim.client
+        for side in ("left", "right"):
+            idx = [i for w, i in zip(self.wheels, self._wheel_idx, strict=True) if w.side == side]
+            signs = [w.forward_sign for w in self.wheels if w.side == side]
+            for other, sign in zip(idx[1:], signs[1:], strict=True):
+                cid = c.createConstraint(
+                    self._body, idx[0], self._body, other, pybullet.JOINT_GEAR,
+                    [0.0, 0.0, 1.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0],
+                )
+                # the gear constraint holds q0 + ratio * q1 = const: equal forward speeds
+                c.changeConstraint(cid, gearRatio=-signs[0] * sign, maxForce=100.0)
 
     # -- WheelDrive (the controller's view of the simulator) -----------------------------------
     def encoder_angles(self) -> tuple[float, float]:
@@ -150,9 +171,12 @@ class SmartCarRobot:
         return states[0][0] * left.forward_sign, states[1][0] * right.forward_sign
 
     def set_motor_output(self, left: MotorOutput, right: MotorOutput) -> None:
-        """Apply each side's motor output to all of that side's wheels until the next change."""
-        drive = np.where(self._left, left.drive_torque_nm, right.drive_torque_nm)
-        damping = np.where(self._left, left.damping_nm_s_per_rad, right.damping_nm_s_per_rad)
+        """Apply each side's motor output, shared by its wheels, until the next change."""
+        drive = np.where(self._left, left.drive_torque_nm, right.drive_torque_nm) * self._share
+        damping = (
+            np.where(self._left, left.damping_nm_s_per_rad, right.damping_nm_s_per_rad)
+            * self._share
+        )
         self._torque = drive * self._signs  # joint-space torque
         c = self.sim.client
         for i, idx in enumerate(self._wheel_idx):
@@ -161,13 +185,22 @@ class SmartCarRobot:
         self._damping = damping
 
     # -- stepping ------------------------------------------------------------------------------
-    def advance(self, linear_x: float, angular_z: float, ticks: int) -> Odometry:
+    def advance(
+        self,
+        linear_x: float | None,
+        angular_z: float | None,
+        ticks: int,
+        probe: Callable[[float], None] | None = None,
+    ) -> Odometry:
         """Send a cmd_vel, run the world for ``ticks`` physics steps, then fire the controller.
 
+        ``None`` for the twist publishes no cmd_vel this period (the 1 s timeout keeps running).
+        ``probe(time_s)``, if given, is called after every physics step (for logging).
         Returns the odometry the controller published at the end of the period.
         """
         sim = self.sim
-        self.base.cmd_vel(linear_x, angular_z, sim.time_s)
+        if linear_x is not None and angular_z is not None:
+            self.base.cmd_vel(linear_x, angular_z, sim.time_s)
         if self.mode == "hardware":
             c, body, idx = sim.client, self._body, self._wheel_idx
             torque_control = pybullet.TORQUE_CONTROL
@@ -178,6 +211,8 @@ class SmartCarRobot:
                 c.setJointMotorControlArray(body, idx, torque_control, forces=self._torque)
                 step()
                 sim.ticks += 1
+                if probe is not None:
+                    probe(sim.ticks / hz)
         else:
             self._move_kinematically(ticks)
         return self.base.update(sim.time_s)

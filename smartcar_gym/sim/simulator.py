@@ -113,7 +113,7 @@ class Simulator:
         The inertias written in the file are used (pybullet would otherwise recompute them
         from the collision shapes).
         """
-        flags = pybullet.URDF_USE_INERTIA_FROM_FILE
+        flags = pybullet.URDF_USE_INERTIA_FROM_FILE | pybullet.URDF_USE_IMPLICIT_CYLINDER
         body = self.client.loadURDF(
             str(path),
             list(position),

@@ -1,0 +1,36 @@
+"""Shared fixtures: the shipped model and controller config, and a robot in a DIRECT world."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import pytest
+
+from smartcar_gym.controller import ArbotixConfig, load_controller_config
+from smartcar_gym.model import RobotModel, load_model
+from smartcar_gym.sim.robot import SmartCarRobot
+from smartcar_gym.sim.simulator import Simulator
+
+
+@pytest.fixture(scope="session")
+def shipped_model() -> RobotModel:
+    return load_model()
+
+
+@pytest.fixture(scope="session")
+def shipped_config() -> ArbotixConfig:
+    return load_controller_config()
+
+
+@pytest.fixture
+def sim() -> Iterator[Simulator]:
+    world = Simulator(physics_hz=500.0)
+    yield world
+    world.close()
+
+
+@pytest.fixture
+def hardware_robot(sim, shipped_model, shipped_config) -> SmartCarRobot:
+    robot = SmartCarRobot(sim, shipped_model, shipped_config, mode="hardware")
+    robot.spawn()
+    return robot

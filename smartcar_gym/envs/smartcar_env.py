@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import numbers
 import os
 from typing import Any
 
@@ -141,8 +142,14 @@ class SmartCarEnv(gym.Env):
             )
         if controller_mode not in MODES:
             raise ValueError(f"controller_mode must be one of {MODES}, got {controller_mode!r}")
-        for key, value in (("max_linear", max_linear), ("max_angular", max_angular)):
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+        for key, value in (
+            ("max_linear", max_linear), ("max_angular", max_angular), ("arena_size", arena_size)
+        ):
+            # numbers.Real: numpy scalars count; bool does not
+            if not (
+                isinstance(value, numbers.Real) and not isinstance(value, bool)
+                and math.isfinite(value) and value > 0
+            ):
                 raise ValueError(f"{key} must be a positive number, got {value!r}")
         self.render_mode = render_mode
         self.max_linear = float(max_linear)
@@ -200,6 +207,7 @@ class SmartCarEnv(gym.Env):
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
         super().reset(seed=seed)
+        self._check_open()
         options = options or {}
         self.sim.reset()
         self.robot.spawn(0.0, 0.0, 0.0)
@@ -207,6 +215,11 @@ class SmartCarEnv(gym.Env):
             goal = np.asarray(options["goal"], dtype=float)
             if goal.shape != (2,) or not np.all(np.isfinite(goal)):
                 raise ValueError(f"options['goal'] must be a finite (x, y) pair, got {goal!r}")
+            if self.task.is_outside(goal):
+                raise ValueError(
+                    f"options['goal'] {goal.tolist()} lies outside the arena (|x|, |y| <= "
+                    f"{self.task.arena_half_size_m} m): raise arena_size"
+                )
             self.goal = goal
         else:
             self.goal = self.task.sample_goal(self.np_random, np.zeros(2))
@@ -222,6 +235,7 @@ class SmartCarEnv(gym.Env):
         return self._observation(), self._info(pose, False)
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        self._check_open()
         action = self._validate_action(action)
         self._odom = self.robot.advance(
             float(action[0]) * self.max_linear, float(action[1]) * self.max_angular,
@@ -248,6 +262,7 @@ class SmartCarEnv(gym.Env):
                 "to gym.make('SmartCar-v0', ...)"
             )
             return None
+        self._check_open()
         self.markers.draw()
         pose = self.robot.pose()
         target = (np.array([pose.x, pose.y]) + self.goal) / 2.0
@@ -267,6 +282,10 @@ class SmartCarEnv(gym.Env):
             self.sim = None
 
     # -- helpers -------------------------------------------------------------------------------
+    def _check_open(self) -> None:
+        if self.sim is None:
+            raise RuntimeError("SmartCarEnv is closed; make a new one with gym.make")
+
     def _validate_action(self, action: Any) -> np.ndarray:
         try:
             arr = np.asarray(action, dtype=np.float64)

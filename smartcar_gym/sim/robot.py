@@ -90,6 +90,7 @@ class SmartCarRobot:
         self._damping = np.zeros(len(self.wheels))
         self._com_to_link: tuple = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))
         self._link_to_com: tuple = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))
+        self._kinematic_pose = (0.0, 0.0, 0.0)
 
     def _encoder_wheel(self, side: str, choice: str) -> Wheel:
         candidates = self.model.left_wheels if side == "left" else self.model.right_wheels
@@ -141,6 +142,7 @@ class SmartCarRobot:
         self._com_to_link = c.invertTransform(*self._link_to_com)
         self._torque[:] = 0.0
         self._damping[:] = 0.0
+        self._kinematic_pose = (x, y, yaw)  # sim mode keeps the pose in doubles
         if self.mode == "hardware" and settle_s > 0:
             sim.step(round(settle_s * sim.physics_hz))
         sim.restart_clock()
@@ -218,18 +220,18 @@ class SmartCarRobot:
         return self.base.update(sim.time_s)
 
     def _move_kinematically(self, ticks: int) -> None:
-        """``sim`` mode: follow the commanded twist exactly (no physics), spin the wheels."""
+        """``sim`` mode: move with the commanded twist (no physics) and spin the wheels.
+
+        The body takes the same explicit Euler step as the driver's fake odometry (heading at the
+        start of the period), so in ``sim`` mode the robot is where its odometry says it is.
+        """
         v, w = self.base.commanded_twist
         duration = ticks / self.sim.physics_hz
-        pose = self.pose()
-        x, y, th = pose.x, pose.y, pose.yaw
-        if abs(w) > 1e-12:
-            x += v / w * (math.sin(th + w * duration) - math.sin(th))
-            y -= v / w * (math.cos(th + w * duration) - math.cos(th))
-        else:
-            x += v * math.cos(th) * duration
-            y += v * math.sin(th) * duration
+        x, y, th = self._kinematic_pose
+        x += v * math.cos(th) * duration
+        y += v * math.sin(th) * duration
         th += w * duration
+        self._kinematic_pose = (x, y, th)
         c = self.sim.client
         orn = c.getQuaternionFromEuler([0.0, 0.0, th])
         com = c.multiplyTransforms((x, y, self.spawn_z), orn, *self._link_to_com)

@@ -1,0 +1,83 @@
+"""close() frees the pybullet client; make/step/close cycles leak neither clients nor memory."""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import gc
+import os
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import smartcar_gym  # noqa: F401
+from smartcar_gym._bullet import pybullet
+
+CYCLES = 200
+WARM_UP = 10
+# A client left connected holds about 30 MB (the world, the model, the render buffers): one
+# leaked client, or ~50 kB of Python objects per cycle, fails this.
+MAX_GROWTH_MB = 10.0
+
+
+def _rss_mb() -> float:
+    """Resident set size, after giving freed memory back to the OS (less allocator noise)."""
+    gc.collect()
+    with contextlib.suppress(OSError, AttributeError):  # glibc only
+        ctypes.CDLL(None).malloc_trim(0)
+    with open("/proc/self/statm") as stream:
+        resident_pages = int(stream.read().split()[1])
+    return resident_pages * os.sysconf("SC_PAGE_SIZE") / 2**20
+
+
+def _connected(cid: int) -> bool:
+    return bool(pybullet.isConnected(physicsClientId=cid))
+
+
+@pytest.mark.parametrize("render_mode", [None, "rgb_array"])
+def test_close_disconnects_and_is_idempotent(render_mode):
+    env = gym.make("SmartCar-v0", render_mode=render_mode)
+    env.reset(seed=0)
+    env.step(np.zeros(2, dtype=np.float32))
+    cid = env.unwrapped.sim.client._client
+    assert _connected(cid)
+    env.close()
+    assert env.unwrapped.sim is None
+    assert not _connected(cid)
+    env.close()  # a second close is a no-op
+    env.unwrapped.close()
+
+
+def test_close_before_reset_and_without_make():
+    from smartcar_gym.envs.smartcar_env import SmartCarEnv
+
+    env = SmartCarEnv(controller_mode="sim")
+    cid = env.sim.client._client
+    env.close()
+    env.close()
+    assert not _connected(cid)
+
+
+def _cycle(seed: int) -> int:
+    env = gym.make("SmartCar-v0")
+    env.reset(seed=seed)
+    env.step(np.array([1.0, 0.5], dtype=np.float32))
+    env.step(np.array([-0.5, -1.0], dtype=np.float32))
+    cid = env.unwrapped.sim.client._client
+    env.close()
+    return cid
+
+
+def test_make_step_close_cycles_leak_no_client_and_little_memory():
+    before = {i for i in range(64) if _connected(i)}  # other tests' live clients, if any
+    for i in range(WARM_UP):
+        assert not _connected(_cycle(i))
+    start = _rss_mb()
+    for i in range(CYCLES):
+        cid = _cycle(WARM_UP + i)
+        assert not _connected(cid), f"cycle {i}: client {cid} still connected after close()"
+    growth = _rss_mb() - start
+    assert {i for i in range(64) if _connected(i)} == before
+    print(f"RSS growth over {CYCLES} make/reset/2 steps/close cycles: {growth:.2f} MB")
+    assert growth < MAX_GROWTH_MB, f"RSS grew by {growth:.1f} MB over {CYCLES} cycles"

@@ -1,0 +1,160 @@
+"""Bad input: every error the env raises names what was wrong."""
+
+from __future__ import annotations
+
+import re
+from importlib import resources
+
+import gymnasium as gym
+import numpy as np
+import pytest
+import yaml
+
+import smartcar_gym  # noqa: F401
+from smartcar_gym.controller.config import ControllerConfigError
+from smartcar_gym.envs.smartcar_env import SmartCarEnv
+
+
+@pytest.fixture(scope="module")
+def env():
+    env = gym.make("SmartCar-v0")
+    env.reset(seed=0)
+    yield env
+    env.close()
+
+
+# -- actions -------------------------------------------------------------------------------------
+@pytest.mark.parametrize(
+    ("action", "match"),
+    [
+        ([np.nan, 0.0], r"action must be finite, got \[nan, 0\.0\]"),
+        ([0.0, np.inf], r"action must be finite, got \[0\.0, inf\]"),
+        ([-np.inf, 1.0], r"action must be finite, got \[-inf, 1\.0\]"),
+        ([0.1, 0.2, 0.3], r"shape \(2,\).*got shape \(3,\)"),
+        (0.5, r"shape \(2,\).*got shape \(\)"),
+        ([[0.1, 0.2]], r"got shape \(1, 2\)"),
+        ("fast", r"action must be 2 numbers .*'fast'"),
+    ],
+)
+def test_bad_action_raises_value_error_naming_it(env, action, match):
+    with pytest.raises(ValueError, match=match):
+        env.step(action)
+
+
+def test_bad_action_leaves_the_episode_usable(env):
+    env.reset(seed=0)
+    with pytest.raises(ValueError):
+        env.step(np.array([np.nan, 0.0], dtype=np.float32))
+    obs, *_ = env.step(np.zeros(2, dtype=np.float32))
+    assert obs in env.observation_space
+
+
+# -- constructor kwargs --------------------------------------------------------------------------
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"controller_mode": "fast"}, r"controller_mode must be one of .*'hardware'.*got 'fast'"),
+        pytest.param(  # gym.make warns about the unknown mode before the env refuses it
+            {"render_mode": "video"}, r"render_mode must be None or one of .*got 'video'",
+            marks=pytest.mark.filterwarnings("ignore:.*render_mode='video'"),
+        ),
+        ({"max_linear": 0}, r"max_linear must be a positive number, got 0"),
+        ({"max_linear": -1}, r"max_linear must be a positive number, got -1"),
+        ({"max_angular": float("nan")}, r"max_angular must be a positive number, got nan"),
+        ({"max_angular": "2"}, r"max_angular must be a positive number, got '2'"),
+        ({"arena_size": -1.0}, r"arena_size must be a positive number, got -1\.0"),
+        ({"physics_hz": 333}, r"physics_hz=333 must be a whole multiple of the controller rate 10"),
+        ({"physics_hz": 5}, r"physics_hz=5 must be a whole multiple"),
+        ({"goal_range": (2, 1)}, r"goal_range must be \(min, max\).*got \(2\.0, 1\.0\)"),
+        ({"goal_range": (-0.5, 1)}, r"0 <= min <= max"),
+        ({"goal_range": (0.5, 3.0)}, r"goal_range max \(3\.0 m\) must lie inside the arena"),
+        (
+            {"goal_range": (0.3, 0.7), "arena_size": 1.2},
+            r"goal_range max \(0\.7 m\).*half size 0\.6 m",
+        ),
+        ({"goal_tolerance": 0}, r"goal_tolerance must be > 0 m, got 0"),
+    ],
+)
+def test_bad_kwargs_raise_value_error_naming_them(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        gym.make("SmartCar-v0", **kwargs)
+
+
+def test_numpy_scalars_are_accepted_as_numbers():
+    env = SmartCarEnv(max_linear=np.float32(0.4), max_angular=np.int64(1))
+    try:
+        assert env.max_linear == pytest.approx(0.4) and env.max_angular == 1.0
+    finally:
+        env.close()
+
+
+def test_missing_model_file(tmp_path):
+    missing = tmp_path / "nowhere" / "robot.urdf"
+    with pytest.raises(FileNotFoundError, match=re.escape(f"no such robot description: {missing}")):
+        gym.make("SmartCar-v0", model=str(missing))
+
+
+def test_controller_config_without_base_width_names_file_and_key(tmp_path):
+    shipped = resources.files("smartcar_gym") / "config" / "smartcar_arbotix.yaml"
+    data = yaml.safe_load(shipped.read_text("utf-8"))
+    del data["controllers"]["base_controller"]["base_width"]
+    path = tmp_path / "no_width.yaml"
+    path.write_text(yaml.safe_dump(data), encoding="utf-8")
+    with pytest.raises(
+        ControllerConfigError,
+        match=re.escape(f"{path}: controllers.base_controller: required key 'base_width'"),
+    ):
+        gym.make("SmartCar-v0", controller_config=str(path))
+
+
+def test_controller_config_that_does_not_exist(tmp_path):
+    path = tmp_path / "missing.yaml"
+    with pytest.raises(ControllerConfigError, match=re.escape(f"{path}: controller config file")):
+        gym.make("SmartCar-v0", controller_config=path)
+
+
+def test_physics_hz_error_names_the_config_file_rate(tmp_path):
+    shipped = resources.files("smartcar_gym") / "config" / "smartcar_arbotix.yaml"
+    data = yaml.safe_load(shipped.read_text("utf-8"))
+    data["controllers"]["base_controller"]["rate"] = 30
+    path = tmp_path / "fast_rate.yaml"
+    path.write_text(yaml.safe_dump(data), encoding="utf-8")
+    with pytest.raises(ValueError, match=re.escape(f"rate 30.0 Hz ({path}), e.g. 1500")):
+        gym.make("SmartCar-v0", controller_config=path, physics_hz=500)
+    env = gym.make("SmartCar-v0", controller_config=path, physics_hz=600)
+    try:
+        assert env.unwrapped.ticks_per_step == 20
+        assert env.metadata["render_fps"] == 30  # one step per controller update
+    finally:
+        env.close()
+
+
+# -- reset options -------------------------------------------------------------------------------
+@pytest.mark.parametrize(
+    "goal", [(np.nan, 0.0), (0.0, np.inf), (1.0, 2.0, 3.0), 1.0]
+)
+def test_bad_goal_option(env, goal):
+    with pytest.raises(ValueError, match=r"options\['goal'\] must be a finite \(x, y\) pair"):
+        env.reset(options={"goal": goal})
+
+
+def test_goal_option_is_used(env):
+    obs, info = env.reset(seed=0, options={"goal": (0.6, -0.8)})
+    assert np.array_equal(env.unwrapped.goal, [0.6, -0.8])
+    assert info["distance"] == pytest.approx(1.0, abs=1e-3)
+    np.testing.assert_allclose(obs[14:17], [0.6, -0.8, 1.0], atol=1e-6)
+
+
+def test_goal_option_outside_the_arena(env):
+    with pytest.raises(ValueError, match=r"options\['goal'\] \[3\.0, 0\.0\] lies outside the arena"):
+        env.reset(options={"goal": (3.0, 0.0)})
+
+
+def test_using_a_closed_env_says_so():
+    env = gym.make("SmartCar-v0", render_mode="rgb_array")
+    env.reset(seed=0)
+    env.close()
+    for call in (lambda: env.unwrapped.step(np.zeros(2)), env.unwrapped.reset,
+                 env.unwrapped.render):
+        with pytest.raises(RuntimeError, match="SmartCarEnv is closed"):
+            call()

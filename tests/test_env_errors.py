@@ -146,7 +146,7 @@ def test_goal_option_is_used(env):
 
 
 def test_goal_option_outside_the_arena(env):
-    with pytest.raises(ValueError, match=r"options\['goal'\] \[3\.0, 0\.0\] lies outside the arena"):
+    with pytest.raises(ValueError, match=r"options\[.goal.\] \[3\.0, 0\.0\] lies outside"):
         env.reset(options={"goal": (3.0, 0.0)})
 
 

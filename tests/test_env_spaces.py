@@ -38,7 +38,7 @@ def test_observation_space_is_finite_float32_box_matching_the_names(env):
     space = env.observation_space
     assert isinstance(space, spaces.Box)
     assert space.dtype == np.float32
-    assert space.shape == (len(OBS_NAMES),) == (19,)
+    assert space.shape == (len(OBS_NAMES),) == (21,)
     assert np.all(np.isfinite(space.low)) and np.all(np.isfinite(space.high))
     assert np.all(space.low < space.high)
     half = 5.0 / 2
@@ -47,7 +47,9 @@ def test_observation_space_is_finite_float32_box_matching_the_names(env):
     assert space.high[2] == 1 and space.low[3] == -1
     assert space.high[6] == pytest.approx(math.pi, rel=1e-6)
     assert space.low[16] == 0 and space.high[16] == pytest.approx(4 * half)
-    assert np.array_equal(space.low[17:], [-1, -1]) and np.array_equal(space.high[17:], [1, 1])
+    assert np.array_equal(space.low[17:19], [-1, -1])
+    assert np.array_equal(space.high[17:19], [1, 1])
+    assert space.high[19] == pytest.approx(2 * half) and space.low[20] == pytest.approx(-2 * half)
 
 
 def test_observation_bounds_follow_arena_size():
@@ -90,6 +92,7 @@ def test_reset_observation_is_odometry_origin_and_goal(env_id):
         # the start pose is the odometry origin: the odometry distance is the true one
         assert obs[16] == pytest.approx(info["distance"], abs=1e-3)
         assert np.array_equal(obs[17:19], [0, 0])  # no previous action yet
+        np.testing.assert_allclose(obs[19:21], goal, atol=1e-6)  # goal in the odom frame
         assert np.array_equal(info["odom_pose"], [0, 0, 0])
         np.testing.assert_allclose(info["pose"], [0, 0, 0], atol=1e-3)
         assert 0.5 <= info["distance"] <= 1.5 + 1e-3  # default goal_range

@@ -18,7 +18,7 @@ EPISODE = 40  # short episodes, so 200 steps cross several autoresets
 
 def _is_reset_observation(obs: np.ndarray) -> bool:
     """Odometry at the origin heading +x, zero twist, no previous action."""
-    return bool(np.array_equal(obs[0:6], [0, 0, 1, 0, 0, 0]) and np.array_equal(obs[17:], [0, 0]))
+    return bool(np.array_equal(obs[0:6], [0, 0, 1, 0, 0, 0]) and np.array_equal(obs[17:19], [0, 0]))
 
 
 @pytest.mark.parametrize("mode", ["sync", "async"])
@@ -31,7 +31,7 @@ def test_make_vec_runs_and_autoresets(mode):
         assert envs.single_action_space == gym.spaces.Box(-1, 1, (2,), np.float32)
         envs.action_space.seed(0)
         obs, infos = envs.reset(seed=0)
-        assert obs.shape == (2, 19) and obs.dtype == np.float32
+        assert obs.shape == (2, 21) and obs.dtype == np.float32
         assert not np.array_equal(obs[0], obs[1])  # seeds 0 and 1: different goals
         ends = resets_seen = 0
         done = np.zeros(2, dtype=bool)
@@ -67,7 +67,7 @@ def test_sb3_subproc_vec_env(start_method):
     try:
         venv.action_space.seed(0)
         obs = venv.reset()
-        assert obs.shape == (2, 19)
+        assert obs.shape == (2, 21)
         ends = 0
         for _ in range(N_STEPS):
             actions = np.stack([venv.action_space.sample() for _ in range(2)])
@@ -76,7 +76,7 @@ def test_sb3_subproc_vec_env(start_method):
             for i in np.flatnonzero(dones):
                 ends += 1
                 assert isinstance(infos[i]["is_success"], bool)
-                assert infos[i]["terminal_observation"].shape == (19,)
+                assert infos[i]["terminal_observation"].shape == (21,)
                 assert _is_reset_observation(obs[i])  # SB3 resets at once
         assert ends >= 2 * (N_STEPS // EPISODE) - 2
     finally:

@@ -23,6 +23,7 @@ OBS_NAMES = (
     "lf_wheel_angle", "rf_wheel_angle", "lb_wheel_angle", "rb_wheel_angle",
     "lf_wheel_velocity", "rf_wheel_velocity", "lb_wheel_velocity", "rb_wheel_velocity",
     "goal_x_base", "goal_y_base", "goal_distance", "prev_linear", "prev_angular",
+    "goal_x_odom", "goal_y_odom",
 )
 
 
@@ -54,7 +55,7 @@ class SmartCarEnv(gym.Env):
 
     ## Observation Space
 
-    ``Box(low, high, (19,), float32)`` with finite bounds (values are clipped into them):
+    ``Box(low, high, (21,), float32)`` with finite bounds (values are clipped into them):
 
     | Num   | Observation                                              | Min    | Max   | Unit  |
     |-------|----------------------------------------------------------|--------|-------|-------|
@@ -67,6 +68,7 @@ class SmartCarEnv(gym.Env):
     | 14,15 | goal in the odometry base_link frame (ahead, left)       | -4A    | 4A    | m     |
     | 16    | goal distance from the odometry pose                     | 0      | 4A    | m     |
     | 17,18 | previous action                                          | -1     | 1     |       |
+    | 19,20 | goal in the ``odom`` frame (as a goal is given in ROS)   | -2A    | 2A    | m     |
 
     where A = ``arena_size / 2``. Wheels are listed left then right, front then back, as the
     model's wheels are found; ``info`` has nothing the observation needs.
@@ -187,7 +189,7 @@ class SmartCarEnv(gym.Env):
         n = len(self.robot.wheels)
         high = np.concatenate([
             [2 * half, 2 * half, 1, 1, 5, 50], [math.pi] * n, [200] * n,
-            [4 * half, 4 * half, 4 * half], [1, 1],
+            [4 * half, 4 * half, 4 * half], [1, 1], [2 * half, 2 * half],
         ]).astype(np.float32)
         low = -high
         low[6 + 2 * n + 2] = 0.0  # goal distance
@@ -308,6 +310,7 @@ class SmartCarEnv(gym.Env):
         obs = np.concatenate([
             [odom.x, odom.y, c, s, odom.v, odom.omega], wrapped, joints.velocity,
             [c * dx + s * dy, -s * dx + c * dy, math.hypot(dx, dy)], self._prev_action,
+            self.goal,  # the odom frame is the world frame at reset
         ]).astype(np.float32)
         return np.clip(obs, self.observation_space.low, self.observation_space.high)
 

@@ -1,0 +1,234 @@
+"""Hyperparameters in rl-baselines3-zoo's format: load, override from the command line, build.
+
+A file ``smartcar_gym/config/<algo>.yaml`` maps env ids to hyperparameters::
+
+    SmartCar-v0:
+      n_timesteps: 300000        # not passed to the algorithm (see RUN_KEYS)
+      policy: MlpPolicy
+      normalize: true            # VecNormalize; or "{'norm_obs': True, 'norm_reward': False}"
+      learning_rate: 3.0e-4      # or "lin_3e-4" for a linear decay to 0
+      policy_kwargs: "dict(net_arch=[64, 64], activation_fn=nn.Tanh)"
+
+Everything else is a keyword argument of the SB3 algorithm's constructor, plus zoo's
+``noise_type`` / ``noise_std`` for an action noise (TD3, SAC).
+"""
+
+from __future__ import annotations
+
+import ast
+import copy
+import inspect
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+ALGOS = ("ppo", "sac", "td3")
+# Keys of a zoo entry that configure the run, not the algorithm's constructor.
+RUN_KEYS = ("n_envs", "n_timesteps", "policy", "normalize")
+NOISE_KEYS = ("noise_type", "noise_std")
+SCHEDULE_KEYS = ("learning_rate", "clip_range", "clip_range_vf")
+
+
+class HyperparamsError(ValueError):
+    """A hyperparameter file or override is invalid (the message says where and why)."""
+
+
+def algo_class(algo: str) -> type:
+    """The SB3 algorithm class for ``algo`` ("ppo", "sac" or "td3")."""
+    from stable_baselines3 import PPO, SAC, TD3
+
+    classes = {"ppo": PPO, "sac": SAC, "td3": TD3}
+    if algo not in classes:
+        raise HyperparamsError(f"unknown algorithm {algo!r}; expected one of {', '.join(ALGOS)}")
+    return classes[algo]
+
+
+def default_hyperparams_file(algo: str) -> Path:
+    """Path of the shipped ``config/<algo>.yaml``."""
+    if algo not in ALGOS:
+        raise HyperparamsError(f"unknown algorithm {algo!r}; expected one of {', '.join(ALGOS)}")
+    return Path(str(resources.files("smartcar_gym") / "config" / f"{algo}.yaml"))
+
+
+def load_hyperparams(algo: str, env_id: str, path: str | Path | None = None) -> dict[str, Any]:
+    """The hyperparameters for ``env_id`` from ``path`` (default: the shipped ``<algo>.yaml``)."""
+    path = Path(path) if path is not None else default_hyperparams_file(algo)
+    try:
+        data = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as err:
+        raise HyperparamsError(f"{path}: not valid YAML: {err}") from err
+    if not isinstance(data, dict):
+        raise HyperparamsError(f"{path}: expected a mapping of env id -> hyperparameters")
+    if env_id not in data:
+        raise HyperparamsError(
+            f"{path}: no hyperparameters for env {env_id!r}; it has {', '.join(map(str, data))}"
+        )
+    entry = data[env_id]
+    if not isinstance(entry, dict):
+        raise HyperparamsError(f"{path}: entry {env_id!r} must be a mapping, got {entry!r}")
+    return copy.deepcopy(entry)
+
+
+def parse_value(text: str) -> Any:
+    """A command-line value as YAML (``3e-4`` is a float, ``[1, 2]`` a list, ``true`` a bool)."""
+    try:
+        value = yaml.safe_load(text) if text.strip() else ""
+    except yaml.YAMLError:
+        return text
+    if isinstance(value, str):
+        # YAML 1.1 reads "3e-4" (no dot) as a string; numbers are what is meant.
+        for convert in (int, float):
+            try:
+                return convert(value)
+            except ValueError:
+                pass
+    return value
+
+
+def parse_key_value(text: str) -> tuple[str, Any]:
+    """``"key=value"`` -> ``(key, parsed value)``; raises ``HyperparamsError`` if malformed."""
+    key, sep, raw = text.partition("=")
+    key = key.strip()
+    if not sep or not key.isidentifier():
+        raise HyperparamsError(
+            f"expected key=value with a Python-identifier key (e.g. learning_rate=3e-4), "
+            f"got {text!r}"
+        )
+    return key, parse_value(raw)
+
+
+def parse_key_values(items: list[str] | None) -> dict[str, Any]:
+    """A list of ``key=value`` strings as a dict (later keys win)."""
+    return dict(parse_key_value(item) for item in items or [])
+
+
+_MODULES = {"nn": "torch.nn", "th.nn": "torch.nn", "torch.nn": "torch.nn",
+            "th.optim": "torch.optim", "torch.optim": "torch.optim"}
+
+
+def _literal(node: ast.AST, source: str) -> Any:
+    """Evaluate a small safe subset of Python: literals, ``dict(...)`` and ``nn.X`` classes."""
+    if isinstance(node, ast.Constant):
+        return node.value
+    if isinstance(node, (ast.List, ast.Tuple)):
+        items = [_literal(e, source) for e in node.elts]
+        return items if isinstance(node, ast.List) else tuple(items)
+    if isinstance(node, ast.Dict):
+        pairs = zip(node.keys, node.values, strict=True)
+        return {_literal(k, source): _literal(v, source) for k, v in pairs}
+    if isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.USub):
+        return -_literal(node.operand, source)
+    if (isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == "dict"
+            and not node.args):
+        return {kw.arg: _literal(kw.value, source) for kw in node.keywords}
+    if isinstance(node, ast.Attribute):
+        module = ast.unparse(node.value)
+        if module in _MODULES:
+            import importlib
+
+            obj = getattr(importlib.import_module(_MODULES[module]), node.attr, None)
+            if isinstance(obj, type):
+                return obj
+    raise HyperparamsError(
+        f"cannot read {ast.unparse(node)!r} in {source!r}: only literals, dict(...) and "
+        "torch classes such as nn.ReLU or th.optim.Adam are allowed"
+    )
+
+
+def _torch_class(text: str) -> Any:
+    module, _, name = text.rpartition(".")
+    if module not in _MODULES:
+        return text
+    return _literal(ast.parse(text, mode="eval").body, text)
+
+
+def parse_policy_kwargs(value: str | dict[str, Any] | None) -> dict[str, Any]:
+    """``policy_kwargs`` from a dict or a zoo string like ``"dict(net_arch=[64, 64])"``."""
+    if value is None:
+        return {}
+    if isinstance(value, dict):
+        # A YAML mapping may name torch classes as strings: {activation_fn: nn.Tanh}.
+        return {k: _torch_class(v) if isinstance(v, str) else v for k, v in value.items()}
+    if not isinstance(value, str):
+        raise HyperparamsError(f"policy_kwargs must be a dict or a string, got {value!r}")
+    try:
+        tree = ast.parse(value, mode="eval")
+    except SyntaxError as err:
+        raise HyperparamsError(f"policy_kwargs {value!r} is not a Python expression") from err
+    result = _literal(tree.body, value)
+    if not isinstance(result, dict):
+        raise HyperparamsError(f"policy_kwargs {value!r} must be a dict, got {result!r}")
+    return result
+
+
+def normalize_kwargs(value: Any) -> dict[str, Any] | None:
+    """VecNormalize keyword arguments from zoo's ``normalize`` (bool, dict or dict string)."""
+    if value is None or value is False:
+        return None
+    if value is True:
+        return {"norm_obs": True, "norm_reward": True}
+    if isinstance(value, str):
+        try:
+            value = ast.literal_eval(value)
+        except (ValueError, SyntaxError) as err:
+            raise HyperparamsError(
+                f"normalize must be true, false or a dict such as "
+                f"\"{{'norm_obs': True, 'norm_reward': False}}\", got {value!r}"
+            ) from err
+        return normalize_kwargs(value)
+    if isinstance(value, dict):
+        return {"norm_obs": True, "norm_reward": True, **value}
+    raise HyperparamsError(f"normalize must be a bool or a dict, got {value!r}")
+
+
+def _schedule(key: str, value: Any) -> Any:
+    """zoo's ``lin_<start>`` strings as a linear decay to 0 over the run."""
+    if isinstance(value, str) and value.startswith("lin_"):
+        from stable_baselines3.common.utils import LinearSchedule
+
+        try:
+            start = float(value[4:])
+        except ValueError as err:
+            raise HyperparamsError(f"{key}: expected lin_<number>, got {value!r}") from err
+        return LinearSchedule(start, 0.0, 1.0)
+    if isinstance(value, str):
+        raise HyperparamsError(f"{key}: expected a number or lin_<number>, got {value!r}")
+    return value
+
+
+def build_algo_kwargs(algo: str, hyperparams: dict[str, Any], n_actions: int) -> dict[str, Any]:
+    """Constructor keyword arguments for the SB3 algorithm from a zoo entry (RUN_KEYS dropped)."""
+    cls = algo_class(algo)
+    kwargs = {k: v for k, v in hyperparams.items() if k not in RUN_KEYS + NOISE_KEYS}
+    accepted = set(inspect.signature(cls.__init__).parameters) - {"self", "policy", "env"}
+    unknown = sorted(set(kwargs) - accepted)
+    if unknown:
+        raise HyperparamsError(
+            f"unknown hyperparameter(s) for {algo}: {', '.join(unknown)}; "
+            f"{cls.__name__} accepts {', '.join(sorted(accepted))} "
+            f"(plus {', '.join(RUN_KEYS + NOISE_KEYS)})"
+        )
+    for key in SCHEDULE_KEYS:
+        if key in kwargs:
+            kwargs[key] = _schedule(key, kwargs[key])
+    if "policy_kwargs" in kwargs:
+        kwargs["policy_kwargs"] = parse_policy_kwargs(kwargs["policy_kwargs"])
+    if isinstance(kwargs.get("train_freq"), list):
+        kwargs["train_freq"] = tuple(kwargs["train_freq"])
+    noise_type = hyperparams.get("noise_type")
+    if noise_type is not None:
+        import numpy as np
+        from stable_baselines3.common.noise import NormalActionNoise, OrnsteinUhlenbeckActionNoise
+
+        noises = {"normal": NormalActionNoise, "ornstein-uhlenbeck": OrnsteinUhlenbeckActionNoise}
+        if noise_type not in noises:
+            raise HyperparamsError(
+                f"noise_type must be one of {', '.join(noises)}, got {noise_type!r}"
+            )
+        std = float(hyperparams.get("noise_std", 0.1))
+        kwargs["action_noise"] = noises[noise_type](
+            mean=np.zeros(n_actions), sigma=std * np.ones(n_actions)
+        )
+    return kwargs

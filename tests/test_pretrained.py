@@ -1,0 +1,58 @@
+"""Regression gate: the shipped PPO policy still drives SmartCar-v0 to its goals.
+
+If a change to the model, controller or env breaks this test, retrain and re-export the policy
+with the commands in the README ("Training"): ``smartcar-train`` with the shipped defaults,
+then ``python -m smartcar_gym.agents.export runs/ppo_SmartCar-v0_s0``.
+"""
+
+import json
+from importlib import resources
+
+import pytest
+
+from smartcar_gym.agents.evaluate import (
+    PRETRAINED_MODEL,
+    evaluate_policy_episodes,
+    load_model,
+    summarize,
+)
+
+FOLDER = resources.files("smartcar_gym") / "pretrained"
+MIN_SUCCESS_RATE = 0.9
+
+pytestmark = pytest.mark.skipif(
+    not (FOLDER / PRETRAINED_MODEL).is_file(),
+    reason=f"no shipped policy: smartcar_gym/pretrained/{PRETRAINED_MODEL} does not exist",
+)
+
+
+def _provenance():
+    return json.loads((FOLDER / "provenance.json").read_text())
+
+
+def test_shipped_policy_is_small_and_documented():
+    assert (FOLDER / PRETRAINED_MODEL).stat().st_size < 1_000_000
+    provenance = _provenance()
+    for key in ("algo", "env", "command", "seed", "timesteps", "wall_time_s", "evaluation"):
+        assert provenance.get(key) is not None, key
+    assert provenance["evaluation"]["success_rate"] >= MIN_SUCCESS_RATE
+
+
+@pytest.mark.slow
+def test_shipped_policy_reaches_its_goals():
+    provenance = _provenance()
+    with resources.as_file(FOLDER) as folder:
+        model = load_model(folder / PRETRAINED_MODEL, provenance["algo"])
+        stats = folder / "vecnormalize.pkl"
+        records = evaluate_policy_episodes(
+            model, provenance["env"], n_episodes=64, n_envs=4, seed=0,
+            env_kwargs=provenance.get("env_kwargs") or {},
+            vecnormalize_path=stats if stats.is_file() else None,
+        )
+    summary = summarize(records)
+    failures = [(r.seed, round(r.final_distance_m, 3)) for r in records if not r.success]
+    assert summary["success_rate"] >= MIN_SUCCESS_RATE, (
+        f"shipped policy: {summary['success_rate']:.1%} success over 64 episodes "
+        f"(< {MIN_SUCCESS_RATE:.0%}); failed (seed, final distance m): {failures}. "
+        "Retrain with the README's command if the env, model or controller changed."
+    )

@@ -187,3 +187,23 @@ def test_export_packages_a_run_that_smartcar_eval_can_load(tiny_run, tmp_path, c
     assert evaluate.main(argv) == 0
     data = json.loads((tmp_path / "e.json").read_text())
     assert data["algo"] == "ppo" and data["env_kwargs"] == SHORT
+
+
+def test_random_baseline_is_seeded_and_writes_a_short_gif(tmp_path, capsys):
+    out = []
+    for _ in range(2):
+        path = tmp_path / "random.json"
+        assert evaluate.main(["--random", "--episodes", "2", "--seed", "5", "--no-progress",
+                     "--json", str(path), "--env-kwargs", "max_episode_steps=20"]) == 0
+        out.append(json.loads(path.read_text()))
+    assert out[0]["algo"] == "random" and out[0]["success_rate"] == 0.0
+    returns = [[r["episode_return"] for r in o["episode_records"]] for o in out]
+    assert returns[0] == returns[1]  # the same seed, the same random actions
+    assert [r["length"] for r in out[0]["episode_records"]] == [20, 20]
+    gif = tmp_path / "random.gif"
+    assert evaluate.main(["--random", "--episodes", "1", "--no-progress", "--video", str(gif),
+                 "--video-episodes", "1", "--env-kwargs", "max_episode_steps=10",
+                 "render_width=160", "render_height=120"]) == 0
+    frames = iio.imread(gif)  # pillow merges repeated frames, so count only a few
+    assert frames.shape[1:] == (120, 160, 3) and frames.shape[0] >= 5
+    assert "random-policy" in capsys.readouterr().out

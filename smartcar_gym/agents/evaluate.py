@@ -113,6 +113,21 @@ class _EnvFn:
         return make_env(self.env_id, self.env_kwargs)
 
 
+class RandomPolicy:
+    """Uniform random actions in [-1, 1]^2, seeded: a baseline (and the README's GIF)."""
+
+    observation_space = None
+
+    def __init__(self, seed: int = 0) -> None:
+        self.action_space = gym.spaces.Box(-1.0, 1.0, (2,), dtype=np.float32)
+        self.action_space.seed(seed)
+
+    def predict(self, obs: np.ndarray, deterministic: bool = True) -> tuple[np.ndarray, None]:
+        """One sampled action per observation in the batch."""
+        batch = np.asarray(obs).reshape(-1, np.asarray(obs).shape[-1])
+        return np.stack([self.action_space.sample() for _ in batch]), None
+
+
 def _predict(model: Any, obs: np.ndarray, normalizer: ObsNormalizer | None,
              deterministic: bool) -> np.ndarray:
     """The action for one observation (a batch of one, so results do not depend on batching)."""
@@ -371,6 +386,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "vecnormalize.pkl are found next to it)")
     source.add_argument("--pretrained", action="store_true", help="the policy shipped with the "
                         "package")
+    source.add_argument("--random", action="store_true", help="uniform random actions, seeded "
+                        "with --seed (a baseline)")
     parser.add_argument("--algo", choices=ALGOS, help="algorithm of --model (default: from the "
                         "run's config.yaml)")
     parser.add_argument("--env", dest="env_id", help="env id (default: the run's, else "
@@ -422,7 +439,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.video is not None and args.video.suffix.lower() not in (".gif", ".mp4"):
         parser.error(f"--video: the file must end in .gif or .mp4, got {str(args.video)!r}")
     with contextlib.ExitStack() as stack:
-        if args.pretrained:
+        if args.random:
+            model_path = Path("random-policy")
+        elif args.pretrained:
             try:
                 folder = stack.enter_context(pretrained_files())
             except FileNotFoundError as err:
@@ -432,17 +451,20 @@ def main(argv: Sequence[str] | None = None) -> int:
             model_path = args.model
             if not model_path.is_file():
                 parser.error(f"--model: no such file: {model_path}")
-        run = find_run_config(model_path) or {}
-        algo = args.algo or run.get("algo")
+        run = {} if args.random else find_run_config(model_path) or {}
+        algo = "random" if args.random else args.algo or run.get("algo")
         if algo is None:
             parser.error(f"cannot tell the algorithm of {model_path}: no config.yaml in its run "
                          "folder; pass --algo")
-        if algo not in ALGOS:
+        if algo not in (*ALGOS, "random"):
             parser.error(f"unknown algorithm {algo!r} in the run's config; pass --algo")
         env_id = args.env_id or run.get("env") or DEFAULT_ENV_ID
         env_kwargs = {**(run.get("env_kwargs") or {}), **dict(args.env_kwargs)}
-        vecnormalize = args.vecnormalize or find_vecnormalize(model_path)
-        model = load_model(model_path, algo, device=args.device)
+        if args.random:
+            vecnormalize, model = None, RandomPolicy(args.seed)
+        else:
+            vecnormalize = args.vecnormalize or find_vecnormalize(model_path)
+            model = load_model(model_path, algo, device=args.device)
         common = dict(env_id=env_id, seed=args.seed, env_kwargs=env_kwargs,
                       deterministic=not args.stochastic, vecnormalize_path=vecnormalize)
         records = evaluate_policy_episodes(

@@ -46,10 +46,24 @@ class SceneMarkers:
             "goal", "cylinder", (self.goal_radius_m, 0.004), GOAL_COLOR,
             (float(goal_xy[0]), float(goal_xy[1]), 0.002),
         )
-        half = self.arrow_length_m / 2
-        shaft = c.createVisualShape(
-            pybullet.GEOM_BOX, halfExtents=[half, 0.004, 0.002], rgbaColor=TRAIL_COLOR,
-            visualFramePosition=[half, 0.0, 0.0],
+        length = self.arrow_length_m
+        head = length * 0.35
+        barb = (0.0, 0.0, math.sin(math.radians(150) / 2), math.cos(math.radians(150) / 2))
+        barb_r = (0.0, 0.0, -barb[2], barb[3])
+        # an arrow: a shaft along +x from the pose and two barbs at its tip
+        shaft = c.createVisualShapeArray(
+            shapeTypes=[pybullet.GEOM_BOX] * 3,
+            halfExtents=[[length / 2, 0.003, 0.002], [head / 2, 0.003, 0.002],
+                         [head / 2, 0.003, 0.002]],
+            rgbaColors=[TRAIL_COLOR] * 3,
+            visualFramePositions=[
+                [length / 2, 0.0, 0.0],
+                [length + head / 2 * math.cos(math.radians(150)),
+                 head / 2 * math.sin(math.radians(150)), 0.0],
+                [length + head / 2 * math.cos(math.radians(150)),
+                 -head / 2 * math.sin(math.radians(150)), 0.0],
+            ],
+            visualFrameOrientations=[[0.0, 0.0, 0.0, 1.0], list(barb), list(barb_r)],
         )
         ids = c.createMultiBody(
             baseMass=0.0, baseVisualShapeIndex=shaft,

@@ -89,7 +89,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--eval-freq", type=_non_negative_int, default=None,
                         help="evaluate every N environment steps (0: never; default 20000)")
     parser.add_argument("--eval-episodes", type=_positive_int, default=None,
-                        help="episodes per evaluation (default 20)")
+                        help="episodes per evaluation (default 40)")
     parser.add_argument("--checkpoint-freq", type=_non_negative_int, default=None,
                         help="checkpoint every N environment steps (0: only at the end; "
                              "default 50000)")
@@ -172,7 +172,7 @@ def new_config(args: argparse.Namespace, command: str) -> dict[str, Any]:
         "hyperparams": hyperparams,
         "hyperparams_file": str(args.hyperparams_file or f"smartcar_gym/config/{algo}.yaml"),
         "eval_freq": 20_000 if args.eval_freq is None else args.eval_freq,
-        "eval_episodes": args.eval_episodes or 20,
+        "eval_episodes": args.eval_episodes or 40,
         "checkpoint_freq": 50_000 if args.checkpoint_freq is None else args.checkpoint_freq,
         "device": args.device,
         "versions": _versions(),

@@ -86,7 +86,7 @@ def test_train_refuses_to_overwrite_or_resume_badly(tmp_path, capsys):
 
 
 @pytest.mark.parametrize(("argv", "message"), [
-    ([], "one of the arguments --model --pretrained is required"),
+    ([], "one of the arguments --model --pretrained --random is required"),
     (["--model", "missing.zip"], "--model: no such file: missing.zip"),
     (["--pretrained", "--episodes", "0"], "expected a positive integer"),
     (["--pretrained", "--video", "out.avi"], "must end in .gif or .mp4"),

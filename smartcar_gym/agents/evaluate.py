@@ -30,7 +30,7 @@ import numpy as np
 import yaml
 
 from smartcar_gym.agents.env_factory import make_env
-from smartcar_gym.agents.hyperparams import ALGOS, HyperparamsError, parse_key_value
+from smartcar_gym.agents.hyperparams import ALGOS, key_value_arg, positive_int_arg
 
 DEFAULT_ENV_ID = "SmartCar-v0"
 PRETRAINED_MODEL = "ppo_smartcar.zip"
@@ -393,12 +393,12 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--env", dest="env_id", help="env id (default: the run's, else "
                         f"{DEFAULT_ENV_ID})")
     parser.add_argument("--env-kwargs", nargs="+", default=[], metavar="KEY=VALUE",
-                        type=_key_value, help="gym.make keyword arguments (YAML values); "
+                        type=key_value_arg, help="gym.make keyword arguments (YAML values); "
                         "added to the run's own env kwargs")
     parser.add_argument("--vecnormalize", type=Path, help="VecNormalize statistics (default: "
                         "found next to the model)")
-    parser.add_argument("--episodes", type=_positive_int, default=100)
-    parser.add_argument("--n-envs", type=_positive_int, default=1,
+    parser.add_argument("--episodes", type=positive_int_arg, default=100)
+    parser.add_argument("--n-envs", type=positive_int_arg, default=1,
                         help="envs run in parallel (worker processes when > 1)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--stochastic", action="store_true",
@@ -408,28 +408,13 @@ def build_parser() -> argparse.ArgumentParser:
                         "per-episode records as JSON")
     parser.add_argument("--video", type=Path, metavar="FILE.mp4|FILE.gif",
                         help="render the first --video-episodes episodes")
-    parser.add_argument("--video-episodes", type=_positive_int, default=3)
+    parser.add_argument("--video-episodes", type=positive_int_arg, default=3)
     parser.add_argument("--plot", type=Path, metavar="FILE.png",
                         help="top-down trajectories of up to 16 episodes")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     return parser
 
 
-def _key_value(text: str) -> tuple[str, Any]:
-    try:
-        return parse_key_value(text)
-    except HyperparamsError as err:
-        raise argparse.ArgumentTypeError(str(err)) from err
-
-
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError as err:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from err
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
-    return value
 
 
 def main(argv: Sequence[str] | None = None) -> int:

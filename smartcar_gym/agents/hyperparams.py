@@ -15,6 +15,7 @@ Everything else is a keyword argument of the SB3 algorithm's constructor, plus z
 
 from __future__ import annotations
 
+import argparse
 import ast
 import copy
 import inspect
@@ -232,3 +233,31 @@ def build_algo_kwargs(algo: str, hyperparams: dict[str, Any], n_actions: int) ->
             mean=np.zeros(n_actions), sigma=std * np.ones(n_actions)
         )
     return kwargs
+
+
+# -- argparse value types shared by smartcar-train and smartcar-eval ----------------------------
+def key_value_arg(text: str) -> tuple[str, Any]:
+    """argparse type for ``key=value`` (the value read as YAML)."""
+    try:
+        return parse_key_value(text)
+    except HyperparamsError as err:
+        raise argparse.ArgumentTypeError(str(err)) from err
+
+
+def non_negative_int_arg(text: str) -> int:
+    """argparse type for a whole number >= 0 (``2e5`` allowed)."""
+    try:
+        value = int(float(text)) if "e" in text.lower() else int(text)
+    except ValueError as err:
+        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from err
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {text!r}")
+    return value
+
+
+def positive_int_arg(text: str) -> int:
+    """argparse type for a whole number >= 1."""
+    value = non_negative_int_arg(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
+    return value

@@ -32,9 +32,11 @@ from smartcar_gym.agents.hyperparams import (
     ALGOS,
     HyperparamsError,
     build_algo_kwargs,
+    key_value_arg,
     load_hyperparams,
+    non_negative_int_arg,
     normalize_kwargs,
-    parse_key_value,
+    positive_int_arg,
 )
 
 DEFAULT_ENV_ID = "SmartCar-v0"
@@ -70,27 +72,27 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--algo", choices=ALGOS, default=None, help="default: ppo")
     parser.add_argument("--env", dest="env_id", default=None, help=f"default: {DEFAULT_ENV_ID}")
-    parser.add_argument("--n-envs", type=_positive_int, default=None,
+    parser.add_argument("--n-envs", type=positive_int_arg, default=None,
                         help="parallel envs (SubprocVecEnv); default: the file's n_envs, else "
                              "the number of CPUs")
     parser.add_argument("--seed", type=int, default=None, help="default: 0")
-    parser.add_argument("--timesteps", type=_positive_int, default=None,
+    parser.add_argument("--timesteps", type=positive_int_arg, default=None,
                         help="total environment steps (default: the file's n_timesteps); with "
                              "--resume, the new total to reach")
-    parser.add_argument("--hyperparams", nargs="+", default=None, type=_key_value,
+    parser.add_argument("--hyperparams", nargs="+", default=None, type=key_value_arg,
                         metavar="KEY=VALUE", help="override hyperparameters; values are YAML "
                         "(3e-4, true, [64, 64]); policy_kwargs as \"dict(net_arch=[64, 64])\"")
     parser.add_argument("--hyperparams-file", type=Path, default=None,
                         help="a zoo-format YAML instead of the shipped one")
-    parser.add_argument("--env-kwargs", nargs="+", default=None, type=_key_value,
+    parser.add_argument("--env-kwargs", nargs="+", default=None, type=key_value_arg,
                         metavar="KEY=VALUE", help="keyword arguments for gym.make (YAML values)")
     parser.add_argument("--run-dir", type=Path, default=None,
                         help="default: runs/<algo>_<env>_s<seed>")
-    parser.add_argument("--eval-freq", type=_non_negative_int, default=None,
+    parser.add_argument("--eval-freq", type=non_negative_int_arg, default=None,
                         help="evaluate every N environment steps (0: never; default 20000)")
-    parser.add_argument("--eval-episodes", type=_positive_int, default=None,
+    parser.add_argument("--eval-episodes", type=positive_int_arg, default=None,
                         help="episodes per evaluation (default 40)")
-    parser.add_argument("--checkpoint-freq", type=_non_negative_int, default=None,
+    parser.add_argument("--checkpoint-freq", type=non_negative_int_arg, default=None,
                         help="checkpoint every N environment steps (0: only at the end; "
                              "default 50000)")
     parser.add_argument("--save-replay-buffer", action="store_true",
@@ -99,34 +101,13 @@ def build_parser() -> argparse.ArgumentParser:
                         help="continue a run from its last checkpoint (its config.yaml is "
                              "reloaded; step count and normaliser are kept)")
     parser.add_argument("--device", default="cpu")
-    parser.add_argument("--torch-threads", type=_positive_int, default=1,
+    parser.add_argument("--torch-threads", type=positive_int_arg, default=1,
                         help="torch CPU threads (default 1: the env workers need the cores)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     return parser
 
 
-def _key_value(text: str) -> tuple[str, Any]:
-    try:
-        return parse_key_value(text)
-    except HyperparamsError as err:
-        raise argparse.ArgumentTypeError(str(err)) from err
 
-
-def _positive_int(text: str) -> int:
-    value = _non_negative_int(text)
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
-    return value
-
-
-def _non_negative_int(text: str) -> int:
-    try:
-        value = int(float(text)) if "e" in text.lower() else int(text)
-    except ValueError as err:
-        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from err
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {text!r}")
-    return value
 
 
 def _versions() -> dict[str, str]:

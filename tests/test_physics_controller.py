@@ -44,6 +44,7 @@ def test_straight_cmd_vel_reaches_a_steady_speed_and_odometry_follows(hardware_r
     # |e| <= 4 ticks/frame with Kp = Kd = 12, Ko = 50: the steady speed sits in that dead band.
     dead_band = config.ko / (config.kp + config.kd) * 2
     assert abs(ticks_per_frame - 27) <= dead_band
+    # measured 0.210 m/s: 6 % above what the driver means, 5 % above the cmd_vel
     assert speed == pytest.approx(27 * 30 / config.ticks_meter, rel=0.10)
     # Odometry from the encoders follows the ground-truth distance (no slip going straight).
     pose = robot.pose()

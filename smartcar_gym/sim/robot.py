@@ -206,11 +206,13 @@ class SmartCarRobot:
         if self.mode == "hardware":
             c, body, idx = sim.client, self._body, self._wheel_idx
             torque_control = pybullet.TORQUE_CONTROL
+            # bound methods looked up once: BulletClient wraps every attribute access
             base_tick, step = self.base.physics_tick, c.stepSimulation
+            set_joints = c.setJointMotorControlArray
             hz = sim.physics_hz
             for _ in range(ticks):
                 base_tick(sim.ticks / hz)
-                c.setJointMotorControlArray(body, idx, torque_control, forces=self._torque)
+                set_joints(body, idx, torque_control, forces=self._torque)
                 step()
                 sim.ticks += 1
                 if probe is not None:

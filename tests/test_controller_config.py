@@ -69,7 +69,7 @@ def test_shipped_config_is_the_seed_with_base_width_fixed():
     assert (config.driver_rate_hz, config.read_rate_hz, config.write_rate_hz) == (20, 20, 20)
     assert config.sim is False
     assert config.name == "base_controller"
-    assert config.motor == MotorConfig(0.34, 33.5, "coast", 2.0e-3, 0.03)
+    assert config.motor == MotorConfig(0.34, 33.5, "coast", 1.5e-3, 0.03)
     assert (config.encoder_left, config.encoder_right) == ("auto", "auto")
     assert config.frame_ms == 33 and config.pwm_zero == "coast"
 
@@ -155,7 +155,8 @@ def test_gain_bounds_are_inclusive_and_ko_must_divide():
         (minimal(ticks_meter=-4100), "ticks_meter"),
         (minimal(ticks_meter=0), "ticks_meter"),
         (minimal(base_width=0.0), "base_width"),
-        (minimal(base_width="0.26"), "base_width"),
+        (minimal(base_width="wide"), "base_width"),
+        (minimal(ticks_meter="-4100"), "ticks_meter"),
         (minimal(rate=0), "base_controller.rate"),
         (minimal(timeout=-0.1), "timeout"),
         (minimal(accel_limit=-1.0), "accel_limit"),
@@ -167,6 +168,20 @@ def test_gain_bounds_are_inclusive_and_ko_must_divide():
 )
 def test_bad_values_name_their_key(data, where):
     with pytest.raises(ControllerConfigError, match=where):
+        parse(data)
+
+
+def test_required_keys_take_numeric_strings_as_upstream_float_does():
+    # upstream: float(rospy.get_param('~controllers/<name>/ticks_meter')), same for base_width
+    config = parse(minimal(ticks_meter="4100", base_width="0.26"))
+    assert (config.ticks_meter, config.base_width_m) == (4100.0, 0.26)
+
+
+def test_number_read_as_text_gets_a_yaml_hint():
+    # YAML 1.1 (PyYAML, rosparam) reads 1e-3 as the string '1e-3'; upstream would fail later
+    data = yaml.safe_load("controllers: {b: {type: diff_controller, ticks_meter: 4100, "
+                          "base_width: 0.26, accel_limit: 1e-3}}")
+    with pytest.raises(ControllerConfigError, match=r"accel_limit.*'1e-3'.*write 1\.0e-3"):
         parse(data)
 
 
@@ -230,6 +245,13 @@ def test_yaml_syntax_error_names_file_and_line(tmp_path):
     text = "rate: 20\ncontrollers:\n  b: {type: diff_controller, ticks_meter: 4100\n  x: 1\n"
     path = write(tmp_path, text)  # the flow mapping on line 3 is never closed
     with pytest.raises(ControllerConfigError, match=rf"^{re.escape(str(path))}:4:4: YAML syntax"):
+        load_controller_config(path)
+
+
+def test_binary_file_is_named(tmp_path):
+    path = tmp_path / "arbotix.yaml"
+    path.write_bytes(b"\xff\xfe\x00rate: 10\n")
+    with pytest.raises(ControllerConfigError, match=r"arbotix\.yaml: not UTF-8 text \(byte 0\)"):
         load_controller_config(path)
 
 

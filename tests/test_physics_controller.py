@@ -14,16 +14,16 @@ PERIOD_TICKS = 50  # 0.1 s controller period at 500 Hz physics
 
 
 def _turn(robot: SmartCarRobot, angular_z: float, seconds: float):
-    """Turn in place; return true (unwrapped) yaw, odometry yaw and the largest centre offset."""
+    """Turn in place; return true (unwrapped) yaw, odometry yaw and the centre's offsets (m)."""
     start = robot.pose()
-    yaw, previous, worst = 0.0, start.yaw, 0.0
+    yaw, previous, offsets = 0.0, start.yaw, []
     for _ in range(round(seconds * 10)):
         odom = robot.advance(0.0, angular_z, PERIOD_TICKS)
         pose = robot.pose()
         yaw += (pose.yaw - previous + math.pi) % (2 * math.pi) - math.pi
         previous = pose.yaw
-        worst = max(worst, math.hypot(pose.x - start.x, pose.y - start.y))
-    return yaw, odom.theta, worst
+        offsets.append(math.hypot(pose.x - start.x, pose.y - start.y))
+    return yaw, odom.theta, np.array(offsets)
 
 
 def test_straight_cmd_vel_reaches_a_steady_speed_and_odometry_follows(hardware_robot):
@@ -44,20 +44,26 @@ def test_straight_cmd_vel_reaches_a_steady_speed_and_odometry_follows(hardware_r
     # |e| <= 4 ticks/frame with Kp = Kd = 12, Ko = 50: the steady speed sits in that dead band.
     dead_band = config.ko / (config.kp + config.kd) * 2
     assert abs(ticks_per_frame - 27) <= dead_band
-    # measured 0.210 m/s: 6 % above what the driver means, 5 % above the cmd_vel
-    assert speed == pytest.approx(27 * 30 / config.ticks_meter, rel=0.10)
+    # Where in that band it rests depends on the plant (reflected_inertia); with the shipped
+    # one it is within 5 % of what the driver means (27 ticks per 1/30 s = 0.1976 m/s) and of
+    # the cmd_vel. Measured 0.1954 m/s.
+    assert speed == pytest.approx(27 * 30 / config.ticks_meter, rel=0.05)
+    assert speed == pytest.approx(0.2, rel=0.05)
     # Odometry from the encoders follows the ground-truth distance (no slip going straight).
     pose = robot.pose()
-    assert pose.x > 0.9
+    assert pose.x > 0.8  # 0.86 m: 5 s at 0.195 m/s, less the start from rest
     assert odom.x == pytest.approx(pose.x, rel=0.05)
     assert abs(odom.y) < 0.01 and abs(pose.y) < 0.02
 
 
 def test_turning_in_place_keeps_the_centre_and_odometry_overestimates_rotation(hardware_robot):
-    yaw, odom_yaw, worst = _turn(hardware_robot, 1.0, 20.0)
+    yaw, odom_yaw, offsets = _turn(hardware_robot, 1.0, 30.0)
     revolutions = yaw / (2 * math.pi)
-    assert revolutions > 1.5  # it does turn
-    assert worst / revolutions < 0.05  # the centre moves under 5 cm per revolution
+    assert revolutions > 2.5  # it does turn (measured 2.9 revolutions in 30 s)
+    # The centre moves under 5 cm per revolution (measured 9.0 cm at most: 3.1 cm/rev): it
+    # circles a point a few cm off base_link and does not drift away from it.
+    assert offsets.max() / revolutions < 0.05
+    assert offsets[200:].max() < offsets[:100].max() + 0.01
     # Skid steer: the wheels slip sideways, so the body turns less than base_width = 0.26 m
     # implies; odometry (which trusts base_width) overestimates rotation by about 30 %.
     ratio = odom_yaw / yaw

@@ -35,8 +35,21 @@ class ControllerConfigError(ValueError):
 # -- value checkers: (value, where) -> normalised value, or ControllerConfigError --------------
 def _number(value: Any, where: str) -> float:
     if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-        raise ControllerConfigError(f"{where}: expected a finite number, got {value!r}")
+        hint = ""
+        if isinstance(value, str) and _is_number(value):
+            hint = (
+                " (a string: YAML 1.1 reads a number such as 1e-3 without a '.' as text; "
+                "write 1.0e-3)"
+            )
+        raise ControllerConfigError(f"{where}: expected a finite number, got {value!r}{hint}")
     return float(value)
+
+
+def _float_cast(value: Any, where: str) -> float:
+    """A required key that upstream casts with ``float(...)``: numeric strings count."""
+    if isinstance(value, str) and _is_number(value):
+        value = float(value)
+    return _positive(value, where)
 
 
 def _positive(value: Any, where: str) -> float:
@@ -103,8 +116,9 @@ _DRIVER_KEYS: dict[str, tuple[str, Checker, Any]] = {
 _CONTROLLER_KEYS: dict[str, tuple[str, Checker, Any]] = {
     "rate": ("rate_hz", _positive, 10.0),
     "timeout": ("timeout_s", _non_negative, 1.0),
-    "ticks_meter": ("ticks_meter", _positive, _REQUIRED),
-    "base_width": ("base_width_m", _positive, _REQUIRED),
+    # upstream: float(rospy.get_param(...)), so "4100" is accepted as well
+    "ticks_meter": ("ticks_meter", _float_cast, _REQUIRED),
+    "base_width": ("base_width_m", _float_cast, _REQUIRED),
     "base_frame_id": ("base_frame_id", _text, "base_link"),
     "odom_frame_id": ("odom_frame_id", _text, "odom"),
     "Kp": ("kp", _gain, 5),
@@ -142,7 +156,7 @@ class MotorConfig:
     no_load_speed_rad_s: float = 33.5  # at the wheels, PWM 255
     pwm_zero: str = "coast"  # "coast": output disconnected at PWM 0; "brake": shorted
     # Rotor inertia seen at the wheel (x gear ratio squared), added to the wheel's spin inertia
-    reflected_inertia_kg_m2: float = 2.0e-3
+    reflected_inertia_kg_m2: float = 1.5e-3
     # Coulomb friction of the gearbox, seen at the wheels: what stops a coasting car
     friction_torque_nm: float = 0.03
 
@@ -231,6 +245,10 @@ def load_controller_config(path: str | os.PathLike[str] | None = None) -> Arboti
                 text = stream.read()
         except FileNotFoundError:
             raise ControllerConfigError(f"{source}: controller config file not found") from None
+        except UnicodeDecodeError as err:
+            raise ControllerConfigError(
+                f"{source}: not UTF-8 text (byte {err.start}): expected an ArbotiX driver YAML"
+            ) from None
         except OSError as err:
             raise ControllerConfigError(f"{source}: cannot read: {err.strerror}") from None
     try:

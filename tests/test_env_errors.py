@@ -53,7 +53,10 @@ def test_bad_action_leaves_the_episode_usable(env):
 @pytest.mark.parametrize(
     ("kwargs", "match"),
     [
-        ({"controller_mode": "fast"}, r"controller_mode must be one of .*'hardware'.*got 'fast'"),
+        (
+            {"controller_mode": "fast"},
+            r"controller_mode must be None or one of .*'hardware'.*got 'fast'",
+        ),
         pytest.param(  # gym.make warns about the unknown mode before the env refuses it
             {"render_mode": "video"}, r"render_mode must be None or one of .*got 'video'",
             marks=pytest.mark.filterwarnings("ignore:.*render_mode='video'"),
@@ -72,12 +75,26 @@ def test_bad_action_leaves_the_episode_usable(env):
             {"goal_range": (0.3, 0.7), "arena_size": 1.2},
             r"goal_range max \(0\.7 m\).*half size 0\.6 m",
         ),
-        ({"goal_tolerance": 0}, r"goal_tolerance must be > 0 m, got 0"),
+        ({"goal_tolerance": 0}, r"goal_tolerance must be a positive number, got 0"),
+        ({"goal_tolerance": float("inf")}, r"goal_tolerance must be a positive number, got inf"),
+        ({"goal_range": (1,)}, r"goal_range must be a \(min, max\) pair of numbers, got \(1,\)"),
+        ({"goal_range": "ab"}, r"goal_range must be a \(min, max\) pair of finite numbers"),
+        ({"physics_hz": "500"}, r"physics_hz must be a positive number, got '500'"),
+        ({"physics_hz": None}, r"physics_hz must be a positive number, got None"),
+        ({"render_width": -5}, r"render_width must be a positive integer, got -5"),
+        ({"render_height": 0}, r"render_height must be a positive integer, got 0"),
+        ({"render_height": 240.5}, r"render_height must be a positive integer, got 240\.5"),
     ],
 )
 def test_bad_kwargs_raise_value_error_naming_them(kwargs, match):
     with pytest.raises(ValueError, match=match):
         gym.make("SmartCar-v0", **kwargs)
+
+
+@pytest.mark.parametrize("kwarg", ["model", "controller_config"])
+def test_file_kwargs_of_the_wrong_type_are_named(kwarg):
+    with pytest.raises(TypeError, match=rf"{kwarg} must be a file path or a .*got int: 123"):
+        gym.make("SmartCar-v0", **{kwarg: 123})
 
 
 def test_numpy_scalars_are_accepted_as_numbers():
@@ -121,7 +138,9 @@ def test_physics_hz_error_names_the_config_file_rate(tmp_path):
     path.write_text(yaml.safe_dump(data), encoding="utf-8")
     with pytest.raises(ValueError, match=re.escape(f"rate 30.0 Hz ({path}), e.g. 1500")):
         gym.make("SmartCar-v0", controller_config=path, physics_hz=500)
-    env = gym.make("SmartCar-v0", controller_config=path, physics_hz=600)
+    # 600 Hz steps of 1.67 ms do not add up to the board's 34 ms frames: they run at 35 ms
+    with pytest.warns(UserWarning, match=r"physics_hz=600: the board's 34 ms PID frames"):
+        env = gym.make("SmartCar-v0", controller_config=path, physics_hz=600)
     try:
         assert env.unwrapped.ticks_per_step == 20
         assert env.metadata["render_fps"] == 30  # one step per controller update
@@ -150,11 +169,55 @@ def test_goal_option_outside_the_arena(env):
         env.reset(options={"goal": (3.0, 0.0)})
 
 
-def test_using_a_closed_env_says_so():
+def test_a_closed_env_refuses_steps_until_reset_reopens_it():
     env = gym.make("SmartCar-v0", render_mode="rgb_array")
-    env.reset(seed=0)
+    first, _ = env.reset(seed=0)
     env.close()
-    for call in (lambda: env.unwrapped.step(np.zeros(2)), env.unwrapped.reset,
-                 env.unwrapped.render):
-        with pytest.raises(RuntimeError, match="SmartCarEnv is closed"):
+    for name, call in (("step", lambda: env.unwrapped.step(np.zeros(2))),
+                       ("render", env.unwrapped.render)):
+        with pytest.raises(RuntimeError, match=rf"SmartCarEnv is closed: call reset\(\) to "
+                                               rf"reopen it before {name}\(\)"):
             call()
+    again, _ = env.reset(seed=0)  # a new client, the same episode
+    assert np.array_equal(again, first)
+    assert env.render().shape == (360, 480, 3)
+    env.close()
+
+
+def test_a_directly_built_env_needs_reset_before_step_and_render():
+    env = SmartCarEnv(controller_mode="sim", render_mode="rgb_array")
+    try:
+        for name, call in (("step", lambda: env.step(np.zeros(2))), ("render", env.render)):
+            with pytest.raises(gym.error.ResetNeeded, match=rf"call reset\(\) before {name}"):
+                call()
+        env.reset(seed=0)
+        env.step(np.zeros(2))
+    finally:
+        env.close()
+
+
+def test_complex_action_and_unknown_reset_option(env):
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match=r"action must be real numbers, got \[\(0\.5\+1j\), 0j\]"):
+        env.step(np.array([0.5 + 1j, 0.0]))
+    with pytest.raises(ValueError, match=r"unknown reset option\(s\) \['gaol'\]; .* 'goal'"):
+        env.reset(options={"gaol": (1.0, 0.0)})
+    with pytest.raises(ValueError, match=r"options\['goal'\] must be a finite \(x, y\) pair"):
+        env.reset(options={"goal": "north"})
+
+
+def test_yaml_sim_true_picks_the_sim_mode_unless_told_otherwise(tmp_path):
+    shipped = resources.files("smartcar_gym") / "config" / "smartcar_arbotix.yaml"
+    data = yaml.safe_load(shipped.read_text("utf-8"))
+    data["sim"] = True  # the driver's fake mode
+    path = tmp_path / "fake.yaml"
+    path.write_text(yaml.safe_dump(data), encoding="utf-8")
+    modes = {}
+    for given in (None, "hardware"):
+        env = gym.make("SmartCar-v0", controller_config=path, controller_mode=given)
+        modes[given] = env.unwrapped.robot.mode
+        env.close()
+    assert modes == {None: "sim", "hardware": "hardware"}
+    env = gym.make("SmartCar-v0")  # the shipped YAML has no `sim`: hardware
+    assert env.unwrapped.robot.mode == "hardware"
+    env.close()

@@ -10,7 +10,6 @@ import pytest
 from gymnasium import spaces
 
 import smartcar_gym  # noqa: F401
-from smartcar_gym.envs.smartcar_env import OBS_NAMES
 
 
 @pytest.fixture
@@ -38,7 +37,7 @@ def test_observation_space_is_finite_float32_box_matching_the_names(env):
     space = env.observation_space
     assert isinstance(space, spaces.Box)
     assert space.dtype == np.float32
-    assert space.shape == (len(OBS_NAMES),) == (21,)
+    assert space.shape == (len(env.unwrapped.observation_names),) == (21,)
     assert np.all(np.isfinite(space.low)) and np.all(np.isfinite(space.high))
     assert np.all(space.low < space.high)
     half = 5.0 / 2
@@ -152,3 +151,41 @@ def test_sim_mode_wheel_velocities_match_the_commanded_twist(sim_env):
     np.testing.assert_allclose(np.abs(obs[10:14]), 0.25 / radius, rtol=1e-5)
     assert obs[4] == pytest.approx(0.25)
     assert np.all(np.abs(obs[6:10]) <= np.pi)  # wrapped wheel angles
+
+
+def test_observation_names_say_which_wheel_each_entry_is(env):
+    names = env.unwrapped.observation_names
+    wheels = ["left_front_wheel_joint", "left_back_wheel_joint",
+              "right_front_wheel_joint", "right_back_wheel_joint"]
+    assert names[6:14] == tuple([f"{w}.position" for w in wheels]
+                                + [f"{w}.velocity" for w in wheels])
+    env.reset(seed=0)
+    for _ in range(10):  # turn left in place: left wheels back, right wheels forward
+        obs, *_ = env.step(np.array([0.0, 1.0], dtype=np.float32))
+    states = env.unwrapped.robot.joint_states()
+    by_name = dict(zip(states.name, states.velocity, strict=True))
+    for i, wheel in enumerate(wheels):
+        assert obs[10 + i] == pytest.approx(by_name[wheel], rel=1e-5)
+        # the wheel axes all point +y in the model: forward rolling is a positive joint speed
+        assert (obs[10 + i] > 1.0) == wheel.startswith("right")
+
+
+def test_observation_is_odometry_not_ground_truth():
+    """Once odometry and truth part (skid-steer turns), the observation follows odometry."""
+    env = gym.make("SmartCar-v0", goal_range=(1.5, 2.0))
+    try:
+        env.reset(seed=3)
+        for _ in range(40):
+            obs, _, terminated, _, info = env.step(np.array([0.6, 1.0], dtype=np.float32))
+            assert not terminated
+        assert info["odom_error"] > 0.1  # they have parted by more than 10 cm
+        odom_x, odom_y, odom_yaw = info["odom_pose"]
+        np.testing.assert_allclose(obs[0:4], [odom_x, odom_y, math.cos(odom_yaw),
+                                              math.sin(odom_yaw)], atol=1e-5)
+        true_x, true_y, _ = info["pose"]
+        assert math.hypot(obs[0] - true_x, obs[1] - true_y) > 0.1
+        goal = env.unwrapped.goal
+        assert obs[16] == pytest.approx(math.hypot(goal[0] - odom_x, goal[1] - odom_y), abs=1e-5)
+        assert abs(obs[16] - info["distance"]) > 0.01  # not the ground-truth distance
+    finally:
+        env.close()

@@ -3,28 +3,22 @@
 from __future__ import annotations
 
 import math
-import numbers
 import os
+import warnings
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
+from gymnasium.error import ResetNeeded
 
 from smartcar_gym.controller import ArbotixConfig, load_controller_config
+from smartcar_gym.envs import kwargs as kw
 from smartcar_gym.envs.task import GoalReachingTask
 from smartcar_gym.model import RobotModel, load_model
 from smartcar_gym.sim.markers import SceneMarkers
 from smartcar_gym.sim.robot import MODES, SmartCarRobot
 from smartcar_gym.sim.simulator import Simulator
-
-OBS_NAMES = (
-    "odom_x", "odom_y", "odom_cos_yaw", "odom_sin_yaw", "odom_v", "odom_omega",
-    "lf_wheel_angle", "rf_wheel_angle", "lb_wheel_angle", "rb_wheel_angle",
-    "lf_wheel_velocity", "rf_wheel_velocity", "lb_wheel_velocity", "rb_wheel_velocity",
-    "goal_x_base", "goal_y_base", "goal_distance", "prev_linear", "prev_angular",
-    "goal_x_odom", "goal_y_odom",
-)
 
 
 class SmartCarEnv(gym.Env):
@@ -34,7 +28,7 @@ class SmartCarEnv(gym.Env):
     in pybullet, driven like the real robot: every action is a ``cmd_vel`` Twist sent to an
     emulation of the ArbotiX ROS ``diff_controller`` (configured by ``smartcar_arbotix.yaml``),
     which turns it into wheel speeds in encoder ticks per frame, slews them by ``accel_limit``,
-    and hands them to the board's integer PID, whose PWM drives one DC gearmotor per wheel.
+    and hands them to the board's integer PID, whose PWM drives one DC gearmotor per side.
     The robot sees only what the real one would: the controller's odometry (from the wheel
     encoders) and the wheel joint states. The task is to reach a goal on the ground.
 
@@ -63,15 +57,16 @@ class SmartCarEnv(gym.Env):
     | 2, 3  | cos, sin of odom yaw                                     | -1     | 1     |       |
     | 4     | odom twist linear.x                                      | -5     | 5     | m/s   |
     | 5     | odom twist angular.z                                     | -50    | 50    | rad/s |
-    | 6-9   | wheel joint positions, wrapped (lf, rf, lb, rb)          | -pi    | pi    | rad   |
-    | 10-13 | wheel joint velocities (lf, rf, lb, rb)                  | -200   | 200   | rad/s |
+    | 6-9   | wheel joint positions, wrapped (lf, lb, rf, rb)          | -pi    | pi    | rad   |
+    | 10-13 | wheel joint velocities (lf, lb, rf, rb)                  | -200   | 200   | rad/s |
     | 14,15 | goal in the odometry base_link frame (ahead, left)       | -4A    | 4A    | m     |
     | 16    | goal distance from the odometry pose                     | 0      | 4A    | m     |
     | 17,18 | previous action                                          | -1     | 1     |       |
     | 19,20 | goal in the ``odom`` frame (as a goal is given in ROS)   | -2A    | 2A    | m     |
 
     where A = ``arena_size / 2``. Wheels are listed left then right, front then back, as the
-    model's wheels are found; ``info`` has nothing the observation needs.
+    model's wheels are found (``env.unwrapped.observation_names`` names every entry, e.g.
+    ``left_back_wheel_joint.velocity``); ``info`` has nothing the observation needs.
 
     ## Rewards
 
@@ -84,7 +79,8 @@ class SmartCarEnv(gym.Env):
     The world is rebuilt (``resetSimulation``), the car is placed at the origin facing +x, left
     to settle for 0.1 s, and the controller starts: the start pose is the odometry origin. The
     goal is drawn with ``self.np_random`` at a uniform distance in ``goal_range`` and a uniform
-    bearing. ``reset(options={"goal": (x, y)})`` sets it instead.
+    bearing. ``reset(options={"goal": (x, y)})`` sets it instead (the only option).
+    ``close()`` disconnects the pybullet client; a later ``reset()`` connects a new one.
 
     ## Episode End
 
@@ -103,14 +99,16 @@ class SmartCarEnv(gym.Env):
     | package_path      | None           | folders searched for ``$(find pkg)``                 |
     | wheels            | None (auto)    | ``{"left": [joints], "right": [joints]}``            |
     | controller_config | shipped YAML   | arbotix YAML (``controllers: {..: diff_controller}``)|
-    | controller_mode   | "hardware"     | "hardware" (PID, encoders, motors) or "sim"          |
+    | controller_mode   | None           | "hardware" (PID, encoders, motors) or "sim"; None:   |
+    |                   |                | the YAML's ``sim`` key (hardware unless sim: true)   |
     | render_mode       | None           | None, "human" (pybullet GUI) or "rgb_array"          |
     | max_linear        | 0.5            | m/s for a[0] = 1                                     |
     | max_angular       | 2.0            | rad/s for a[1] = 1                                   |
     | goal_range        | (0.5, 1.5)     | min, max goal distance from the start (m)            |
     | goal_tolerance    | 0.1            | success radius (m)                                   |
     | arena_size        | 5.0            | side of the square arena centred on the start (m)    |
-    | physics_hz        | 500            | physics rate; must divide into the controller period |
+    | physics_hz        | 500            | physics rate: a whole multiple of the controller    |
+    |                   |                | rate; 34 ms PID frames need 34 ms in whole steps     |
     | render_width/height | 480, 360     | rgb_array image size (px)                            |
 
     ## Version History
@@ -124,7 +122,7 @@ class SmartCarEnv(gym.Env):
         self,
         model: str | os.PathLike | RobotModel | None = None,
         controller_config: str | os.PathLike | ArbotixConfig | None = None,
-        controller_mode: str = "hardware",
+        controller_mode: str | None = None,
         render_mode: str | None = None,
         max_linear: float = 0.5,
         max_angular: float = 2.0,
@@ -142,21 +140,24 @@ class SmartCarEnv(gym.Env):
                 f"render_mode must be None or one of {self.metadata['render_modes']}, "
                 f"got {render_mode!r}"
             )
-        if controller_mode not in MODES:
-            raise ValueError(f"controller_mode must be one of {MODES}, got {controller_mode!r}")
-        for key, value in (
-            ("max_linear", max_linear), ("max_angular", max_angular), ("arena_size", arena_size)
-        ):
-            # numbers.Real: numpy scalars count; bool does not
-            if not (
-                isinstance(value, numbers.Real) and not isinstance(value, bool)
-                and math.isfinite(value) and value > 0
-            ):
-                raise ValueError(f"{key} must be a positive number, got {value!r}")
+        if controller_mode is not None and controller_mode not in MODES:
+            raise ValueError(
+                f"controller_mode must be None or one of {MODES}, got {controller_mode!r}"
+            )
         self.render_mode = render_mode
-        self.max_linear = float(max_linear)
-        self.max_angular = float(max_angular)
-        self.render_width, self.render_height = int(render_width), int(render_height)
+        self.max_linear = kw.positive_number("max_linear", max_linear)
+        self.max_angular = kw.positive_number("max_angular", max_angular)
+        half = kw.positive_number("arena_size", arena_size) / 2.0
+        self.physics_hz = kw.positive_number("physics_hz", physics_hz)
+        self.render_width = kw.positive_int("render_width", render_width)
+        self.render_height = kw.positive_int("render_height", render_height)
+        self.task = GoalReachingTask(
+            goal_range_m=kw.number_pair("goal_range", goal_range),
+            goal_tolerance_m=kw.positive_number("goal_tolerance", goal_tolerance),
+            arena_half_size_m=half,
+        )
+        model = kw.source("model", model, RobotModel)
+        controller_config = kw.source("controller_config", controller_config, ArbotixConfig)
 
         self.robot_model = (
             model if isinstance(model, RobotModel)
@@ -167,26 +168,39 @@ class SmartCarEnv(gym.Env):
             else load_controller_config(controller_config)
         )
         rate = self.controller_config.rate_hz
-        ticks = physics_hz / rate
-        if not (math.isfinite(ticks) and ticks >= 1 and abs(ticks - round(ticks)) < 1e-9):
+        ticks = self.physics_hz / rate
+        if not (ticks >= 1 and abs(ticks - round(ticks)) < 1e-9):
             raise ValueError(
                 f"physics_hz={physics_hz} must be a whole multiple of the controller rate "
                 f"{rate} Hz ({self.controller_config.source}), e.g. {int(rate) * 50}"
             )
         self.ticks_per_step = round(ticks)
+        if controller_mode is None:  # as the driver: its `sim` parameter picks the mode
+            controller_mode = "sim" if self.controller_config.sim else "hardware"
+        self.controller_mode = controller_mode
+        frame_ms = self.controller_config.frame_ms + 1  # the firmware's PID frame spacing
+        frame_steps = frame_ms * self.physics_hz / 1000
+        if controller_mode == "hardware" and abs(frame_steps - round(frame_steps)) > 1e-9:
+            warnings.warn(
+                f"physics_hz={physics_hz}: the board's {frame_ms} ms PID frames are not a whole "
+                "number of physics steps, so each runs late, at the next step; 500 or 1000 Hz "
+                "keeps them exact",
+                stacklevel=2,
+            )
         self.metadata = {**self.metadata, "render_fps": rate}
-        half = float(arena_size) / 2.0
-        self.task = GoalReachingTask(
-            goal_range_m=tuple(float(g) for g in goal_range),
-            goal_tolerance_m=float(goal_tolerance),
-            arena_half_size_m=half,
-        )
 
-        self.sim = Simulator(physics_hz=physics_hz, gui=render_mode == "human")
-        self.robot = SmartCarRobot(
-            self.sim, self.robot_model, self.controller_config, mode=controller_mode
+        self.sim: Simulator | None = None
+        self._open()
+        wheels_found = [w.joint for w in self.robot.wheels]
+        n = len(wheels_found)
+        #: what each observation entry is, in order (wheels as found: left then right)
+        self.observation_names: tuple[str, ...] = (
+            "odom_x", "odom_y", "odom_cos_yaw", "odom_sin_yaw", "odom_v", "odom_omega",
+            *(f"{joint}.position" for joint in wheels_found),
+            *(f"{joint}.velocity" for joint in wheels_found),
+            "goal_x_base", "goal_y_base", "goal_distance", "prev_linear", "prev_angular",
+            "goal_x_odom", "goal_y_odom",
         )
-        n = len(self.robot.wheels)
         high = np.concatenate([
             [2 * half, 2 * half, 1, 1, 5, 50], [math.pi] * n, [200] * n,
             [4 * half, 4 * half, 4 * half], [1, 1], [2 * half, 2 * half],
@@ -195,27 +209,42 @@ class SmartCarEnv(gym.Env):
         low[6 + 2 * n + 2] = 0.0  # goal distance
         self.observation_space = spaces.Box(low, high, dtype=np.float32)
         self.action_space = spaces.Box(-1.0, 1.0, (2,), dtype=np.float32)
-        self.markers = (
-            SceneMarkers(self.sim, self.task.goal_tolerance_m) if render_mode is not None
-            else None
-        )
         self.goal = np.zeros(2)
         self._distance = 0.0
         self._prev_action = np.zeros(2, dtype=np.float32)
         self._odom = None
+
+    def _open(self) -> None:
+        """Connect a fresh simulator (its own BulletClient) with the robot and the markers."""
+        self.sim = Simulator(physics_hz=self.physics_hz, gui=self.render_mode == "human")
+        self.robot = SmartCarRobot(
+            self.sim, self.robot_model, self.controller_config, mode=self.controller_mode
+        )
+        self.markers = (
+            SceneMarkers(self.sim, self.task.goal_tolerance_m) if self.render_mode is not None
+            else None
+        )
+        self._needs_reset = True
 
     # -- gymnasium API -----------------------------------------------------------------------
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
         super().reset(seed=seed)
-        self._check_open()
+        if self.sim is None:  # closed: reopen, as a fresh env would start
+            self._open()
         options = options or {}
+        unknown = set(options) - {"goal"}
+        if unknown:
+            raise ValueError(f"unknown reset option(s) {sorted(unknown)}; SmartCar-v0 takes 'goal'")
         self.sim.reset()
         self.robot.spawn(0.0, 0.0, 0.0)
         if "goal" in options:
-            goal = np.asarray(options["goal"], dtype=float)
-            if goal.shape != (2,) or not np.all(np.isfinite(goal)):
+            try:
+                goal = np.asarray(options["goal"], dtype=float)
+            except (TypeError, ValueError):
+                goal = np.asarray(options["goal"], dtype=object)
+            if goal.dtype != float or goal.shape != (2,) or not np.all(np.isfinite(goal)):
                 raise ValueError(f"options['goal'] must be a finite (x, y) pair, got {goal!r}")
             if self.task.is_outside(goal):
                 raise ValueError(
@@ -232,12 +261,13 @@ class SmartCarEnv(gym.Env):
         if self.markers is not None:
             self.markers.create(self.goal)
             self.markers.add_pose(self._odom.x, self._odom.y, self._odom.theta)
+        self._needs_reset = False
         if self.render_mode == "human":
             self.render()
         return self._observation(), self._info(pose, False)
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
-        self._check_open()
+        self._check_ready("step")
         action = self._validate_action(action)
         self._odom = self.robot.advance(
             float(action[0]) * self.max_linear, float(action[1]) * self.max_angular,
@@ -264,7 +294,7 @@ class SmartCarEnv(gym.Env):
                 "to gym.make('SmartCar-v0', ...)"
             )
             return None
-        self._check_open()
+        self._check_ready("render")
         self.markers.draw()
         pose = self.robot.pose()
         target = (np.array([pose.x, pose.y]) + self.goal) / 2.0
@@ -284,11 +314,15 @@ class SmartCarEnv(gym.Env):
             self.sim = None
 
     # -- helpers -------------------------------------------------------------------------------
-    def _check_open(self) -> None:
+    def _check_ready(self, call: str) -> None:
         if self.sim is None:
-            raise RuntimeError("SmartCarEnv is closed; make a new one with gym.make")
+            raise RuntimeError(f"SmartCarEnv is closed: call reset() to reopen it before {call}()")
+        if self._needs_reset:
+            raise ResetNeeded(f"SmartCarEnv: call reset() before {call}()")
 
     def _validate_action(self, action: Any) -> np.ndarray:
+        if np.iscomplexobj(action):
+            raise ValueError(f"action must be real numbers, got {np.asarray(action).tolist()}")
         try:
             arr = np.asarray(action, dtype=np.float64)
         except (TypeError, ValueError) as err:
@@ -320,6 +354,7 @@ class SmartCarEnv(gym.Env):
             "is_success": success,
             "distance": self._distance,
             "pose": np.array([pose.x, pose.y, pose.yaw]),
-            "odom_pose": np.array([odom.x, odom.y, odom.theta]),
+            # odometry's theta is never wrapped (as upstream); here it is, like pose's yaw
+            "odom_pose": np.array([odom.x, odom.y, math.remainder(odom.theta, 2 * math.pi)]),
             "odom_error": math.hypot(odom.x - pose.x, odom.y - pose.y),
         }

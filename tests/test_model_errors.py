@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from smartcar_gym.model import SHIPPED_MODEL, ModelError, load_model
+from smartcar_gym.model import SHIPPED_MODEL, LegacyXacroWarning, ModelError, load_model
 
 XACRO_NS = 'xmlns:xacro="http://ros.org/wiki/xacro"'
 
@@ -173,25 +173,28 @@ def test_joint_loop_is_reported(tmp_path: Path) -> None:
         load_model(path)
 
 
-@pytest.mark.parametrize(("body", "rejected"), [
-    ("", "no movable joints"),
-    (wheel("left", 0.1) + wheel("right", -0.1, joint_type="fixed"), "none"),
-    (wheel("left", 0.1) + wheel("right", -0.1, axis="0 0 1"),
+@pytest.mark.parametrize(("body", "line", "rejected"), [
+    ("", None, "no movable joints"),
+    (wheel("left", 0.1) + wheel("right", -0.1, joint_type="fixed"), None, "none"),
+    (wheel("left", 0.1) + wheel("right", -0.1, axis="0 0 1"), 7,
      "'right_joint' (axis (0, 0, 1) in base is not lateral: |y| <= 0.9)"),
-    (wheel("left", 0.1) + wheel("right", -0.1, shape='<box size="0.1 0.1 0.1"/>'),
+    (wheel("left", 0.1) + wheel("right", -0.1, shape='<box size="0.1 0.1 0.1"/>'), 7,
      "'right_joint' (child link 'right' has no cylinder or sphere collision)"),
-    (wheel("left", 0.1) + wheel("mid", 0.0),
+    (wheel("left", 0.1) + wheel("mid", 0.0), 7,
      "'mid_joint' (on the centre line y = 0: neither left nor right)"),
-    (wheel("left", 0.1) + wheel("right", -0.1, joint_type="prismatic"),
+    (wheel("left", 0.1) + wheel("right", -0.1, joint_type="prismatic"), 7,
      "'right_joint' (prismatic joint; expected continuous or unlimited revolute)"),
 ])
-def test_no_drivable_wheels(tmp_path: Path, body: str, rejected: str) -> None:
+def test_no_drivable_wheels(tmp_path: Path, body: str, line: int | None, rejected: str) -> None:
+    path = urdf(tmp_path, body)
     with pytest.raises(ModelError) as info:
-        load_model(urdf(tmp_path, body))
+        load_model(path)
     message = str(info.value)
-    assert message.startswith("no drivable wheels: expected at least one left and one right "
-                              "wheel (a continuous or unlimited revolute joint whose axis is "
-                              "lateral in base and whose child link has a cylinder or sphere "
+    assert (info.value.file, info.value.line) == (str(path), line)  # the offending joint's line
+    where = str(path) if line is None else f"{path}:{line}"
+    assert message.startswith(f"{where}: no drivable wheels: expected at least one left and one "
+                              "right wheel (a continuous or unlimited revolute joint whose axis "
+                              "is lateral in base and whose child link has a cylinder or sphere "
                               "collision); found left: ")
     assert f"; right: none; rejected: {rejected}" in message
     assert message.endswith("name the wheel joints with wheels={'left': [...], 'right': [...]}")
@@ -209,13 +212,32 @@ def test_limited_revolute_is_no_wheel_but_unlimited_is(tmp_path: Path) -> None:
     assert [w.side for w in model.wheels] == ["left", "right"]
 
 
+def test_no_drivable_wheels_in_a_xacro_file_names_the_xacro_output(tmp_path: Path) -> None:
+    path = urdf(tmp_path, wheel("left", 0.1) + wheel("right", -0.1, axis="0 0 1"),
+                "r.urdf.xacro")
+    with pytest.raises(ModelError) as info:
+        load_model(path)
+    assert info.value.file == f"{path} (xacro output)"
+    assert info.value.line is not None  # the joint's line in the expanded URDF
+    assert str(info.value).startswith(f"{path} (xacro output):{info.value.line}: no drivable")
+
+
 def test_wheel_override_with_unknown_joint_lists_the_joints() -> None:
     with pytest.raises(ModelError) as info:
         load_model(wheels={"left": ["left_front_wheel_joint", "left_wheel"],
                            "right": ["right_front_wheel_joint"]})
     assert str(info.value) == (
-        "wheels: unknown joint(s) left_wheel; the robot's joints are: left_front_wheel_joint, "
-        "right_front_wheel_joint, left_back_wheel_joint, right_back_wheel_joint, tobox")
+        f"{SHIPPED_MODEL} (xacro output): wheels: unknown joint(s) left_wheel; the robot's "
+        "joints are: left_front_wheel_joint, right_front_wheel_joint, left_back_wheel_joint, "
+        "right_back_wheel_joint, tobox")
+
+
+def test_wheel_override_naming_an_unfit_joint_gives_its_line(tmp_path: Path) -> None:
+    path = urdf(tmp_path, wheel("left", 0.1) + wheel("right", -0.1, axis="0 0 1"))
+    with pytest.raises(ModelError) as info:
+        load_model(path, wheels={"left": ["left_joint"], "right": ["right_joint"]})
+    assert str(info.value) == (f"{path}:7: wheels: joint 'right_joint' (axis (0, 0, 1) in base "
+                               "is not lateral: |y| <= 0.9) cannot be a drive wheel")
 
 
 @pytest.mark.parametrize(("wheels", "expected"), [
@@ -259,3 +281,78 @@ def test_different_wheel_radii_have_no_common_radius(tmp_path: Path) -> None:
     spheres = urdf(tmp_path, wheel("l", 0.1, shape='<sphere radius="0.05"/>')
                    + wheel("r", -0.1, shape='<sphere radius="0.0502"/>'), "s.urdf")
     assert load_model(spheres).wheel_radius_m == pytest.approx(0.0501)
+
+
+SEED_PKG = Path(__file__).parent / "fixtures" / "seed" / "smartcar_description"
+LATIN1 = '<?xml version="1.0"?>\n<robot name="voiture">\n  <link name="châssis"/>\n</robot>\n'
+
+
+@pytest.mark.parametrize("suffix", [".urdf", ".urdf.xacro"])
+def test_non_utf8_file_names_file_line_and_byte(tmp_path: Path, suffix: str) -> None:
+    path = tmp_path / f"latin1{suffix}"
+    path.write_bytes(LATIN1.encode("latin-1"))
+    with pytest.raises(ModelError) as info:
+        load_model(path)
+    assert str(info.value) == (f"{path}:3: not UTF-8 text: byte 0xe2 (column 17) cannot be "
+                               "decoded (invalid continuation byte); expected a UTF-8 encoded "
+                               "file (re-save it as UTF-8)")
+
+
+def test_non_utf8_included_file_is_the_one_named(tmp_path: Path) -> None:
+    (tmp_path / "inc.xacro").write_bytes(LATIN1.encode("latin-1"))
+    top = urdf(tmp_path, '  <xacro:include filename="inc.xacro"/>\n', "top.urdf.xacro")
+    with pytest.raises(ModelError) as info:
+        load_model(top)
+    assert (info.value.file, info.value.line) == (str(tmp_path / "inc.xacro"), 3)
+    assert "not UTF-8 text: byte 0xe2" in str(info.value)
+
+
+def test_unset_environment_variable(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.delenv("SMARTCAR_TEST_PART", raising=False)
+    path = urdf(tmp_path, '  <link name="$(env SMARTCAR_TEST_PART)"/>\n'
+                          '  <joint name="j" type="fixed"><parent link="base"/>'
+                          '<child link="$(env SMARTCAR_TEST_PART)"/></joint>\n'
+                + wheel("left", 0.1) + wheel("right", -0.1), "env.urdf.xacro")
+    with pytest.raises(ModelError) as info:
+        load_model(path)
+    assert str(info.value) == (
+        f"{path}:4: xacro: environment variable 'SMARTCAR_TEST_PART' is not set (asked for by "
+        "$(env SMARTCAR_TEST_PART)); expected it set, or $(optenv SMARTCAR_TEST_PART default) "
+        "in the file")
+    monkeypatch.setenv("SMARTCAR_TEST_PART", "camera")
+    assert "camera" in load_model(path).links
+
+
+def seed_copy(tmp_path: Path) -> Path:
+    """A copy of the tutorial's package (no package.xml, like the original): its main file."""
+    copy = tmp_path / "smartcar_description" / "urdf"
+    copy.mkdir(parents=True)
+    for file in (SEED_PKG / "urdf").iterdir():
+        (copy / file.name).write_bytes(file.read_bytes())
+    return copy / "smartcar.urdf.xacro"
+
+
+def test_misspelled_legacy_macro_call_lists_the_defined_macros(tmp_path: Path) -> None:
+    top = seed_copy(tmp_path)
+    top.write_text(top.read_text().replace("<smartcar_body/>", "<smartcar_bdy/>"))
+    with pytest.warns(LegacyXacroWarning), pytest.raises(ModelError) as info:
+        load_model(top)
+    assert str(info.value) == (
+        f"{top}:23: robot 'smartcar' has no links: no macro is defined for <smartcar_bdy/>, so "
+        "xacro kept it as plain XML; defined macros: smartcar_sim, smartcar_body; expected a "
+        "call of a defined macro (misspelled?)")
+    with pytest.raises(ModelError, match="let them be upgraded"):  # not upgraded: that hint
+        load_model(top, legacy=False)
+
+
+def test_a_file_that_defines_macros_but_never_calls_them() -> None:
+    body = SEED_PKG / "urdf" / "smartcar_body.urdf.xacro"
+    with pytest.warns(LegacyXacroWarning), pytest.raises(ModelError) as info:
+        load_model(body)
+    assert str(info.value) == (
+        f"{body}:11: robot 'smartcar' has no links: the file defines macros smartcar_sim, "
+        "smartcar_body but never calls one (it is meant to be included); expected a call such "
+        "as <xacro:smartcar_body/>, or load the file that includes and calls it")
+    gazebo = SEED_PKG / "urdf" / "gazebo.urdf.xacro"
+    with pytest.raises(ModelError, match="defines macro smartcar_sim but never calls it"):
+        load_model(gazebo)

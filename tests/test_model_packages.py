@@ -1,4 +1,4 @@
-"""``$(find pkg)`` without ROS: package_path, ROS_PACKAGE_PATH, package.xml names."""
+"""``$(find pkg)`` without ROS: package_path, ROS_PACKAGE_PATH, enclosing folders, shipped."""
 
 from __future__ import annotations
 
@@ -10,6 +10,12 @@ import pytest
 
 from smartcar_gym.model import ModelError, find_package, load_model
 from smartcar_gym.model.packages import SHIPPED_DESCRIPTIONS, search_roots
+
+FIXTURES = Path(__file__).parent / "fixtures"
+SEED_PKG = FIXTURES / "seed" / "smartcar_description"
+SEED = SEED_PKG / "urdf" / "smartcar.urdf.xacro"
+LEGACY_PKG = FIXTURES / "legacy" / "smartcar_description"
+SHIPPED_PKG = SHIPPED_DESCRIPTIONS / "smartcar_description"
 
 ROBOT = """<?xml version="1.0"?>
 <robot name="{name}" xmlns:xacro="http://ros.org/wiki/xacro">
@@ -100,6 +106,58 @@ def test_package_path_before_ros_package_path_before_shipped(
         tmp_path / "explicit", tmp_path / "env", SHIPPED_DESCRIPTIONS]
 
 
+def test_search_order_puts_enclosing_folders_before_the_shipped_ones(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("ROS_PACKAGE_PATH", str(tmp_path / "env"))
+    asker = tmp_path / "ws" / "pkg" / "urdf" / "robot.xacro"
+    roots = search_roots([tmp_path / "explicit"], requested_by=asker)
+    assert roots[:5] == [tmp_path / "explicit", tmp_path / "env", asker.parent,
+                         tmp_path / "ws" / "pkg", tmp_path / "ws"]
+    assert roots[-2:] == [Path("/"), SHIPPED_DESCRIPTIONS]
+
+
+def test_the_seed_without_package_path_finds_its_own_folder() -> None:
+    # the tutorial's files, checked out anywhere, are not swapped for our shipped package
+    assert find_package("smartcar_description", requested_by=SEED) == SEED_PKG
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        model = load_model(SEED)
+    assert model.packages == {"smartcar_description": SEED_PKG}
+    assert len(model.defects) == 17  # the seed's own body, not our fixed one
+
+
+def test_an_enclosing_folder_is_a_package_by_its_package_xml(tmp_path: Path) -> None:
+    pkg = make_package(tmp_path / "checkout", name="probe_description")
+    robot = pkg / "urdf" / "robot.urdf.xacro"
+    robot.write_text(ROBOT.format(name="probe", pkg="probe_description"))
+    model = load_model(robot)
+    assert model.packages == {"probe_description": pkg}
+    # an enclosing folder named like the package but declaring another name is not it
+    other = make_package(tmp_path / "other" / "probe_description", name="other_description")
+    with pytest.raises(ModelError, match="package 'probe_description' not found"):
+        find_package("probe_description", requested_by=other / "urdf" / "robot.urdf.xacro")
+    assert find_package("other_description", requested_by=other / "urdf" / "x") == other
+
+
+def test_package_path_wins_over_the_enclosing_folder() -> None:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        model = load_model(SEED, package_path=[FIXTURES / "legacy"])
+    assert model.packages == {"smartcar_description": LEGACY_PKG}
+    assert model.defects == ()  # the legacy fixture's corrected body was included
+    assert "head" not in model.links  # which has no head in its smartcar_body macro
+
+
+def test_an_unrelated_file_falls_back_to_the_shipped_package(tmp_path: Path) -> None:
+    path = tmp_path / "mine.urdf.xacro"
+    path.write_text(SEED.read_text())
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        model = load_model(path)
+    assert model.packages == {"smartcar_description": SHIPPED_PKG}
+    assert model.defects == ()  # our corrected body
+
+
 def test_a_root_that_is_the_package_itself(tmp_path: Path) -> None:
     pkg = make_package(tmp_path / "probe_description")
     assert find_package("probe_description", [pkg]) == pkg
@@ -120,9 +178,10 @@ def test_unknown_package_names_package_asking_file_line_and_folders(tmp_path: Pa
     with pytest.raises(ModelError) as info:
         load_model(path, package_path=[tmp_path / "nowhere"])
     message = str(info.value)
-    assert message.startswith(f"{path}:3: package 'no_such_description' not found")
-    assert "$(find no_such_description)" in message
+    assert message.startswith(f"{path}:3: package 'no_such_description' not found (asked for "
+                              "by $(find no_such_description)); searched package_path/")
     assert str(tmp_path / "nowhere") in message
+    assert "the folders enclosing robot.urdf.xacro" in message
     assert str(SHIPPED_DESCRIPTIONS) in message
     assert "ROS_PACKAGE_PATH" in message
     assert (info.value.file, info.value.line) == (str(path), 3)

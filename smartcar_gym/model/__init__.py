@@ -1,8 +1,9 @@
 """Robot models: load a URDF/xacro description (ROS not needed) into a checked ``RobotModel``.
 
 ``load_model()`` expands xacro in-process (``$(find pkg)`` resolved by :func:`find_package`,
-ROS-indigo unprefixed tags upgraded), parses the URDF into typed tables, finds the drive
-wheels, reports physical defects and repairs the ones that make the car undrivable.
+ROS-indigo unprefixed tags upgraded), parses the URDF into typed tables, makes mesh paths
+absolute, finds the drive wheels, reports physical defects and repairs the ones that make the
+car undrivable.
 """
 
 from __future__ import annotations

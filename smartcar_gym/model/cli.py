@@ -4,8 +4,13 @@
     smartcar-model check [PATH] [--strict]
     smartcar-model show  [PATH] -o FILE.png [--width W --height H] [--settle SECONDS]
 
-PATH defaults to the shipped smartcar. Exit status: 0 fine; 1 ``check`` found errors (or,
-with ``--strict``, any defect); 2 usage or loading errors, printed as one line.
+PATH defaults to the shipped smartcar.
+
+exit status (every command):
+  0  OK
+  1  check: the model loaded, but has errors (with --strict: any defect)
+  2  the model could not be loaded or the command could not run (usage error, missing file,
+     invalid description, pybullet failure); the reason is printed as one line on stderr
 """
 
 from __future__ import annotations
@@ -22,6 +27,7 @@ from smartcar_gym.model.loader import RobotModel, load_model
 from smartcar_gym.model.urdf import Shape
 
 PROG = "smartcar-model"
+EXIT_STATUS = __doc__[__doc__.index("exit status"):].rstrip()
 
 
 def _mapping(text: str) -> tuple[str, str]:
@@ -33,7 +39,9 @@ def _mapping(text: str) -> tuple[str, str]:
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``smartcar-model``."""
-    parser = argparse.ArgumentParser(prog=PROG, description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(prog=PROG, description=__doc__.split("\n\n")[0],
+                                     epilog=EXIT_STATUS,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
     common = argparse.ArgumentParser(add_help=False)
     common.add_argument("path", nargs="?", help="URDF or xacro file (default: shipped smartcar)")
     common.add_argument("--package-path", action="append", default=[], metavar="DIR",
@@ -94,7 +102,9 @@ def report(model: RobotModel, caught: list[warnings.WarningMessage]) -> list[str
     """Lines of the ``check`` report."""
     lines = [f"model   {model.name}  ({model.source})",
              f"root    {model.base_link}; {len(model.links)} links, {len(model.joints)} joints",
-             "", "links" + (" (after repairs)" if model.repairs else "")]
+             "", "packages"]
+    lines += [f"  {name} -> {folder}" for name, folder in model.packages.items()] or ["  none"]
+    lines += ["", "links" + (" (after repairs)" if model.repairs else "")]
     lines += table(["name", "mass kg", "inertia diag kg m^2", "collision", "visual"], [
         [link.name, f"{link.mass:g}",
          "-" if link.inertial is None else fmt([link.inertial.inertia[i][i] for i in range(3)]),
@@ -121,12 +131,8 @@ def report(model: RobotModel, caught: list[warnings.WarningMessage]) -> list[str
 
 
 def _check(args: argparse.Namespace) -> int:
-    try:
-        model, caught = _load(args)
-        lines = report(model, caught)
-    except ModelError as exc:
-        print(f"{PROG}: error: {' '.join(str(exc).split())}", file=sys.stderr)
-        return 1
+    model, caught = _load(args)
+    lines = report(model, caught)
     errors = sum(d.severity == "error" for d in model.defects)
     failed = errors > 0 or (args.strict and model.defects)
     verdict = "FAILED" if failed else "OK"
@@ -159,7 +165,7 @@ def _show(args: argparse.Namespace) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run ``smartcar-model``; returns the exit status."""
+    """Run ``smartcar-model``; returns the exit status (see ``EXIT_STATUS``)."""
     args = build_parser().parse_args(argv)
     try:
         return {"urdf": _urdf, "check": _check, "show": _show}[args.command](args)

@@ -121,11 +121,20 @@ def find_defects(robot: UrdfRobot) -> list[Defect]:
             kind, message, _ = problem
             severity = "error" if kind == NOT_POSITIVE_DEFINITE else "warning"
             defects.append(Defect(kind, f"{link.name}/inertia", message, severity))
-        visual = [s.geometry.type for s in link.visuals]
-        collision = [s.geometry.type for s in link.collisions]
-        if visual and collision and visual != collision:
-            defects.append(Defect(GEOMETRY_MISMATCH, f"{link.name}/collision", (
-                f"collision geometry {', '.join(collision)} differs from visual geometry "
-                f"{', '.join(visual)}; expected the same shape"
-            )))
+        mismatch = geometry_mismatch(link)
+        if mismatch is not None:
+            defects.append(Defect(GEOMETRY_MISMATCH, f"{link.name}/collision", mismatch))
     return defects
+
+
+def geometry_mismatch(link: Link) -> str | None:
+    """Why the link's collision shapes differ from its visual ones, or None.
+
+    A mesh visual over primitive collisions is the usual, legitimate simplification.
+    """
+    visual = [s.geometry.type for s in link.visuals]
+    collision = [s.geometry.type for s in link.collisions]
+    if not visual or not collision or visual == collision or "mesh" in visual:
+        return None
+    return (f"collision geometry {', '.join(collision)} differs from visual geometry "
+            f"{', '.join(visual)}; expected the same shape")

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import xml.parsers.expat
+from pathlib import Path
 
 
 class ModelError(ValueError):
@@ -34,6 +35,22 @@ def xml_syntax_error(
         file=file,
         line=exc.lineno,
     )
+
+
+def read_utf8(path: str | os.PathLike) -> str:
+    """Text of the file at ``path``; ModelError naming file, line and byte if it is not UTF-8."""
+    data = Path(path).read_bytes()
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = data.count(b"\n", 0, exc.start) + 1
+        column = exc.start - (data.rfind(b"\n", 0, exc.start) + 1) + 1
+        raise ModelError(
+            f"not UTF-8 text: byte 0x{data[exc.start]:02x} (column {column}) cannot be decoded "
+            f"({exc.reason}); expected a UTF-8 encoded file (re-save it as UTF-8)",
+            file=path,
+            line=line,
+        ) from None
 
 
 class ModelDefectWarning(UserWarning):

@@ -5,16 +5,17 @@ from __future__ import annotations
 import os
 import warnings
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from smartcar_gym.model.defects import Defect, find_defects
-from smartcar_gym.model.errors import ModelDefectWarning, ModelError
+from smartcar_gym.model.errors import ModelDefectWarning, ModelError, read_utf8
+from smartcar_gym.model.meshes import Locator, resolve_meshes
 from smartcar_gym.model.packages import SHIPPED_DESCRIPTIONS, PackagePath
 from smartcar_gym.model.repair import Repair, repair_urdf
 from smartcar_gym.model.urdf import Joint, Link, parse_urdf
 from smartcar_gym.model.wheels import Wheel, find_wheels
-from smartcar_gym.model.xacro_runner import expand_xacro
+from smartcar_gym.model.xacro_runner import Expansion, expand_xacro, locate_line
 
 SHIPPED_MODEL = SHIPPED_DESCRIPTIONS / "smartcar_description" / "urdf" / "smartcar.urdf.xacro"
 RADIUS_TOLERANCE = 0.01  # drive wheels whose radii differ more than this have no common radius
@@ -22,7 +23,10 @@ RADIUS_TOLERANCE = 0.01  # drive wheels whose radii differ more than this have n
 
 @dataclass(frozen=True, eq=False)
 class RobotModel:
-    """A loaded robot: final URDF text (after repairs), its tables, drive wheels and findings."""
+    """A loaded robot: final URDF text (after repairs), its tables, drive wheels and findings.
+
+    ``packages`` holds what each ``$(find pkg)`` and ``package://pkg`` resolved to.
+    """
 
     urdf: str
     source: Path
@@ -33,6 +37,7 @@ class RobotModel:
     wheels: tuple[Wheel, ...]
     defects: tuple[Defect, ...] = ()
     repairs: tuple[Repair, ...] = ()
+    packages: dict[str, Path] = field(default_factory=dict)
 
     @property
     def left_wheels(self) -> tuple[Wheel, ...]:
@@ -74,6 +79,29 @@ def is_xacro(path: Path) -> bool:
     return path.suffix.lower() != ".urdf"
 
 
+def _read(source: Path, *, mappings: Mapping[str, object] | None, package_path: PackagePath,
+          legacy: bool) -> tuple[str, str, Expansion | None]:
+    """(URDF text, label naming it in errors, xacro expansion or None for a .urdf file)."""
+    if not is_xacro(source):
+        return read_utf8(source), str(source), None
+    expansion = expand_xacro(source, mappings=mappings, package_path=package_path,
+                             legacy=legacy)
+    return expansion.text, f"{source} (xacro output)", expansion
+
+
+def _mesh_locator(label: str, expansion: Expansion | None) -> Locator:
+    """Where a mesh filename is written: the xacro file holding it, else the URDF text line."""
+
+    def locate(filename: str, line: int | None) -> tuple[str, int | None]:
+        for file in expansion.files if expansion else ():
+            found = locate_line(file, filename)
+            if found is not None:
+                return file, found
+        return label, line
+
+    return locate
+
+
 def load_model(
     path: str | os.PathLike | None = None,
     *,
@@ -88,7 +116,9 @@ def load_model(
 
     Args:
         path: a ``.urdf`` file (parsed as is) or a ``.xacro`` file (expanded by xacro).
-        package_path: folders searched first for ``$(find pkg)`` (then ROS_PACKAGE_PATH).
+        package_path: folders searched first for ``$(find pkg)`` and ``package://pkg``; then
+            ROS_PACKAGE_PATH, the folders enclosing the asking file (closest first), and last
+            the shipped descriptions.
         mappings: xacro arguments (``<xacro:arg>``), name -> value.
         wheels: drive wheel joints by side, ``{"left": [...], "right": [...]}``; default: found.
         strict: raise ModelError on any defect instead of warning.
@@ -98,13 +128,16 @@ def load_model(
     source = Path(SHIPPED_MODEL if path is None else path).expanduser().resolve()
     if not source.is_file():
         raise FileNotFoundError(f"no such robot description: {source}")
-    if is_xacro(source):
-        text = expand_xacro(source, mappings=mappings, package_path=package_path, legacy=legacy)
-        label = f"{source} (xacro output)"
-    else:
-        text = source.read_text(encoding="utf-8")
-        label = str(source)
+    text, label, expansion = _read(source, mappings=mappings, package_path=package_path,
+                                   legacy=legacy)
     robot = parse_urdf(text, label)
+    resolved, mesh_packages = resolve_meshes(text, label, base_dir=source.parent,
+                                             package_path=package_path,
+                                             locate=_mesh_locator(label, expansion))
+    if resolved != text:
+        text, robot = resolved, parse_urdf(resolved, label)
+    packages = dict(expansion.packages) if expansion else {}
+    packages.update((k, v) for k, v in mesh_packages.items() if k not in packages)
     defects = tuple(find_defects(robot))
     if strict and defects:
         listed = "; ".join(str(d) for d in defects)
@@ -126,7 +159,8 @@ def load_model(
         base_link=robot.base_link,
         links=robot.links,
         joints=robot.joints,
-        wheels=find_wheels(robot, wheels),
+        wheels=find_wheels(robot, wheels, source=label),
         defects=defects,
         repairs=repairs,
+        packages=packages,
     )

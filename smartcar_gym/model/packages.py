@@ -1,11 +1,16 @@
-"""Resolve ``$(find pkg)`` without ROS: search folders for a ROS package by name.
+"""Resolve ``$(find pkg)`` and ``package://pkg`` without ROS: search folders for a ROS package.
 
-Search order: the explicit ``package_path`` folders, then ``ROS_PACKAGE_PATH``
-(``os.pathsep``-separated), then the description folder shipped with smartcar_gym.
-A folder is package ``pkg`` if its ``package.xml`` says ``<name>pkg</name>`` or, having
-no ``package.xml``, if it is named ``pkg``. Each root is searched itself, then its
-subfolders breadth first (hidden folders, ``*_IGNORE``-marked folders and the inside of
-packages are skipped, as rospack does).
+Search order, first match wins:
+
+1. the explicit ``package_path`` folders, then ``ROS_PACKAGE_PATH`` (``os.pathsep``-separated):
+   each folder itself, then its subfolders breadth first (hidden folders, ``*_IGNORE``-marked
+   folders and the inside of packages are skipped, as rospack does);
+2. the folders enclosing the file that asks, closest first (each folder itself only), so a
+   description checked out anywhere finds its own package;
+3. the description folder shipped with smartcar_gym (ours answers to ``smartcar_description``).
+
+A folder is package ``pkg`` if its ``package.xml`` says ``<name>pkg</name>`` or, having no
+``package.xml``, if it is named ``pkg``.
 """
 
 from __future__ import annotations
@@ -25,19 +30,39 @@ _IGNORE_MARKERS = ("CATKIN_IGNORE", "COLCON_IGNORE", "AMENT_IGNORE")
 PackagePath = Iterable[str | os.PathLike] | str | os.PathLike | None
 
 
-def search_roots(package_path: PackagePath = None) -> list[Path]:
-    """The folders searched for packages, highest priority first."""
+def _path_roots(package_path: PackagePath) -> list[Path]:
+    """package_path folders, then ROS_PACKAGE_PATH folders (searched with their subfolders)."""
     if isinstance(package_path, str | os.PathLike):
         package_path = [package_path]
     roots = [Path(p).expanduser().resolve() for p in package_path or ()]
     env = os.environ.get("ROS_PACKAGE_PATH", "")
     roots += [Path(p).expanduser().resolve() for p in env.split(os.pathsep) if p.strip()]
-    roots.append(SHIPPED_DESCRIPTIONS)
-    unique: list[Path] = []
-    for root in roots:
-        if root not in unique:
-            unique.append(root)
-    return unique
+    return roots
+
+
+def enclosing_folders(file: str | os.PathLike | None) -> list[Path]:
+    """The folders holding ``file``, closest first (none for None)."""
+    if file is None:
+        return []
+    return list(Path(file).expanduser().resolve().parents)
+
+
+def _search_plan(package_path: PackagePath,
+                 requested_by: str | os.PathLike | None) -> list[tuple[Path, bool]]:
+    """(folder, search its subfolders too) in search order, each folder once."""
+    plan = [(root, True) for root in _path_roots(package_path)]
+    plan += [(folder, False) for folder in enclosing_folders(requested_by)]
+    plan.append((SHIPPED_DESCRIPTIONS, True))
+    unique: dict[Path, bool] = {}
+    for folder, descend in plan:
+        unique.setdefault(folder, descend)
+    return list(unique.items())
+
+
+def search_roots(package_path: PackagePath = None,
+                 requested_by: str | os.PathLike | None = None) -> list[Path]:
+    """The folders searched for packages, highest priority first (see the module docstring)."""
+    return [folder for folder, _ in _search_plan(package_path, requested_by)]
 
 
 def package_name(folder: Path) -> str | None:
@@ -50,6 +75,12 @@ def package_name(folder: Path) -> str | None:
     except (ET.ParseError, OSError):
         return None
     return name.strip() if name else None
+
+
+def is_package(folder: Path, name: str) -> bool:
+    """Whether ``folder`` is package ``name`` (package.xml name, else the folder name)."""
+    declared = package_name(folder)
+    return declared == name or (declared is None and folder.name == name)
 
 
 def _candidates(root: Path) -> Iterator[Path]:
@@ -70,27 +101,41 @@ def _candidates(root: Path) -> Iterator[Path]:
             queue.append((child, depth + 1))
 
 
+def _searched(package_path: PackagePath, requested_by: str | os.PathLike | None) -> str:
+    """Where a package was looked for, in words, for error messages."""
+    roots = _path_roots(package_path)
+    parts = [("package_path/ROS_PACKAGE_PATH folders " + ", ".join(map(str, roots))
+              + " and their subfolders") if roots else "no package_path or ROS_PACKAGE_PATH"]
+    if requested_by is not None:
+        parts.append(f"the folders enclosing {Path(requested_by).name}")
+    parts.append(f"the shipped descriptions {SHIPPED_DESCRIPTIONS}")
+    return "; ".join(parts)
+
+
 def find_package(
     name: str,
     package_path: PackagePath = None,
     *,
     requested_by: str | os.PathLike | None = None,
     line: int | None = None,
+    asked_as: str | None = None,
 ) -> Path:
-    """Folder of ROS package ``name``; ModelError naming the asker and the folders searched."""
-    roots = search_roots(package_path)
-    for root in roots:
-        if not root.is_dir():
+    """Folder of ROS package ``name``, searched in the module docstring's order.
+
+    ``requested_by`` is the file that asks (its enclosing folders are searched); a package
+    that is not found is a ModelError naming that file, ``line``, what asked for it
+    (``asked_as``, default ``$(find name)``) and the folders searched.
+    """
+    for folder, descend in _search_plan(package_path, requested_by):
+        if not folder.is_dir():
             continue
-        for folder in _candidates(root):
-            declared = package_name(folder)
-            if declared == name or (declared is None and folder.name == name):
-                return folder
-    searched = ", ".join(str(r) for r in roots)
+        for candidate in _candidates(folder) if descend else (folder,):
+            if is_package(candidate, name):
+                return candidate
     raise ModelError(
-        f"package '{name}' not found (asked for by $(find {name})); searched {searched} "
-        "and their subfolders; pass package_path=[...] or set ROS_PACKAGE_PATH to the folder "
-        "holding it",
+        f"package '{name}' not found (asked for by {asked_as or f'$(find {name})'}); "
+        f"searched {_searched(package_path, requested_by)}; pass package_path=[...] or set "
+        "ROS_PACKAGE_PATH to the folder holding it",
         file=requested_by,
         line=line,
     )

@@ -10,6 +10,7 @@ import imageio.v3 as iio
 import numpy as np
 
 from smartcar_gym._bullet import connect
+from smartcar_gym.model.bodies import load_body
 from smartcar_gym.model.loader import RobotModel
 
 PHYSICS_HZ = 240
@@ -28,8 +29,8 @@ def render_image(model: RobotModel, *, width: int = 640, height: int = 480,
         with tempfile.TemporaryDirectory() as tmp:
             client.loadURDF("plane.urdf")
             spawn_z = max((w.radius_m - w.position_m[2] for w in model.wheels), default=0.0)
-            body = client.loadURDF(str(model.write_urdf(tmp)), [0.0, 0.0, spawn_z],
-                                   flags=client.URDF_USE_INERTIA_FROM_FILE)
+            body = load_body(client, model.write_urdf(tmp), [0.0, 0.0, spawn_z],
+                             flags=client.URDF_USE_INERTIA_FROM_FILE)
         if settle_s > 0:
             client.setGravity(0.0, 0.0, -9.81)
             for _ in range(int(settle_s * PHYSICS_HZ)):

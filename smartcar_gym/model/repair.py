@@ -18,7 +18,13 @@ from smartcar_gym.model.defects import (
     inertia_problem,
     same_rpy,
 )
-from smartcar_gym.model.urdf import INERTIA_ATTRS, UrdfRobot, parse_urdf, parse_xml
+from smartcar_gym.model.urdf import (
+    INERTIA_ATTRS,
+    UrdfRobot,
+    parse_urdf,
+    parse_xml,
+    serialize_xml,
+)
 
 
 @dataclass(frozen=True)
@@ -39,10 +45,6 @@ def _part(root: ET.Element, path: str) -> ET.Element:
     link = next(e for e in root.findall("link") if e.get("name") == link_name)
     tag, _, index = part.partition("[")
     return link.findall(tag)[int(index.rstrip("]") or 0)]
-
-
-def _serialize(root: ET.Element) -> str:
-    return '<?xml version="1.0"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
 
 
 def _repair_origins(root: ET.Element, robot: UrdfRobot) -> list[Repair]:
@@ -87,10 +89,10 @@ def repair_urdf(text: str, robot: UrdfRobot, source: str) -> tuple[str, tuple[Re
     root = parse_xml(text, source)
     repairs = _repair_origins(root, robot)
     if repairs:  # inertias are computed in the repaired frames
-        text = _serialize(root)
+        text = serialize_xml(root)
         robot = parse_urdf(text, source)
         root = parse_xml(text, source)
     inertia_repairs = _repair_inertias(root, robot)
     if inertia_repairs:
-        text = _serialize(root)
+        text = serialize_xml(root)
     return text, tuple(repairs + inertia_repairs)

@@ -123,6 +123,11 @@ def parse_xml(text: str, source: str) -> ET.Element:
     return builder.close()
 
 
+def serialize_xml(root: ET.Element) -> str:
+    """URDF text of an element tree (an XML declaration, the tree, a final newline)."""
+    return '<?xml version="1.0"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
+
+
 class _Parser:
     """Reads one URDF document; every error names the source, line and expectation."""
 

@@ -69,38 +69,45 @@ def _assess(robot: UrdfRobot, joint: Joint, frames: dict[str, np.ndarray],
 
 
 def _from_overrides(robot: UrdfRobot, overrides: Mapping[str, Sequence[str]],
-                    frames: dict[str, np.ndarray]) -> tuple[Wheel, ...]:
+                    frames: dict[str, np.ndarray], source: str | None) -> tuple[Wheel, ...]:
     unknown_sides = set(overrides) - {"left", "right"}
     if unknown_sides or not overrides.get("left") or not overrides.get("right"):
         raise ModelError(f"wheels={dict(overrides)!r}: expected {{'left': [joint, ...], "
-                         "'right': [joint, ...]} with at least one joint per side")
+                         "'right': [joint, ...]} with at least one joint per side", file=source)
     names = [n for side in ("left", "right") for n in overrides[side]]
     unknown = [n for n in names if n not in robot.joints]
     if unknown:
         raise ModelError(f"wheels: unknown joint(s) {', '.join(unknown)}; the robot's joints "
-                         f"are: {', '.join(robot.joints)}")
+                         f"are: {', '.join(robot.joints)}", file=source)
     result = []
     for side in ("left", "right"):
         for name in overrides[side]:
-            wheel = _assess(robot, robot.joints[name], frames, side)  # type: ignore[arg-type]
+            joint = robot.joints[name]
+            wheel = _assess(robot, joint, frames, side)  # type: ignore[arg-type]
             if isinstance(wheel, str):
-                raise ModelError(f"wheels: joint {wheel} cannot be a drive wheel")
+                raise ModelError(f"wheels: joint {wheel} cannot be a drive wheel", file=source,
+                                 line=joint.line)
             result.append(wheel)
     return tuple(result)
 
 
-def find_wheels(robot: UrdfRobot,
-                overrides: Mapping[str, Sequence[str]] | None = None) -> tuple[Wheel, ...]:
-    """Drive wheels: lateral-axis continuous joints with a round collision, or the named ones."""
+def find_wheels(robot: UrdfRobot, overrides: Mapping[str, Sequence[str]] | None = None, *,
+                source: str | None = None) -> tuple[Wheel, ...]:
+    """Drive wheels: lateral-axis continuous joints with a round collision, or the named ones.
+
+    ``source`` names the URDF in errors; the line is the offending joint's when there is one.
+    """
     frames = link_frames(robot)
     if overrides is not None:
-        return _from_overrides(robot, overrides, frames)
-    wheels, rejected = [], []
+        return _from_overrides(robot, overrides, frames, source)
+    wheels, rejected, lines = [], [], []
     for joint in robot.joints.values():
         if joint.type == "fixed":
             continue
         found = _assess(robot, joint, frames)
         (rejected if isinstance(found, str) else wheels).append(found)
+        if isinstance(found, str):
+            lines.append(joint.line)
     sides = {s: [w.joint for w in wheels if w.side == s] for s in ("left", "right")}
     if not sides["left"] or not sides["right"]:
         raise ModelError(
@@ -110,6 +117,8 @@ def find_wheels(robot: UrdfRobot,
             f"{', '.join(sides['left']) or 'none'}; right: {', '.join(sides['right']) or 'none'}"
             f"; rejected: {', '.join(rejected) or ('none' if wheels else 'no movable joints')}"
             "; name the wheel joints "
-            "with wheels={'left': [...], 'right': [...]}"
+            "with wheels={'left': [...], 'right': [...]}",
+            file=source,
+            line=lines[0] if len(lines) == 1 else None,
         )
     return tuple(wheels)

@@ -1,10 +1,11 @@
 """Run the real ``xacro`` package in-process, without ROS, with legacy-xacro support.
 
 xacro keeps its state in module globals, so each run holds a module lock and, inside it,
-temporarily replaces: ``$(find)`` (-> :func:`find_package`), ``xacro.parse`` (-> legacy tag
-upgrade of every file read), ``xacro.handle_macro_call`` (-> unprefixed macro calls) and
-xacro's stderr printing (-> warnings). Everything is restored afterwards and xacro's
-exceptions become :class:`ModelError` with file and line where they can be found.
+temporarily replaces: ``$(find)`` (-> :func:`find_package`, asked for by the file being read),
+``xacro.parse`` (-> legacy tag upgrade of every file read), ``xacro.handle_macro_call`` (->
+unprefixed macro calls), ``xacro.grab_macro`` (-> the macros defined) and xacro's stderr
+printing (-> warnings). Everything is restored afterwards and xacro's exceptions become
+:class:`ModelError` with file and line where they can be found.
 """
 
 from __future__ import annotations
@@ -14,49 +15,70 @@ import os
 import re
 import threading
 import warnings
+import xml.dom.minidom
 import xml.parsers.expat
 from collections.abc import Iterator, Mapping
+from dataclasses import dataclass
 from pathlib import Path
 
 import xacro
 import xacro.color
 import xacro.substitution_args as substitution_args
 
-from smartcar_gym.model.errors import ModelError, XacroWarning, xml_syntax_error
+from smartcar_gym.model.errors import ModelError, XacroWarning, read_utf8, xml_syntax_error
 from smartcar_gym.model.legacy import LegacyReport, is_call_candidate, upgrade_tags
 from smartcar_gym.model.packages import PackagePath, find_package
 
 _LOCK = threading.RLock()
 
 
+@dataclass(frozen=True)
+class Expansion:
+    """xacro's output: URDF ``text``, what each ``$(find pkg)`` resolved to, the files read."""
+
+    text: str
+    packages: dict[str, Path]
+    files: tuple[str, ...]
+
+
 class _Session:
-    """State of one xacro run: files read, legacy upgrades, package search path."""
+    """State of one xacro run: files read, legacy upgrades, packages, macros, search path."""
 
     def __init__(self, package_path: PackagePath, legacy: bool) -> None:
         self.package_path = package_path
         self.legacy = legacy
         self.report = LegacyReport()
         self.files: list[str] = []
-        self.packages: dict[str, str] = {}
+        self.packages: dict[str, Path] = {}  # first resolution of each package, for reports
+        self.found: dict[tuple[str, str | None], str] = {}  # (package, asking file) -> folder
+        self.macros: dict[str, str | None] = {}  # macro name -> file defining it
+        self.calls = 0  # macro calls expanded
+        self.unknown: dict[str, str | None] = {}  # unprefixed non-macro tag -> file using it
 
     # -- hooks ---------------------------------------------------------------------------
     def find(self, pkg: str) -> str:
-        """``$(find pkg)``: the package folder, searched like ROS would (cached per run)."""
-        if pkg not in self.packages:
-            asker = current_file()
+        """``$(find pkg)``: the package folder, searched from the asking file (cached)."""
+        asker = current_file()
+        if (pkg, asker) not in self.found:
             line = locate_line(asker, f"$(find {pkg})") if asker else None
             found = find_package(pkg, self.package_path, requested_by=asker, line=line)
-            self.packages[pkg] = str(found)
-        return self.packages[pkg]
+            self.found[pkg, asker] = str(found)
+            self.packages.setdefault(pkg, found)
+        return self.found[pkg, asker]
 
     def parse(self, original, inp, filename=None):
-        """xacro.parse, with XML errors located and legacy tags upgraded."""
+        """xacro.parse, with XML and encoding errors located and legacy tags upgraded."""
         try:
             doc = original(inp, filename)
         except xml.parsers.expat.ExpatError as exc:
             stack = [f for f in (xacro.filestack or []) if f]
             parent = f" (included from {stack[-2]})" if len(stack) > 1 else ""
             raise xml_syntax_error(exc, filename or current_file(), parent) from None
+        except UnicodeDecodeError:
+            if filename is None:
+                raise
+            read_utf8(os.path.join(xacro.root_dir, filename))  # raises the located ModelError
+            raise
         if filename is not None:
             self.files.append(str(filename))
             if self.legacy:
@@ -70,11 +92,48 @@ class _Session:
             try:
                 xacro.resolve_macro(tag, macros, symbols)
             except (KeyError, TypeError, AttributeError):
-                pass
+                self.unknown.setdefault(tag, current_file())
             else:
                 self.report.add_call(current_file() or "<string>", tag)
                 node.tagName = node.nodeName = f"xacro:{tag}"
-        return original(node, macros, symbols)
+        called = original(node, macros, symbols)
+        self.calls += bool(called)
+        return called
+
+    def grab_macro(self, original, element, macros) -> None:
+        """xacro.grab_macro, recording the macro's name and the file defining it."""
+        name = element.getAttribute("name").removeprefix("xacro:")
+        self.macros.setdefault(name, current_file())
+        original(element, macros)
+
+
+def _no_links_error(doc: xml.dom.minidom.Document, session: _Session,
+                   source: Path) -> ModelError | None:
+    """Why an upgraded (legacy) document has no links, when macros explain it; else None."""
+    root = doc.documentElement
+    if not session.legacy or root.getElementsByTagName("link"):
+        return None
+    robot = f"robot '{root.getAttribute('name')}' has no links"
+    defined = ", ".join(session.macros) or "none"
+    unknown = [e.tagName for e in root.childNodes
+               if e.nodeType == e.ELEMENT_NODE and is_call_candidate(e.tagName)]
+    if unknown:
+        tags = list(dict.fromkeys(unknown))
+        listed = ", ".join(f"<{t}/>" for t in tags)
+        where = session.unknown.get(tags[0]) or str(source)
+        return ModelError(f"{robot}: no macro is defined for {listed}, so xacro kept "
+                          f"{'it' if len(tags) == 1 else 'them'} as plain XML; defined macros: "
+                          f"{defined}; expected a call of a defined macro (misspelled?)",
+                          file=where, line=locate_line(where, f"<{tags[0]}"))
+    if session.macros and not session.calls:
+        own = [n for n, f in session.macros.items() if f == str(source)] or list(session.macros)
+        macros = f"macros {defined} but never calls one" if len(session.macros) > 1 else (
+            f"macro {defined} but never calls it")
+        return ModelError(
+            f"{robot}: the file defines {macros} (it is meant to be included); expected a call "
+            f"such as <xacro:{own[0]}/>, or load the file that includes and calls it",
+            file=source, line=locate_line(source, f'name="{own[0]}"'))
+    return None
 
 
 def current_file() -> str | None:
@@ -112,6 +171,7 @@ def _hooked(session: _Session) -> Iterator[None]:
         saved = {
             "parse": xacro.parse,
             "handle_macro_call": xacro.handle_macro_call,
+            "grab_macro": xacro.grab_macro,
             "print_location": xacro.print_location,
             "filestack": xacro.filestack,
             "macrostack": xacro.macrostack,
@@ -122,17 +182,19 @@ def _hooked(session: _Session) -> Iterator[None]:
         saved_message = xacro.color.message
         saved_find = substitution_args._eval_find
         saved_eval_find = substitution_args._eval_dict.get("find")
-        parse, call = saved["parse"], saved["handle_macro_call"]
+        parse, call, grab = saved["parse"], saved["handle_macro_call"], saved["grab_macro"]
         try:
             xacro.parse = lambda inp, filename=None: session.parse(parse, inp, filename)
             xacro.handle_macro_call = lambda n, m, s: session.handle_macro_call(call, n, m, s)
+            xacro.grab_macro = lambda e, m: session.grab_macro(grab, e, m)
             xacro.print_location = lambda: None
             xacro.color.message = _xacro_message
             substitution_args._eval_find = session.find
             substitution_args._eval_dict["find"] = session.find
             yield
         finally:
-            for name in ("parse", "handle_macro_call", "print_location", "filestack"):
+            for name in ("parse", "handle_macro_call", "grab_macro", "print_location",
+                         "filestack"):
                 setattr(xacro, name, saved[name])
             xacro.macrostack = saved["macrostack"]
             xacro.verbosity = saved["verbosity"]
@@ -160,15 +222,28 @@ _NEEDLES = (
 )
 
 
+_ENV_UNSET = re.compile(r"environment variable '(.*?)' is not set")
+
+
 def _to_model_error(exc: Exception, session: _Session) -> ModelError:
     """A ModelError for an exception raised inside xacro, located as well as we can."""
     inner = _innermost(exc)
     if isinstance(inner, ModelError):
         return inner
     where = current_file()
+    env = _ENV_UNSET.search(str(inner))
     if isinstance(inner, OSError) and inner.filename:
         message = f"cannot read included file {inner.filename}: {inner.strerror}"
         needle = Path(inner.filename).name
+    elif isinstance(inner, substitution_args.SubstitutionException) and env:
+        name = env.group(1)
+        message = (f"xacro: environment variable '{name}' is not set (asked for by $(env "
+                   f"{name})); expected it set, or $(optenv {name} default) in the file")
+        needle = f"$(env {name})"
+    elif isinstance(inner, substitution_args.SubstitutionException) and not isinstance(
+            inner, substitution_args.ArgException):  # xacro words ArgException itself
+        message = f"xacro: {' '.join(str(inner).split())}"
+        needle = None
     else:
         text = " ".join(str(exc).split())
         message = f"xacro: {text}" if isinstance(exc, xacro.XacroException) else (
@@ -199,8 +274,8 @@ def expand_xacro(
     mappings: Mapping[str, object] | None = None,
     package_path: PackagePath = None,
     legacy: bool = True,
-) -> str:
-    """URDF text of the xacro file ``path`` (xacro args from ``mappings``)."""
+) -> Expansion:
+    """Expand the xacro file ``path`` (xacro args from ``mappings``) into URDF text."""
     source = Path(path).resolve()
     if not source.is_file():
         raise FileNotFoundError(f"no such xacro file: {source}")
@@ -215,4 +290,7 @@ def expand_xacro(
             raise _to_model_error(exc, session) from exc
         finally:
             session.report.warn()
-    return doc.toprettyxml(indent="  ")
+    error = _no_links_error(doc, session, source)
+    if error is not None:
+        raise error
+    return Expansion(doc.toprettyxml(indent="  "), dict(session.packages), tuple(session.files))

@@ -119,12 +119,16 @@ class Simulator:
         """Load a URDF file as body ``name`` with its link frame at ``position``, heading ``yaw``.
 
         The inertias written in the file are used (pybullet would otherwise recompute them
-        from the collision shapes).
+        from the collision shapes). pybullet's importer messages are silenced; a file it cannot
+        load raises ``ModelError`` naming the file (and the reason where it can be told).
         """
+        from smartcar_gym.model.bodies import load_body  # the model package imports xacro
+
         flags = pybullet.URDF_USE_INERTIA_FROM_FILE | pybullet.URDF_USE_IMPLICIT_CYLINDER
-        body = self.client.loadURDF(
-            str(path),
-            list(position),
+        body = load_body(
+            self.client,
+            path,
+            position,
             self.client.getQuaternionFromEuler([0.0, 0.0, yaw]),
             flags=flags,
         )

@@ -7,6 +7,7 @@ client; they go through this class (the panda-gym pattern). Time is counted in p
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import sys
@@ -15,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from smartcar_gym._bullet import connect, pybullet
+from smartcar_gym._bullet import connect, pybullet, silenced_output
 
 Vec3 = tuple[float, float, float]
 Quat = tuple[float, float, float, float]
@@ -98,10 +99,9 @@ class Simulator:
         """Disconnect the client (idempotent)."""
         client = getattr(self, "client", None)
         if client is not None:
-            try:
+            # the GUI's threads report their shutdown on the C-level stdout
+            with silenced_output(), contextlib.suppress(pybullet.error):
                 client.disconnect()
-            except pybullet.error:
-                pass
             self.client = None
 
     @property

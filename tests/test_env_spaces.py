@@ -182,10 +182,18 @@ def test_observation_is_odometry_not_ground_truth():
         odom_x, odom_y, odom_yaw = info["odom_pose"]
         np.testing.assert_allclose(obs[0:4], [odom_x, odom_y, math.cos(odom_yaw),
                                               math.sin(odom_yaw)], atol=1e-5)
-        true_x, true_y, _ = info["pose"]
+        true_x, true_y, true_yaw = info["pose"]
         assert math.hypot(obs[0] - true_x, obs[1] - true_y) > 0.1
+
+        def goal_in_base(x, y, yaw):  # (ahead, left) of the goal seen from pose (x, y, yaw)
+            dx, dy = goal[0] - x, goal[1] - y
+            return np.array([math.cos(yaw) * dx + math.sin(yaw) * dy,
+                             -math.sin(yaw) * dx + math.cos(yaw) * dy])
+
         goal = env.unwrapped.goal
+        np.testing.assert_allclose(obs[14:16], goal_in_base(odom_x, odom_y, odom_yaw), atol=1e-5)
+        # the real robot would see it elsewhere: the odometry heading is off after the turns
+        assert np.linalg.norm(obs[14:16] - goal_in_base(true_x, true_y, true_yaw)) > 0.1
         assert obs[16] == pytest.approx(math.hypot(goal[0] - odom_x, goal[1] - odom_y), abs=1e-5)
-        assert abs(obs[16] - info["distance"]) > 0.01  # not the ground-truth distance
     finally:
         env.close()

@@ -156,6 +156,16 @@ def test_summary_and_trajectory_plot(tmp_path):
     assert out.read_bytes()[:4] == b"\x89PNG"
 
 
+@pytest.mark.parametrize("n", [1, 2, 4, 16])
+def test_trajectory_plot_has_room_for_its_title_and_legend(n, tmp_path):
+    """One 3-inch panel (270 px) could show neither the six-entry legend nor a long title."""
+    title = "ppo_smartcar.zip on SmartCar-v0: 100% success over 100 episodes (first 16 shown)"
+    out = plot_trajectories([_record(i, i % 2 == 0, 20) for i in range(n)],
+                            tmp_path / "paths.png", title=title)
+    height, width = iio.imread(out).shape[:2]
+    assert width >= 450 and height >= 300
+
+
 def test_a_model_for_another_observation_shape_is_refused():
     class OldModel:
         observation_space = gym.spaces.Box(-1, 1, (7,))

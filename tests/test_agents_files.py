@@ -1,14 +1,25 @@
-"""Atomic files, checkpoint discovery and the command lines' argument errors (exit code 2)."""
+"""Atomic files, checkpoints, signals and the command lines' argument errors (exit code 2)."""
 
+import os
+import pickle
+import signal
+import zipfile
+
+import numpy as np
 import pytest
 
 from smartcar_gym.agents import evaluate, train
 from smartcar_gym.agents.callbacks import (
+    CheckpointCallback,
+    StopOnSigint,
     atomic_path,
     atomic_write_text,
+    checkpoint_steps,
     find_latest_checkpoint,
+    replay_buffer_path_for,
     vecnormalize_path_for,
 )
+from smartcar_gym.agents.hyperparams import output_path_error
 
 
 def test_atomic_write_replaces_the_file_or_leaves_it_untouched(tmp_path):
@@ -74,15 +85,66 @@ def test_train_refuses_to_overwrite_or_resume_badly(tmp_path, capsys):
     run = tmp_path / "run"
     run.mkdir()
     (run / "config.yaml").write_text("algo: ppo\n")
+    (run / "model.zip").write_bytes(b"a finished run")
     code, err = _exit_code(train.main, ["--run-dir", str(run), "--timesteps", "64"], capsys)
     assert code == 2 and "already holds a run" in err and f"--resume {run}" in err
     code, err = _exit_code(train.main, ["--resume", str(run), "--seed", "3"], capsys)
     assert code == 2 and "--seed cannot be changed" in err
     code, err = _exit_code(train.main, ["--resume", str(tmp_path / "nothing")], capsys)
     assert code == 2 and "config.yaml not found" in err
-    (run / "config.yaml").write_text("algo: ppo\nhyperparams: {normalize: true}\n")
-    code, err = _exit_code(train.main, ["--resume", str(run)], capsys)
-    assert code == 2 and "no complete checkpoint" in err
+    assert sorted(p.name for p in run.iterdir()) == ["config.yaml", "model.zip"]
+
+
+def test_output_path_errors(tmp_path):
+    (tmp_path / "file").write_text("")
+    assert output_path_error(tmp_path / "new" / "deeper" / "x.json") is None
+    assert output_path_error(tmp_path / "file") is None  # overwritten
+    assert output_path_error(tmp_path) == f"{tmp_path} is a directory"
+    assert output_path_error(tmp_path / "file" / "x.json") == (
+        f"cannot create {tmp_path / 'file' / 'x.json'}: {tmp_path / 'file'} is not a folder")
+    assert "is not a folder" in output_path_error(tmp_path / "file" / "a" / "b.png")
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+def test_sigint_and_sigterm_stop_training_at_the_next_step(signum, capsys):
+    before = signal.getsignal(signum)
+    with StopOnSigint() as stop:
+        os.kill(os.getpid(), signum)
+        assert stop.requested and stop.signum == signum
+        assert stop._on_step() is False  # SB3 then ends learn()
+        with pytest.raises(KeyboardInterrupt):  # a second signal stops at once
+            os.kill(os.getpid(), signum)
+    assert signal.getsignal(signum) is before
+    name = "Ctrl-C" if signum == signal.SIGINT else "SIGTERM"
+    assert f"{name}: stopping after this step and saving a checkpoint" in capsys.readouterr().err
+
+
+def test_checkpoints_keep_the_replay_buffer_of_the_latest_one_only(tmp_path):
+    import gymnasium as gym
+    from stable_baselines3 import SAC
+
+    model = SAC("MlpPolicy", gym.make("Pendulum-v1"), buffer_size=100,
+                policy_kwargs={"net_arch": [4]}, device="cpu")
+    callback = CheckpointCallback(tmp_path, save_freq=0, save_replay_buffer=True)
+    callback.init_callback(model)
+    model.replay_buffer.add(np.zeros((1, 3)), np.zeros((1, 3)), np.zeros((1, 1)),
+                            np.zeros(1), np.zeros(1), [{}])
+    first = callback.save()
+    assert first == tmp_path / "checkpoints" / "ckpt_0_steps.zip"
+    assert replay_buffer_path_for(first).name == "ckpt_0_steps_replay_buffer.pkl"
+    assert replay_buffer_path_for(first).is_file()
+    model.num_timesteps = 7
+    second = callback.save()
+    names = sorted(p.name for p in (tmp_path / "checkpoints").iterdir())
+    assert names == ["ckpt_0_steps.zip", "ckpt_7_steps.zip", "ckpt_7_steps_replay_buffer.pkl"]
+    with open(replay_buffer_path_for(second), "rb") as f:
+        assert pickle.load(f).size() == 1
+    assert checkpoint_steps(second) == 7
+    model.num_timesteps = 9
+    plain = CheckpointCallback(tmp_path, 0)
+    plain.init_callback(model)
+    plain.save()
+    assert not replay_buffer_path_for(tmp_path / "checkpoints" / "ckpt_9_steps.zip").exists()
 
 
 @pytest.mark.parametrize(("argv", "message"), [
@@ -101,6 +163,7 @@ def test_eval_argument_errors_exit_2_with_a_clear_message(argv, message, capsys)
 
 def test_eval_model_without_a_run_needs_algo(tmp_path, capsys):
     model = tmp_path / "lonely.zip"
-    model.write_bytes(b"not read before the algorithm is known")
+    with zipfile.ZipFile(model, "w") as archive:
+        archive.writestr("data", "not read before the algorithm is known")
     code, err = _exit_code(evaluate.main, ["--model", str(model)], capsys)
     assert code == 2 and "pass --algo" in err

@@ -13,6 +13,7 @@ from smartcar_gym.agents.hyperparams import (
     parse_key_values,
     parse_policy_kwargs,
     parse_value,
+    run_int,
 )
 
 
@@ -123,3 +124,27 @@ def test_unknown_hyperparameter_lists_what_is_accepted():
         build_algo_kwargs("ppo", {"n_step": 5}, 2)
     with pytest.raises(HyperparamsError, match="learning_rate: expected a number"):
         build_algo_kwargs("sac", {"learning_rate": "fast"}, 2)
+
+
+@pytest.mark.parametrize(("key", "hint"), [
+    ("seed", "use --seed"), ("device", "use --device"), ("verbose", "progress bar"),
+    ("tensorboard_log", "<run-dir>/tb"), ("_init_setup_model", "internal"),
+])
+def test_arguments_set_by_smartcar_train_are_refused(key, hint):
+    message = rf"hyperparameter {key} cannot be set: .*{hint}"
+    for algo in ALGOS:
+        with pytest.raises(HyperparamsError, match=message):
+            build_algo_kwargs(algo, {key: 1}, 2)
+    with pytest.raises(HyperparamsError) as exc:
+        build_algo_kwargs("ppo", {"n_step": 5}, 2)
+    accepted = str(exc.value).split("accepts ")[1]
+    assert "learning_rate" in accepted and key not in accepted
+
+
+def test_run_integers():
+    assert run_int({"n_envs": 4}, "n_envs") == 4
+    assert run_int({"n_timesteps": 2e5}, "n_timesteps") == 200_000
+    assert run_int({}, "n_envs") is None
+    for bad in ("abc", 0, 1.5, True, [2]):
+        with pytest.raises(HyperparamsError, match=r"n_envs must be a whole number >= 1"):
+            run_int({"n_envs": bad}, "n_envs")

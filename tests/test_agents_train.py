@@ -1,5 +1,6 @@
 """smartcar-train smoke tests on SmartCar-v0: a few hundred steps per algorithm, the run
-folder's contents, resume, and Ctrl-C."""
+folder's contents, resume (with SAC's replay buffer), restart after a failed start, and
+Ctrl-C / SIGTERM."""
 
 import json
 import os
@@ -24,6 +25,10 @@ SMALL = {
     "sac": ["learning_starts=100", "buffer_size=2000", "batch_size=32", TINY_NET],
     "td3": ["learning_starts=100", "buffer_size=2000", "batch_size=32", TINY_NET],
 }
+# Every episode lasts exactly 32 steps: in 3.2 s the car (0.5 m/s at most) can neither reach a
+# goal 2 m away nor leave the 5 m arena. So step counts of episodes are known exactly.
+EPISODE = 32
+ENV_KWARGS = [f"max_episode_steps={EPISODE}", "goal_range=[2.0, 2.2]"]
 
 
 def _argv(algo: str, run_dir: Path, timesteps: int = 512) -> list[str]:
@@ -31,7 +36,7 @@ def _argv(algo: str, run_dir: Path, timesteps: int = 512) -> list[str]:
         "--algo", algo, "--n-envs", "2", "--seed", "1", "--timesteps", str(timesteps),
         "--run-dir", str(run_dir), "--eval-freq", "256", "--eval-episodes", "2",
         "--checkpoint-freq", "256", "--no-progress",
-        "--env-kwargs", "max_episode_steps=50", "--hyperparams", *SMALL[algo],
+        "--env-kwargs", *ENV_KWARGS, "--hyperparams", *SMALL[algo],
     ]
 
 
@@ -53,12 +58,12 @@ def _check_run_folder(run_dir: Path, algo: str, steps: int) -> None:
     config = yaml.safe_load((run_dir / "config.yaml").read_text())
     assert (config["algo"], config["env"], config["seed"]) == (algo, "SmartCar-v0", 1)
     assert (config["n_envs"], config["n_timesteps"]) == (2, 512)
-    assert config["env_kwargs"] == {"max_episode_steps": 50}
+    assert config["env_kwargs"] == {"max_episode_steps": EPISODE, "goal_range": [2.0, 2.2]}
     assert config["hyperparams"]["policy_kwargs"] == "dict(net_arch=[16, 16])"
     assert config["hyperparams"]["n_envs"] == 2
     assert config["versions"]["smartcar_gym"] and config["versions"]["stable_baselines3"]
     assert config["command"].startswith(f"smartcar-train --algo {algo} --n-envs 2")
-    assert config["resumes"] == []
+    assert config["resumes"] == [] and config["save_replay_buffer"] is False
 
     names = sorted(p.name for p in (run_dir / "checkpoints").iterdir())
     assert names[:2] == ["ckpt_256_steps.zip", "ckpt_256_steps_vecnormalize.pkl"]
@@ -67,7 +72,7 @@ def _check_run_folder(run_dir: Path, algo: str, steps: int) -> None:
     for rank in (0, 1):
         monitor = pd.read_csv(run_dir / "monitor" / f"seg0_{rank}.monitor.csv", skiprows=1)
         assert list(monitor.columns) == ["r", "l", "t", "is_success"]
-        assert len(monitor) >= 1 and (monitor["l"] <= 50).all()
+        assert len(monitor) == steps // 2 // EPISODE and (monitor["l"] == EPISODE).all()
 
     evals = np.load(run_dir / "eval" / "evaluations.npz")
     assert evals["timesteps"].tolist()[:2] == [256, 512]
@@ -126,9 +131,9 @@ def test_resume_continues_steps_normaliser_and_logs(ppo_run, tmp_path):
 
     from smartcar_gym.agents.plots import load_training_episodes
 
+    # 2 envs x 8 episodes of 32 steps per segment; the second segment starts at step 512
     episodes = load_training_episodes(run_dir)
-    assert episodes["steps"].is_monotonic_increasing or episodes["steps"].max() <= 1024 + 100
-    assert (episodes["steps"] > 512).any()
+    assert episodes["steps"].tolist() == list(range(EPISODE, 1024 + 1, EPISODE))
 
 
 class _InterruptAt:
@@ -162,13 +167,68 @@ def test_keyboard_interrupt_saves_a_checkpoint_that_resumes(tmp_path):
     assert algo_class("ppo").load(run_dir / "model.zip").num_timesteps >= 512
 
 
+def _buffer_pos(path: Path) -> int:
+    import pickle
+
+    with open(path, "rb") as f:
+        return int(pickle.load(f).pos)
+
+
 @pytest.mark.slow
-def test_ctrl_c_on_the_command_line_exits_130_with_a_checkpoint(tmp_path):
-    run_dir = tmp_path / "sigint"
+def test_sac_resume_keeps_the_replay_buffer_only_if_it_was_saved(tmp_path, capsys):
+    run_dir = tmp_path / "sac"
+    argv = [*_argv("sac", run_dir, timesteps=256), "--eval-freq", "0", "--save-replay-buffer"]
+    assert train.main(argv) == 0
+    assert yaml.safe_load((run_dir / "config.yaml").read_text())["save_replay_buffer"] is True
+    assert _buffer_pos(run_dir / "checkpoints" / "ckpt_256_steps_replay_buffer.pkl") == 128
+    without = tmp_path / "sac_without_buffer"
+    shutil.copytree(run_dir, without)
+    (without / "checkpoints" / "ckpt_256_steps_replay_buffer.pkl").unlink()
+    capsys.readouterr()
+
+    # the choice is stored: no --save-replay-buffer needed; 2 envs x 192 steps in the buffer
+    assert train.main(["--resume", str(run_dir), "--timesteps", "384", "--no-progress"]) == 0
+    assert "replay buffer" not in capsys.readouterr().err
+    names = sorted(p.name for p in (run_dir / "checkpoints").glob("*replay_buffer.pkl"))
+    assert names == ["ckpt_384_steps_replay_buffer.pkl"]
+    assert _buffer_pos(run_dir / "checkpoints" / names[0]) == 192
+
+    assert train.main(["--resume", str(without), "--timesteps", "384", "--no-progress"]) == 0
+    assert ("SAC resumes with an empty replay buffer: no replay buffer was saved with "
+            "ckpt_256_steps.zip") in capsys.readouterr().err
+    assert _buffer_pos(without / "checkpoints" / "ckpt_384_steps_replay_buffer.pkl") == 64
+
+
+@pytest.mark.slow
+def test_a_run_that_failed_to_start_is_simply_started_again(tmp_path, capsys):
+    run_dir = tmp_path / "retry"
+    argv = [*_argv("ppo", run_dir, timesteps=128), "--n-envs", "1", "--eval-freq", "0"]
+    with pytest.raises(SystemExit) as exc:
+        train.main([*argv, "--hyperparams", "learning_rate=-1"])
+    assert exc.value.code == 2 and "Invalid learning rate" in capsys.readouterr().err
+    assert not run_dir.exists()
+    # a folder left behind by a start that failed before this was fixed
+    (run_dir / "monitor").mkdir(parents=True)
+    (run_dir / "monitor" / "seg0_0.monitor.csv").write_text('#{"t_start": 0}\nr,l,t\n')
+    (run_dir / "config.yaml").write_text("algo: ppo\n")
+    assert train.main(argv) == 0
+    assert "starting it again" in capsys.readouterr().err
+    assert algo_class("ppo").load(run_dir / "model.zip").num_timesteps == 128
+    assert yaml.safe_load((run_dir / "config.yaml").read_text())["n_timesteps"] == 128
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("signum", "exit_code"), [
+    (signal.SIGINT, train.INTERRUPTED_EXIT_CODE), (signal.SIGTERM, train.TERMINATED_EXIT_CODE),
+])
+def test_a_signal_to_the_process_group_saves_a_checkpoint(signum, exit_code, tmp_path):
+    """Ctrl-C in a terminal (or ``timeout``, a batch system...) signals the whole process
+    group: the workers ignore it and the main process stops cleanly."""
+    run_dir = tmp_path / "signal"
     argv = _argv("ppo", run_dir, timesteps=1_000_000)
     proc = subprocess.Popen(
         [sys.executable, "-m", "smartcar_gym.agents.train", *argv],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
         # a background shell may have ignored SIGINT; give the child the default handler
         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
@@ -180,12 +240,13 @@ def test_ctrl_c_on_the_command_line_exits_130_with_a_checkpoint(tmp_path):
                 break  # an episode has finished: training is under way
             time.sleep(0.2)
         assert proc.poll() is None, proc.communicate()
-        os.kill(proc.pid, signal.SIGINT)
+        os.killpg(proc.pid, signum)
         out, err = proc.communicate(timeout=120)
     finally:
         if proc.poll() is None:
-            proc.kill()
-    assert proc.returncode == train.INTERRUPTED_EXIT_CODE, err
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert proc.returncode == exit_code, err
+    assert f"Interrupted ({signal.Signals(signum).name}): checkpoint saved" in err
     assert f"smartcar-train --resume {run_dir}" in err
     assert "interrupted" in out
     checkpoints = list((run_dir / "checkpoints").glob("ckpt_*_steps.zip"))

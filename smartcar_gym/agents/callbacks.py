@@ -75,20 +75,39 @@ def vecnormalize_path_for(model_path: str | os.PathLike) -> Path:
 def save_model_atomic(model: BaseAlgorithm, path: str | os.PathLike) -> Path:
     """Save ``model`` (and its VecNormalize statistics, if any) atomically; returns the zip path.
 
-    The statistics are written first, so an existing zip always has its statistics beside it.
+    Both files are written to temporary files first, then renamed: the statistics, then the
+    zip. So a new zip (a checkpoint) always has its statistics beside it. When an existing pair
+    is replaced (``model.zip``, ``best_model.zip``), a kill in the few milliseconds between the
+    two renames leaves the new statistics beside the old model; nothing is ever half-written.
     """
     path = Path(path)
     vec_normalize = model.get_vec_normalize_env()
-    if vec_normalize is not None:
-        atomic_write_bytes(vecnormalize_path_for(path), pickle.dumps(vec_normalize))
-    with atomic_path(path) as tmp:
-        model.save(tmp)
+    with contextlib.ExitStack() as stack:  # exits (renames) in reverse order: statistics first
+        tmp_zip = stack.enter_context(atomic_path(path))
+        if vec_normalize is not None:
+            tmp_stats = stack.enter_context(atomic_path(vecnormalize_path_for(path)))
+            tmp_stats.write_bytes(pickle.dumps(vec_normalize))
+        model.save(tmp_zip)
     return path
 
 
 def checkpoint_path(run_dir: str | os.PathLike, num_timesteps: int) -> Path:
     """``<run_dir>/checkpoints/ckpt_<steps>_steps.zip``."""
     return Path(run_dir) / "checkpoints" / f"ckpt_{num_timesteps}_steps.zip"
+
+
+def checkpoint_steps(path: str | os.PathLike) -> int:
+    """The step count of a checkpoint from its name ``ckpt_<steps>_steps.zip``."""
+    match = CHECKPOINT_RE.match(Path(path).name)
+    if match is None:
+        raise ValueError(f"{path} is not named like a checkpoint (ckpt_<steps>_steps.zip)")
+    return int(match.group(1))
+
+
+def replay_buffer_path_for(checkpoint: str | os.PathLike) -> Path:
+    """The replay buffer saved with a checkpoint: ``ckpt_<steps>_steps_replay_buffer.pkl``."""
+    checkpoint = Path(checkpoint)
+    return checkpoint.with_name(checkpoint.name.removesuffix(".zip") + "_replay_buffer.pkl")
 
 
 def find_latest_checkpoint(run_dir: str | os.PathLike, normalize: bool) -> Path | None:
@@ -105,8 +124,9 @@ def find_latest_checkpoint(run_dir: str | os.PathLike, normalize: bool) -> Path 
 class CheckpointCallback(BaseCallback):
     """Save ``checkpoints/ckpt_<steps>_steps.zip`` every ``save_freq`` environment steps.
 
-    ``save_replay_buffer`` keeps the latest replay buffer of SAC/TD3 in
-    ``checkpoints/replay_buffer.pkl`` (large: it holds the whole buffer).
+    ``save_replay_buffer`` keeps the replay buffer of SAC/TD3 with the latest checkpoint only,
+    in ``ckpt_<steps>_steps_replay_buffer.pkl`` (large: it holds the whole buffer). It is
+    written before the checkpoint's zip, so a checkpoint that exists has its buffer.
     """
 
     def __init__(self, run_dir: str | os.PathLike, save_freq: int,
@@ -132,10 +152,17 @@ class CheckpointCallback(BaseCallback):
     def save(self) -> Path:
         """Write a checkpoint at the model's current step count now."""
         model = self.model
-        path = save_model_atomic(model, checkpoint_path(self.run_dir, model.num_timesteps))
-        if self.save_replay_buffer and getattr(model, "replay_buffer", None) is not None:
-            with atomic_path(path.parent / "replay_buffer.pkl") as tmp:
+        path = checkpoint_path(self.run_dir, model.num_timesteps)
+        buffer = replay_buffer_path_for(path)
+        keep_buffer = self.save_replay_buffer and getattr(model, "replay_buffer", None) is not None
+        if keep_buffer:
+            with atomic_path(buffer) as tmp:
                 model.save_replay_buffer(tmp)
+        save_model_atomic(model, path)
+        if keep_buffer:
+            for old in path.parent.glob("*replay_buffer.pkl"):
+                if old != buffer:
+                    old.unlink(missing_ok=True)
         self.last_path = path
         return path
 
@@ -349,34 +376,39 @@ class ProgressBarCallback(BaseCallback):
 
 
 class StopOnSigint(BaseCallback):
-    """While active (``with``), the first Ctrl-C makes training stop cleanly at the next step.
+    """While active (``with``), the first Ctrl-C (SIGINT) or SIGTERM makes training stop
+    cleanly at the next step; ``signum`` records which.
 
     A KeyboardInterrupt in the middle of a ``SubprocVecEnv`` exchange would leave its pipes out
     of step, so the signal only sets ``requested`` and ``_on_step`` returns False; SB3 then
-    ends ``learn()``. A second Ctrl-C raises KeyboardInterrupt as usual.
+    ends ``learn()``. A second signal raises KeyboardInterrupt (stop at once).
     """
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
     def __init__(self) -> None:
         super().__init__()
         self.requested = False
-        self._previous: Any = None
+        self.signum: int | None = None
+        self._previous: dict[int, Any] = {}
 
     def __enter__(self) -> StopOnSigint:
         if threading.current_thread() is threading.main_thread():
-            self._previous = signal.signal(signal.SIGINT, self._handle)
+            self._previous = {s: signal.signal(s, self._handle) for s in self.SIGNALS}
         return self
 
     def __exit__(self, *exc: object) -> None:
-        if self._previous is not None:
-            signal.signal(signal.SIGINT, self._previous)
-            self._previous = None
+        for signum, previous in self._previous.items():
+            signal.signal(signum, previous)
+        self._previous = {}
 
     def _handle(self, signum: int, frame: Any) -> None:
         if self.requested:
             raise KeyboardInterrupt
-        self.requested = True
-        print("\nCtrl-C: stopping after this step and saving a checkpoint "
-              "(Ctrl-C again to stop at once)", file=sys.stderr)
+        self.requested, self.signum = True, signum
+        name = "Ctrl-C" if signum == signal.SIGINT else signal.Signals(signum).name
+        print(f"\n{name}: stopping after this step and saving a checkpoint "
+              f"({name} again to stop at once)", file=sys.stderr)
 
     def _on_step(self) -> bool:
         return not self.requested
@@ -384,7 +416,7 @@ class StopOnSigint(BaseCallback):
 
 def close_vec_env(venv: VecEnv, force: bool = False) -> None:
     """Close a VecEnv; with ``force`` (after an abrupt interrupt) do not wait for pending
-    worker replies and terminate workers that are still alive."""
+    worker replies and kill workers that are still alive."""
     base = venv
     while hasattr(base, "venv"):
         base = base.venv
@@ -396,4 +428,5 @@ def close_vec_env(venv: VecEnv, force: bool = False) -> None:
         pass
     for process in getattr(base, "processes", []):
         if process.is_alive():
-            process.terminate()
+            process.kill()  # workers ignore SIGTERM (see env_factory.make_env)
+            process.join(timeout=5)

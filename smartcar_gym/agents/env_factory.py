@@ -21,20 +21,39 @@ import smartcar_gym  # noqa: F401  (registers SmartCar-v0 in worker processes)
 INFO_KEYWORDS = ("is_success",)
 
 
+class EnvSetupError(ValueError):
+    """The env cannot be made with the given id and keyword arguments."""
+
+
+def check_env(env_id: str, env_kwargs: dict[str, Any] | None = None) -> None:
+    """Make and close one env in this process: bad ``env_kwargs`` then fail here, with the env's
+    own message naming the argument, instead of inside a worker process."""
+    try:
+        env = gym.make(env_id, **(env_kwargs or {}))
+    except (gym.error.Error, TypeError, ValueError) as err:
+        given = ", ".join(f"{k}={v!r}" for k, v in (env_kwargs or {}).items()) or "no env kwargs"
+        raise EnvSetupError(f"cannot make {env_id} with {given}: {err}") from err
+    env.close()
+
+
 def make_env(
     env_id: str,
     env_kwargs: dict[str, Any] | None = None,
     monitor_file: str | None = None,
     monitor: bool = False,
     override_existing: bool = True,
+    ignore_sigterm: bool = False,
 ) -> gym.Env:
     """``gym.make(env_id, **env_kwargs)``, optionally in an SB3 ``Monitor`` logging is_success.
 
-    In a worker process, SIGINT is ignored so that Ctrl-C reaches only the main process, which
-    then saves a checkpoint and closes the workers itself.
+    In a worker process, SIGINT (and SIGTERM if ``ignore_sigterm``: training workers, which the
+    main process closes itself) is ignored so that a Ctrl-C or a ``kill`` sent to the whole
+    process group reaches only the main process, which saves a checkpoint and closes them.
     """
     if multiprocessing.parent_process() is not None:
         signal.signal(signal.SIGINT, signal.SIG_IGN)
+        if ignore_sigterm:
+            signal.signal(signal.SIGTERM, signal.SIG_IGN)
     env = gym.make(env_id, **(env_kwargs or {}))
     if monitor or monitor_file is not None:
         from stable_baselines3.common.monitor import Monitor
@@ -62,6 +81,7 @@ def env_fns(
         )
         fns.append(functools.partial(
             make_env, env_id, dict(env_kwargs or {}), monitor_file=monitor_file, monitor=monitor,
+            ignore_sigterm=True,
         ))
     return fns
 

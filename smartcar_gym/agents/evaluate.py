@@ -19,6 +19,7 @@ import math
 import os
 import pickle
 import sys
+import zipfile
 from collections.abc import Iterator, Sequence
 from dataclasses import asdict, dataclass, field
 from importlib import resources
@@ -29,8 +30,13 @@ import gymnasium as gym
 import numpy as np
 import yaml
 
-from smartcar_gym.agents.env_factory import make_env
-from smartcar_gym.agents.hyperparams import ALGOS, key_value_arg, positive_int_arg
+from smartcar_gym.agents.env_factory import EnvSetupError, check_env, make_env
+from smartcar_gym.agents.hyperparams import (
+    ALGOS,
+    key_value_arg,
+    output_path_error,
+    positive_int_arg,
+)
 
 DEFAULT_ENV_ID = "SmartCar-v0"
 PRETRAINED_MODEL = "ppo_smartcar.zip"
@@ -166,7 +172,7 @@ def evaluate_policy_episodes(
     envs = _vector_env(env_id, n_slots, dict(env_kwargs or {}))
     try:
         _check_spaces(model, envs.single_observation_space, env_id)
-    except ValueError:
+    except ObservationShapeError:
         envs.close()
         raise
     step_s = 1.0 / float(envs.metadata.get("render_fps") or 10)
@@ -221,11 +227,15 @@ def evaluate_policy_episodes(
     return sorted(records, key=lambda r: r.episode)
 
 
+class ObservationShapeError(ValueError):
+    """The model was trained on observations of another shape than the env's."""
+
+
 def _check_spaces(model: Any, space: gym.spaces.Space, env_id: str) -> None:
     """A clear error when the model was trained on observations of another shape."""
     expected = getattr(getattr(model, "observation_space", None), "shape", None)
     if expected is not None and tuple(expected) != tuple(space.shape):
-        raise ValueError(
+        raise ObservationShapeError(
             f"the model expects observations of shape {tuple(expected)} but {env_id} gives "
             f"{tuple(space.shape)}: the env changed since the model was trained; retrain it "
             "(see the README, 'Training')"
@@ -283,7 +293,7 @@ def record_video(
 ) -> int:
     """Render episodes 0..n-1 (seeds seed+i, as in the evaluation) to a .gif or .mp4.
 
-    Returns the number of frames written. mp4 needs the ``imageio-ffmpeg`` package.
+    Returns the number of frames written (mp4 through ``imageio-ffmpeg``, a dependency).
     """
     import imageio.v3 as iio
 
@@ -372,6 +382,21 @@ def load_model(path: str | os.PathLike, algo: str, device: str = "cpu") -> Any:
     return algo_class(algo).load(str(path), device=device)
 
 
+# The module of each algorithm's policy classes, as recorded in a saved model's "data".
+_POLICY_MODULES = {"stable_baselines3.common.policies": "ppo",
+                   "stable_baselines3.sac.policies": "sac", "stable_baselines3.td3.policies": "td3"}
+
+
+def saved_algo(path: str | os.PathLike) -> str | None:
+    """The algorithm a model zip was saved by, from its policy class (None if unknown)."""
+    try:
+        with zipfile.ZipFile(path) as archive:
+            policy = json.loads(archive.read("data"))["policy_class"]
+    except (OSError, KeyError, ValueError, zipfile.BadZipFile):
+        return None
+    return _POLICY_MODULES.get(policy.get("__module__")) if isinstance(policy, dict) else None
+
+
 # -- command line -----------------------------------------------------------------------------
 def build_parser() -> argparse.ArgumentParser:
     """The ``smartcar-eval`` argument parser."""
@@ -418,24 +443,12 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """``smartcar-eval``: returns the exit code."""
+    """``smartcar-eval``: returns the exit code (2 for bad arguments, models or env kwargs)."""
     parser = build_parser()
     args = parser.parse_args(argv)
-    if args.video is not None and args.video.suffix.lower() not in (".gif", ".mp4"):
-        parser.error(f"--video: the file must end in .gif or .mp4, got {str(args.video)!r}")
+    check_outputs(parser, args)
     with contextlib.ExitStack() as stack:
-        if args.random:
-            model_path = Path("random-policy")
-        elif args.pretrained:
-            try:
-                folder = stack.enter_context(pretrained_files())
-            except FileNotFoundError as err:
-                parser.error(str(err))
-            model_path = folder / PRETRAINED_MODEL
-        else:
-            model_path = args.model
-            if not model_path.is_file():
-                parser.error(f"--model: no such file: {model_path}")
+        model_path = _model_path(parser, args, stack)
         run = {} if args.random else find_run_config(model_path) or {}
         algo = "random" if args.random else args.algo or run.get("algo")
         if algo is None:
@@ -445,17 +458,26 @@ def main(argv: Sequence[str] | None = None) -> int:
             parser.error(f"unknown algorithm {algo!r} in the run's config; pass --algo")
         env_id = args.env_id or run.get("env") or DEFAULT_ENV_ID
         env_kwargs = {**(run.get("env_kwargs") or {}), **dict(args.env_kwargs)}
+        try:
+            check_env(env_id, env_kwargs)  # here, not in a worker: a clear error
+        except EnvSetupError as err:
+            parser.error(str(err))
         if args.random:
             vecnormalize, model = None, RandomPolicy(args.seed)
         else:
+            if args.vecnormalize is not None and not args.vecnormalize.is_file():
+                parser.error(f"--vecnormalize: no such file: {args.vecnormalize}")
             vecnormalize = args.vecnormalize or find_vecnormalize(model_path)
-            model = load_model(model_path, algo, device=args.device)
+            model = _load_for_cli(parser, model_path, algo, args.device)
         common = dict(env_id=env_id, seed=args.seed, env_kwargs=env_kwargs,
                       deterministic=not args.stochastic, vecnormalize_path=vecnormalize)
-        records = evaluate_policy_episodes(
-            model, n_episodes=args.episodes, n_envs=args.n_envs,
-            progress=not args.no_progress, **common,
-        )
+        try:
+            records = evaluate_policy_episodes(
+                model, n_episodes=args.episodes, n_envs=args.n_envs,
+                progress=not args.no_progress, **common,
+            )
+        except ObservationShapeError as err:
+            parser.error(str(err))
         summary = summarize(records)
         files = {}
         if args.json is not None:
@@ -475,16 +497,64 @@ def main(argv: Sequence[str] | None = None) -> int:
             from smartcar_gym.agents.plots import plot_trajectories
 
             tolerance = float(env_kwargs.get("goal_tolerance", 0.1))
+            shown = " (first 16 shown)" if len(records) > 16 else ""
             plot_trajectories(records, args.plot, goal_tolerance_m=tolerance,
                               title=f"{model_path.name} on {env_id}: "
                                     f"{summary['success_rate']:.0%} success over "
-                                    f"{len(records)} episodes (first 16 shown)")
+                                    f"{len(records)} episodes{shown}")
             files["plot"] = args.plot
         if args.video is not None:
             n_frames = record_video(model, args.video, n_episodes=args.video_episodes, **common)
             files[f"video ({n_frames} frames)"] = args.video
     _print_summary(summary, model_path, env_id, args, files)
     return 0
+
+
+def check_outputs(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
+    """Refuse (``parser.error``) output files that could not be written, before evaluating."""
+    if args.video is not None and args.video.suffix.lower() not in (".gif", ".mp4"):
+        parser.error(f"--video: the file must end in .gif or .mp4, got {str(args.video)!r}")
+    if args.plot is not None and args.plot.suffix:
+        from matplotlib.backend_bases import FigureCanvasBase
+
+        formats = FigureCanvasBase.get_supported_filetypes()
+        if args.plot.suffix[1:].lower() not in formats:
+            parser.error(f"--plot: cannot write {args.plot.suffix} images; use .png, .svg or "
+                         ".pdf")
+    for option, path in (("--json", args.json), ("--plot", args.plot), ("--video", args.video)):
+        problem = None if path is None else output_path_error(path)
+        if problem:
+            parser.error(f"{option}: {problem}")
+
+
+def _model_path(parser: argparse.ArgumentParser, args: argparse.Namespace,
+                stack: contextlib.ExitStack) -> Path:
+    """The model file of ``--model`` / ``--pretrained`` (a placeholder for ``--random``)."""
+    if args.random:
+        return Path("random-policy")
+    if args.pretrained:
+        try:
+            return stack.enter_context(pretrained_files()) / PRETRAINED_MODEL
+        except FileNotFoundError as err:
+            parser.error(str(err))
+    if not args.model.is_file():
+        parser.error(f"--model: no such file: {args.model}")
+    if not zipfile.is_zipfile(args.model):
+        parser.error(f"--model: {args.model} is not a model (SB3 models are .zip files)")
+    return args.model
+
+
+def _load_for_cli(parser: argparse.ArgumentParser, path: Path, algo: str, device: str) -> Any:
+    """``load_model``, with a clear ``parser.error`` for the wrong algorithm or a bad file."""
+    saved = saved_algo(path)
+    if saved is not None and saved != algo:
+        parser.error(f"{path} holds a {saved.upper()} model, not {algo.upper()}: pass "
+                     f"--algo {saved}")
+    try:
+        return load_model(path, algo, device=device)
+    except Exception as err:  # a file from anywhere: whatever fails, the file is the cause
+        parser.error(f"--model: cannot load {path} as a {algo.upper()} model: "
+                     f"{type(err).__name__}: {err}")
 
 
 def _print_summary(summary: dict[str, Any], model_path: Path, env_id: str,

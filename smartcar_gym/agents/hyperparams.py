@@ -19,6 +19,7 @@ import argparse
 import ast
 import copy
 import inspect
+import os
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -30,6 +31,14 @@ ALGOS = ("ppo", "sac", "td3")
 RUN_KEYS = ("n_envs", "n_timesteps", "policy", "normalize")
 NOISE_KEYS = ("noise_type", "noise_std")
 SCHEDULE_KEYS = ("learning_rate", "clip_range", "clip_range_vf")
+# Constructor arguments that smartcar-train sets itself: what to use instead.
+RESERVED_KEYS = {
+    "seed": "use --seed",
+    "device": "use --device",
+    "verbose": "smartcar-train shows a progress bar and a summary instead",
+    "tensorboard_log": "TensorBoard logs always go to <run-dir>/tb",
+    "_init_setup_model": "it is internal to Stable-Baselines3",
+}
 
 
 class HyperparamsError(ValueError):
@@ -199,11 +208,28 @@ def _schedule(key: str, value: Any) -> Any:
     return value
 
 
+def run_int(hyperparams: dict[str, Any], key: str) -> int | None:
+    """``hyperparams[key]`` as a whole number >= 1 (None if absent); ``2e5`` is allowed."""
+    value = hyperparams.get(key)
+    if value is None:
+        return None
+    if (isinstance(value, bool) or not isinstance(value, (int, float))
+            or value != int(value) or value < 1):
+        raise HyperparamsError(f"{key} must be a whole number >= 1, got {value!r}")
+    return int(value)
+
+
 def build_algo_kwargs(algo: str, hyperparams: dict[str, Any], n_actions: int) -> dict[str, Any]:
     """Constructor keyword arguments for the SB3 algorithm from a zoo entry (RUN_KEYS dropped)."""
     cls = algo_class(algo)
     kwargs = {k: v for k, v in hyperparams.items() if k not in RUN_KEYS + NOISE_KEYS}
-    accepted = set(inspect.signature(cls.__init__).parameters) - {"self", "policy", "env"}
+    reserved = sorted(set(kwargs) & set(RESERVED_KEYS))
+    if reserved:
+        raise HyperparamsError("; ".join(
+            f"hyperparameter {key} cannot be set: {RESERVED_KEYS[key]}" for key in reserved
+        ))
+    accepted = (set(inspect.signature(cls.__init__).parameters) - {"self", "policy", "env"}
+                - set(RESERVED_KEYS))
     unknown = sorted(set(kwargs) - accepted)
     if unknown:
         raise HyperparamsError(
@@ -253,6 +279,22 @@ def non_negative_int_arg(text: str) -> int:
     if value < 0:
         raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {text!r}")
     return value
+
+
+def output_path_error(path: Path) -> str | None:
+    """Why a file cannot be written at ``path`` (None if it can; missing folders are created)."""
+    if path.is_dir():
+        return f"{path} is a directory"
+    if path.exists() and not os.access(path, os.W_OK):
+        return f"{path} is not writable"
+    folder = path.parent
+    while not folder.exists() and folder != folder.parent:
+        folder = folder.parent
+    if not folder.is_dir():
+        return f"cannot create {path}: {folder} is not a folder"
+    if not os.access(folder, os.W_OK | os.X_OK):
+        return f"cannot create {path}: {folder} is not writable"
+    return None
 
 
 def positive_int_arg(text: str) -> int:

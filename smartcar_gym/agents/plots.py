@@ -9,6 +9,7 @@ import json
 import math
 import os
 import re
+import textwrap
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -24,6 +25,10 @@ if TYPE_CHECKING:
     from smartcar_gym.agents.evaluate import EpisodeRecord
 
 MONITOR_RE = re.compile(r"^seg(\d+)_(\d+)\.monitor\.csv$")
+# Trajectory figure: inches per episode panel, minimum width, title characters per inch.
+PANEL_IN = 3.0
+MIN_WIDTH_IN = 6.5
+TITLE_CHARS_PER_IN = 11
 
 
 def load_training_episodes(run_dir: str | os.PathLike) -> pd.DataFrame:
@@ -137,18 +142,24 @@ def plot_trajectories(
         raise ValueError("plot_trajectories needs at least one episode record")
     cols = math.ceil(math.sqrt(len(records)))
     rows = math.ceil(len(records) / cols)
-    fig = Figure(figsize=(3 * cols, 3 * rows + 0.4), layout="constrained")
+    width = max(PANEL_IN * cols, MIN_WIDTH_IN)  # room for the title and the legend
+    legend_cols = 6 if width >= 9 else 3
+    n_success = sum(r.success for r in records)
+    title = textwrap.fill(title or f"{n_success}/{len(records)} episodes reached the goal",
+                          width=int(width * TITLE_CHARS_PER_IN))
+    extra = 0.3 * (title.count("\n") + 1) + 0.25 * math.ceil(6 / legend_cols)
+    fig = Figure(figsize=(width, (PANEL_IN + 0.3) * rows + extra), layout="constrained")
     axes = np.atleast_1d(fig.subplots(rows, cols, squeeze=False)).ravel()
     for ax, rec in zip(axes, records, strict=False):
         _draw_episode(ax, rec, goal_tolerance_m)
     for ax in axes[len(records):]:
         ax.set_axis_off()
-    fig.legend(handles=_legend_handles(), loc="outside lower center", ncol=6, fontsize=8)
-    n_success = sum(r.success for r in records)
-    fig.suptitle(title or f"{n_success}/{len(records)} episodes reached the goal")
+    fig.legend(handles=_legend_handles(), loc="outside lower center", ncol=legend_cols,
+               fontsize=8)
+    fig.suptitle(title, fontsize=11)
     out_path = Path(out_path)
     out_path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out_path, dpi=90)
+    fig.savefig(out_path, dpi=90, bbox_inches="tight", pad_inches=0.1)  # nothing is cut off
     return out_path
 
 

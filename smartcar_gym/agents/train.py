@@ -14,13 +14,16 @@ A run folder holds ``config.yaml`` (what ran), ``model.zip`` (+ ``vecnormalize.p
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import platform
 import shlex
+import shutil
+import signal
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import asdict, dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
@@ -36,14 +39,25 @@ from smartcar_gym.agents.hyperparams import (
     load_hyperparams,
     non_negative_int_arg,
     normalize_kwargs,
+    output_path_error,
     positive_int_arg,
+    run_int,
 )
 
 DEFAULT_ENV_ID = "SmartCar-v0"
 # Settings that come from the run's config.yaml when resuming and cannot be changed then.
 FIXED_ON_RESUME = ("algo", "env_id", "n_envs", "seed", "hyperparams", "env_kwargs",
                    "hyperparams_file", "run_dir")
-INTERRUPTED_EXIT_CODE = 130
+# Keys of config.yaml that --resume needs.
+REQUIRED_KEYS = ("algo", "env", "seed", "n_envs", "n_timesteps", "hyperparams", "eval_freq",
+                 "eval_episodes", "checkpoint_freq")
+# What smartcar-train writes in a run folder (removed when a run that never saved a checkpoint
+# or a model is started again).
+RUN_FOLDERS = ("monitor", "tb", "eval", "checkpoints")
+RUN_FILES = ("config.yaml", "summary.json", "learning_curve.png", "vecnormalize.pkl",
+             "best_model.json", "best_model_vecnormalize.pkl", *RUN_FOLDERS)
+INTERRUPTED_EXIT_CODE = 130  # 128 + SIGINT
+TERMINATED_EXIT_CODE = 143  # 128 + SIGTERM
 
 
 @dataclass
@@ -56,6 +70,7 @@ class TrainResult:
     wall_time_s: float
     steps_per_s: float
     interrupted: bool
+    stop_signal: str | None = None  # "SIGINT" or "SIGTERM" when interrupted
     final_eval: dict[str, Any] | None = None
     best_eval: dict[str, Any] | None = None
     files: list[str] = field(default_factory=list)
@@ -96,7 +111,8 @@ def build_parser() -> argparse.ArgumentParser:
                         help="checkpoint every N environment steps (0: only at the end; "
                              "default 50000)")
     parser.add_argument("--save-replay-buffer", action="store_true",
-                        help="SAC/TD3: keep the replay buffer with the checkpoints for --resume")
+                        help="SAC/TD3: keep the replay buffer with the latest checkpoint, so "
+                             "that --resume continues with it (stored in config.yaml)")
     parser.add_argument("--resume", type=Path, default=None, metavar="RUN_DIR",
                         help="continue a run from its last checkpoint (its config.yaml is "
                              "reloaded; step count and normaliser are kept)")
@@ -133,14 +149,17 @@ def new_config(args: argparse.Namespace, command: str) -> dict[str, Any]:
     env_id = args.env_id or DEFAULT_ENV_ID
     hyperparams = load_hyperparams(algo, env_id, args.hyperparams_file)
     hyperparams.update(dict(args.hyperparams or []))
-    n_envs = args.n_envs or hyperparams.get("n_envs") or os.cpu_count() or 1
-    timesteps = args.timesteps or hyperparams.get("n_timesteps")
+    file_n_envs, file_timesteps = run_int(hyperparams, "n_envs"), run_int(hyperparams,
+                                                                       "n_timesteps")
+    n_envs = args.n_envs or file_n_envs or os.cpu_count() or 1
+    timesteps = args.timesteps or file_timesteps
     if not timesteps:
         raise HyperparamsError(f"no n_timesteps for {env_id} in the {algo} hyperparameters; "
                                "pass --timesteps")
     hyperparams["n_envs"], hyperparams["n_timesteps"] = int(n_envs), int(timesteps)
     hyperparams.setdefault("policy", "MlpPolicy")
     normalize_kwargs(hyperparams.get("normalize"))  # validate early
+    discount(hyperparams)
     build_algo_kwargs(algo, hyperparams, n_actions=1)  # validate early
     seed = 0 if args.seed is None else args.seed
     return {
@@ -155,6 +174,7 @@ def new_config(args: argparse.Namespace, command: str) -> dict[str, Any]:
         "eval_freq": 20_000 if args.eval_freq is None else args.eval_freq,
         "eval_episodes": args.eval_episodes or 40,
         "checkpoint_freq": 50_000 if args.checkpoint_freq is None else args.checkpoint_freq,
+        "save_replay_buffer": bool(args.save_replay_buffer),
         "device": args.device,
         "versions": _versions(),
         "command": command,
@@ -163,140 +183,216 @@ def new_config(args: argparse.Namespace, command: str) -> dict[str, Any]:
     }
 
 
+def discount(hyperparams: dict[str, Any]) -> float:
+    """``gamma`` (default 0.99), also used by VecNormalize; raises ``HyperparamsError``."""
+    gamma = hyperparams.get("gamma", 0.99)
+    if isinstance(gamma, bool) or not isinstance(gamma, (int, float)) or not 0 <= gamma <= 1:
+        raise HyperparamsError(f"gamma must be a number in [0, 1], got {gamma!r}")
+    return float(gamma)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """``smartcar-train``: returns the exit code (130 after Ctrl-C, with a checkpoint saved)."""
+    """``smartcar-train``: returns the exit code (130 after Ctrl-C, 143 after SIGTERM, with a
+    checkpoint saved; 2 for bad arguments, a bad config or an env or model that cannot be
+    made)."""
     parser = build_parser()
     args = parser.parse_args(argv)
     command = shlex.join(["smartcar-train", *(sys.argv[1:] if argv is None else argv)])
-
     if args.resume is not None:
-        given = [f"--{k.replace('_id', '').replace('_', '-')}" for k in FIXED_ON_RESUME
-                 if getattr(args, k) is not None]
-        if given:
-            parser.error(f"--resume reloads the run's config.yaml; {', '.join(given)} cannot be "
-                         "changed (allowed: --timesteps, --eval-freq, --eval-episodes, "
-                         "--checkpoint-freq, --device, --torch-threads, --no-progress, "
-                         "--save-replay-buffer)")
-        run_dir = args.resume
-        config_path = run_dir / "config.yaml"
-        if not config_path.is_file():
-            parser.error(f"--resume: {config_path} not found (is {run_dir} a run folder?)")
-        config = yaml.safe_load(config_path.read_text())
-        normalize = normalize_kwargs(config["hyperparams"].get("normalize")) is not None
-        from smartcar_gym.agents.callbacks import find_latest_checkpoint
-
-        checkpoint = find_latest_checkpoint(run_dir, normalize)
-        if checkpoint is None:
-            parser.error(f"--resume: no complete checkpoint in {run_dir / 'checkpoints'}")
-        for key in ("eval_freq", "eval_episodes", "checkpoint_freq"):
-            if getattr(args, key) is not None:
-                config[key] = getattr(args, key)
-        if args.timesteps is not None:
-            config["n_timesteps"] = config["hyperparams"]["n_timesteps"] = args.timesteps
-        config["device"] = args.device
+        config, run_dir, checkpoint = resume_config(parser, args)
     else:
-        try:
-            config = new_config(args, command)
-        except HyperparamsError as err:
-            parser.error(str(err))
-        default_dir = Path("runs") / f"{config['algo']}_{config['env']}_s{config['seed']}"
-        run_dir = args.run_dir or default_dir
-        if (run_dir / "config.yaml").exists():
-            parser.error(f"{run_dir} already holds a run; continue it with --resume {run_dir} "
-                         "or choose another --run-dir")
+        config, run_dir = new_run(parser, args, command)
         checkpoint = None
 
     import torch
 
     torch.set_num_threads(args.torch_threads)
-    result = train(config, run_dir, checkpoint=checkpoint, command=command,
-                   progress=not args.no_progress, save_replay_buffer=args.save_replay_buffer)
+    save_buffer = args.save_replay_buffer or bool(config.get("save_replay_buffer"))
+    try:
+        result = train(config, run_dir, checkpoint=checkpoint, command=command,
+                       progress=not args.no_progress, save_replay_buffer=save_buffer)
+    except (RunSetupError, HyperparamsError) as err:
+        parser.error(str(err))
     print_summary(result, config)
     if result.interrupted:
-        print(f"Interrupted: checkpoint saved. Continue with: smartcar-train --resume {run_dir}",
-              file=sys.stderr)
+        print(f"Interrupted ({result.stop_signal}): checkpoint saved. Continue with: "
+              f"smartcar-train --resume {run_dir}", file=sys.stderr)
+        if result.stop_signal == "SIGTERM":
+            return TERMINATED_EXIT_CODE
         return INTERRUPTED_EXIT_CODE
     return 0
 
 
+def new_run(parser: argparse.ArgumentParser, args: argparse.Namespace,
+            command: str) -> tuple[dict[str, Any], Path]:
+    """The config and folder of a new run (exits through ``parser.error`` on bad input).
+
+    A folder whose run never saved a checkpoint or a model (it failed or was killed during
+    start-up) is reused: that run's files are removed.
+    """
+    try:
+        config = new_config(args, command)
+    except HyperparamsError as err:
+        parser.error(str(err))
+    run_dir = args.run_dir or Path("runs") / f"{config['algo']}_{config['env']}_s{config['seed']}"
+    problem = output_path_error(run_dir / "config.yaml")
+    if problem:
+        parser.error(f"--run-dir: {problem}")
+    if (run_dir / "config.yaml").exists():
+        if saved_models(run_dir, "ckpt_*_steps.zip", "model.zip"):
+            parser.error(f"{run_dir} already holds a run; continue it with --resume {run_dir} "
+                         "or choose another --run-dir")
+        kept = saved_models(run_dir, "best_model.zip")
+        if kept:
+            parser.error(f"{run_dir} holds a run that saved no checkpoint (it cannot be "
+                         f"resumed) but has {kept[0].name}; move that away or choose another "
+                         "--run-dir")
+        removed = clear_unstarted_run(run_dir)
+        print(f"smartcar-train: note: {run_dir} holds a run that never saved a checkpoint or a "
+              f"model; starting it again (removed {', '.join(removed)})", file=sys.stderr)
+    return config, run_dir
+
+
+def saved_models(run_dir: Path, *patterns: str) -> list[Path]:
+    """Model zips of a run matching ``patterns`` (``ckpt_*`` ones in ``checkpoints/``)."""
+    found: list[Path] = []
+    for pattern in patterns:
+        folder = run_dir / "checkpoints" if pattern.startswith("ckpt_") else run_dir
+        found += sorted(folder.glob(pattern))
+    return found
+
+
+def clear_unstarted_run(run_dir: Path) -> list[str]:
+    """Remove the files smartcar-train writes in ``run_dir``; returns the names removed."""
+    removed = []
+    for name in RUN_FILES:
+        path = run_dir / name
+        if path.is_dir():
+            shutil.rmtree(path)
+        elif path.exists():
+            path.unlink()
+        else:
+            continue
+        removed.append(name + ("/" if name in RUN_FOLDERS else ""))
+    return removed
+
+
+def resume_config(parser: argparse.ArgumentParser, args: argparse.Namespace,
+                  ) -> tuple[dict[str, Any], Path, Path]:
+    """The config, folder and latest checkpoint of the run to resume (``parser.error`` if it
+    cannot be resumed)."""
+    given = [f"--{k.replace('_id', '').replace('_', '-')}" for k in FIXED_ON_RESUME
+             if getattr(args, k) is not None]
+    if given:
+        parser.error(f"--resume reloads the run's config.yaml; {', '.join(given)} cannot be "
+                     "changed (allowed: --timesteps, --eval-freq, --eval-episodes, "
+                     "--checkpoint-freq, --device, --torch-threads, --no-progress, "
+                     "--save-replay-buffer)")
+    run_dir = args.resume
+    config_path = run_dir / "config.yaml"
+    if not config_path.is_file():
+        parser.error(f"--resume: {config_path} not found (is {run_dir} a run folder?)")
+    try:
+        config = yaml.safe_load(config_path.read_text())
+    except yaml.YAMLError as err:
+        parser.error(f"--resume: {config_path} is not valid YAML: {err}")
+    if not isinstance(config, dict):
+        parser.error(f"--resume: {config_path} is not a run config (expected a mapping)")
+    for key in ("eval_freq", "eval_episodes", "checkpoint_freq"):
+        if getattr(args, key) is not None:
+            config[key] = getattr(args, key)
+    if args.timesteps is not None:
+        config["n_timesteps"] = args.timesteps
+    missing = [key for key in REQUIRED_KEYS if key not in config]
+    if missing:
+        parser.error(f"--resume: {config_path} lacks the key(s) {', '.join(missing)} "
+                     "(it was not written by smartcar-train, or was edited)")
+    if config["algo"] not in ALGOS or not isinstance(config["hyperparams"], dict):
+        parser.error(f"--resume: {config_path}: algo must be one of {', '.join(ALGOS)} and "
+                     "hyperparams a mapping")
+    config["hyperparams"]["n_timesteps"] = config["n_timesteps"]
+    try:
+        normalize = normalize_kwargs(config["hyperparams"].get("normalize")) is not None
+    except HyperparamsError as err:
+        parser.error(f"--resume: {config_path}: {err}")
+    from smartcar_gym.agents.callbacks import find_latest_checkpoint
+
+    checkpoint = find_latest_checkpoint(run_dir, normalize)
+    if checkpoint is None:
+        parser.error(f"--resume: no complete checkpoint in {run_dir / 'checkpoints'}: the run "
+                     "stopped before saving one; start it again with the command that started "
+                     "it (it reuses the folder)")
+    config["device"] = args.device
+    return config, run_dir, checkpoint
+
+
 # -- training -------------------------------------------------------------------------------
+class RunSetupError(ValueError):
+    """The envs or the model of a run cannot be made from its config (the message says why)."""
+
+
 def train(
     config: dict[str, Any],
     run_dir: str | os.PathLike,
     checkpoint: str | os.PathLike | None = None,
     command: str = "",
     progress: bool = True,
-    save_replay_buffer: bool = False,
+    save_replay_buffer: bool | None = None,
     extra_callbacks: Sequence[Any] = (),
 ) -> TrainResult:
     """Train (or continue from ``checkpoint``) as ``config`` says, writing into ``run_dir``.
 
-    Ctrl-C (SIGINT) stops training at the next step; a checkpoint and ``model.zip`` are saved
-    and the result has ``interrupted=True``. A second Ctrl-C, or a KeyboardInterrupt raised by
-    a callback, stops at once but still saves.
+    Ctrl-C (SIGINT) or SIGTERM stops training at the next step; a checkpoint and
+    ``model.zip`` are saved and the result has ``interrupted=True``. A second signal, or a
+    KeyboardInterrupt raised by a callback, stops at once but still saves.
+
+    ``save_replay_buffer`` (SAC/TD3; default: ``config["save_replay_buffer"]``) keeps the
+    replay buffer with the checkpoints; the choice is stored in ``config.yaml``. Raises
+    ``RunSetupError`` (or ``HyperparamsError``) if the envs or the model cannot be made; the
+    failed start then leaves nothing behind (``config.yaml`` is written once both exist).
     """
     from stable_baselines3.common.callbacks import CallbackList
 
     from smartcar_gym.agents.callbacks import (
-        CHECKPOINT_RE,
         CheckpointCallback,
         ProgressBarCallback,
         StopOnSigint,
         SuccessEvalCallback,
         atomic_write_text,
+        checkpoint_steps,
         close_vec_env,
         save_model_atomic,
-        vecnormalize_path_for,
     )
-    from smartcar_gym.agents.env_factory import make_vec_env, wrap_normalize
-    from smartcar_gym.agents.hyperparams import algo_class
 
     run_dir = Path(run_dir)
-    run_dir.mkdir(parents=True, exist_ok=True)
-    algo, env_id, hp = config["algo"], config["env"], config["hyperparams"]
-    n_envs, env_kwargs = int(config["n_envs"]), dict(config.get("env_kwargs") or {})
-    normalize = normalize_kwargs(hp.get("normalize"))
-    gamma = float(hp.get("gamma", 0.99))
-    start = 0
-    if checkpoint is not None:
-        start = int(CHECKPOINT_RE.match(Path(checkpoint).name).group(1))
-        config.setdefault("resumes", []).append({
-            "from_checkpoint": str(Path(checkpoint).relative_to(run_dir)),
-            "from_timesteps": start, "n_timesteps": int(config["n_timesteps"]),
-            "command": command, "started": _now(),
-        })
-    atomic_write_text(run_dir / "config.yaml", yaml.safe_dump(config, sort_keys=False))
-    segment = len(config.get("resumes", []))
+    algo = config["algo"]
+    if save_replay_buffer is not None:
+        config["save_replay_buffer"] = bool(save_replay_buffer)
+    config.setdefault("save_replay_buffer", False)
+    start = 0 if checkpoint is None else checkpoint_steps(checkpoint)
+    segment = len(config.get("resumes", [])) + (checkpoint is not None)
     seed = int(config["seed"]) + start  # a resumed run does not replay the first run's goals
-
-    venv = make_vec_env(env_id, n_envs, seed=seed, env_kwargs=env_kwargs,
-                        monitor_dir=run_dir / "monitor", monitor_prefix=f"seg{segment}_")
-    if checkpoint is not None and normalize is not None:
-        venv = wrap_normalize(venv, normalize, gamma, load_path=vecnormalize_path_for(checkpoint))
-    else:
-        venv = wrap_normalize(venv, normalize, gamma)
-    eval_env = None
-    if config["eval_freq"] > 0:
-        n_eval_envs = min(n_envs, int(config["eval_episodes"]), os.cpu_count() or 1)
-        eval_env = wrap_normalize(make_vec_env(env_id, n_eval_envs, env_kwargs=env_kwargs),
-                                  normalize, gamma, training=False)
-
-    cls = algo_class(algo)
-    tb_dir = str(run_dir / "tb")
-    if checkpoint is None:
-        kwargs = build_algo_kwargs(algo, hp, n_actions=venv.action_space.shape[0])
-        model = cls(hp.get("policy", "MlpPolicy"), venv, seed=seed, device=config["device"],
-                    tensorboard_log=tb_dir, verbose=0, **kwargs)
-    else:
-        model = cls.load(str(checkpoint), env=venv, device=config["device"],
-                         tensorboard_log=tb_dir)
-        model.set_random_seed(seed)
-        buffer = Path(checkpoint).parent / "replay_buffer.pkl"
-        if buffer.exists() and hasattr(model, "load_replay_buffer"):
-            model.load_replay_buffer(str(buffer))
+    with _undo_on_failure(run_dir, f"seg{segment}_"):
+        venv, eval_env = _make_envs(config, run_dir, seed, segment, checkpoint)
+        try:
+            model = _make_model(config, venv, seed, run_dir / "tb", checkpoint)
+            if checkpoint is not None:
+                _load_replay_buffer(model, Path(checkpoint), config)
+                config["resumes"] = [*config.get("resumes", []), {
+                    "from_checkpoint": str(Path(checkpoint).relative_to(run_dir)),
+                    "from_timesteps": start, "n_timesteps": int(config["n_timesteps"]),
+                    "command": command, "started": _now(),
+                }]
+            atomic_write_text(run_dir / "config.yaml", yaml.safe_dump(config, sort_keys=False))
+        except BaseException:
+            for env in (venv, eval_env):
+                if env is not None:
+                    close_vec_env(env)
+            raise
 
     target = int(config["n_timesteps"])
-    checkpoints = CheckpointCallback(run_dir, int(config["checkpoint_freq"]), save_replay_buffer)
+    checkpoints = CheckpointCallback(run_dir, int(config["checkpoint_freq"]),
+                                     config["save_replay_buffer"])
     callbacks: list[Any] = [checkpoints]
     evaluation = None
     if eval_env is not None:
@@ -343,6 +439,7 @@ def train(
                 if env is not None:
                     close_vec_env(env, force=aborted)
         interrupted = aborted or stop.requested
+        stop_signal = signal.Signals(stop.signum or signal.SIGINT).name if interrupted else None
 
     from smartcar_gym.agents.plots import plot_learning_curve
 
@@ -350,7 +447,7 @@ def train(
     result = TrainResult(
         run_dir=str(run_dir), start_timesteps=start, num_timesteps=int(model.num_timesteps),
         wall_time_s=wall, steps_per_s=trained / wall if wall > 0 else 0.0,
-        interrupted=interrupted,
+        interrupted=interrupted, stop_signal=stop_signal,
         final_eval=None if evaluation is None or evaluation.last_result is None
         else asdict(evaluation.last_result),
         best_eval=_read_json(run_dir / "best_model.json"),
@@ -360,6 +457,111 @@ def train(
     )
     atomic_write_text(run_dir / "summary.json", json.dumps(asdict(result), indent=2) + "\n")
     return result
+
+
+@contextlib.contextmanager
+def _undo_on_failure(run_dir: Path, monitor_prefix: str) -> Iterator[None]:
+    """If the body raises, remove what a failed start-up created: this segment's Monitor files
+    and the folders that did not exist before (only if left empty)."""
+    created, folder = [], (run_dir / "monitor").absolute()
+    while not folder.exists():
+        created.append(folder)  # deepest first
+        folder = folder.parent
+    try:
+        yield
+    except BaseException:
+        for path in (run_dir / "monitor").glob(f"{monitor_prefix}*.monitor.csv"):
+            path.unlink(missing_ok=True)
+        for folder in created:
+            with contextlib.suppress(OSError):
+                folder.rmdir()
+        raise
+
+
+def _make_envs(config: dict[str, Any], run_dir: Path, seed: int, segment: int,
+               checkpoint: str | os.PathLike | None) -> tuple[Any, Any]:
+    """The training VecEnv (Monitor files ``seg<segment>_<i>``) and the eval VecEnv (or None),
+    wrapped in VecNormalize as the hyperparameters say (statistics from ``checkpoint``)."""
+    from smartcar_gym.agents.callbacks import close_vec_env, vecnormalize_path_for
+    from smartcar_gym.agents.env_factory import (
+        EnvSetupError,
+        check_env,
+        make_vec_env,
+        wrap_normalize,
+    )
+
+    env_id, hp = config["env"], config["hyperparams"]
+    n_envs, env_kwargs = int(config["n_envs"]), dict(config.get("env_kwargs") or {})
+    normalize, gamma = normalize_kwargs(hp.get("normalize")), discount(hp)
+    try:
+        check_env(env_id, env_kwargs)  # here, not in a worker: a clear error
+    except EnvSetupError as err:
+        raise RunSetupError(str(err)) from err
+    stats = None if checkpoint is None or normalize is None else vecnormalize_path_for(checkpoint)
+    venv = make_vec_env(env_id, n_envs, seed=seed, env_kwargs=env_kwargs,
+                        monitor_dir=run_dir / "monitor", monitor_prefix=f"seg{segment}_")
+    eval_env = None
+    try:
+        venv = wrap_normalize(venv, normalize, gamma, load_path=stats)
+        if config["eval_freq"] > 0:
+            n_eval_envs = min(n_envs, int(config["eval_episodes"]), os.cpu_count() or 1)
+            eval_env = make_vec_env(env_id, n_eval_envs, env_kwargs=env_kwargs)
+            eval_env = wrap_normalize(eval_env, normalize, gamma, training=False)
+    except BaseException:
+        for env in (venv, eval_env):
+            if env is not None:
+                close_vec_env(env)
+        raise
+    return venv, eval_env
+
+
+def _make_model(config: dict[str, Any], venv: Any, seed: int, tb_dir: Path,
+                checkpoint: str | os.PathLike | None) -> Any:
+    """A new model from the hyperparameters, or the checkpoint's; ``RunSetupError`` if the
+    algorithm refuses them."""
+    from smartcar_gym.agents.hyperparams import algo_class
+
+    algo, hp, device = config["algo"], config["hyperparams"], config["device"]
+    cls = algo_class(algo)
+    if checkpoint is not None:
+        try:
+            model = cls.load(str(checkpoint), env=venv, device=device, tensorboard_log=str(tb_dir))
+        except Exception as err:
+            raise RunSetupError(f"cannot load checkpoint {checkpoint}: {err}") from err
+        model.set_random_seed(seed)
+        return model
+    kwargs = build_algo_kwargs(algo, hp, n_actions=venv.action_space.shape[0])
+    try:
+        return cls(hp.get("policy", "MlpPolicy"), venv, seed=seed, device=device,
+                   tensorboard_log=str(tb_dir), verbose=0, **kwargs)
+    except (ValueError, TypeError, AssertionError, RuntimeError) as err:
+        given = ", ".join(f"{k}={v}" for k, v in hp.items() if k not in ("n_envs", "n_timesteps"))
+        raise RunSetupError(
+            f"{cls.__name__} refuses its hyperparameters: {type(err).__name__}: {err} "
+            f"(hyperparameters: {given}; set in {config.get('hyperparams_file', 'the file')} "
+            "or with --hyperparams)"
+        ) from err
+
+
+def _load_replay_buffer(model: Any, checkpoint: Path, config: dict[str, Any]) -> None:
+    """Load the replay buffer saved with ``checkpoint`` (SAC/TD3); warn if there is none."""
+    from smartcar_gym.agents.callbacks import replay_buffer_path_for
+
+    if not hasattr(model, "load_replay_buffer"):
+        return
+    path = replay_buffer_path_for(checkpoint)
+    if path.is_file():
+        model.load_replay_buffer(str(path))
+        return
+    others = sorted(p.name for p in checkpoint.parent.glob("*replay_buffer.pkl"))
+    if others:
+        why = f"{', '.join(others)} is not the buffer of {checkpoint.name}, so it is not used"
+    elif config.get("save_replay_buffer"):
+        why = f"no replay buffer was saved with {checkpoint.name}"
+    else:
+        why = "the run was started without --save-replay-buffer"
+    print(f"smartcar-train: warning: {config['algo'].upper()} resumes with an empty replay "
+          f"buffer: {why}", file=sys.stderr)
 
 
 def _read_json(path: Path) -> dict[str, Any] | None:

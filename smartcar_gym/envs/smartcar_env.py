@@ -240,12 +240,13 @@ class SmartCarEnv(gym.Env):
         self.sim.reset()
         self.robot.spawn(0.0, 0.0, 0.0)
         if "goal" in options:
+            expected = f"options['goal'] must be a finite (x, y) pair, got {options['goal']!r}"
             try:
                 goal = np.asarray(options["goal"], dtype=float)
             except (TypeError, ValueError):
-                goal = np.asarray(options["goal"], dtype=object)
-            if goal.dtype != float or goal.shape != (2,) or not np.all(np.isfinite(goal)):
-                raise ValueError(f"options['goal'] must be a finite (x, y) pair, got {goal!r}")
+                raise ValueError(expected) from None
+            if goal.shape != (2,) or not np.all(np.isfinite(goal)):
+                raise ValueError(expected)
             if self.task.is_outside(goal):
                 raise ValueError(
                     f"options['goal'] {goal.tolist()} lies outside the arena (|x|, |y| <= "

@@ -10,17 +10,15 @@ import numpy as np
 import pytest
 
 from smartcar_gym.agents import evaluate, train
-from smartcar_gym.agents.evaluate import (
+from smartcar_gym.agents.export import export_run
+from smartcar_gym.agents.model_files import find_run_config, find_vecnormalize, load_model
+from smartcar_gym.agents.plots import plot_trajectories
+from smartcar_gym.agents.rollouts import (
     EpisodeRecord,
     evaluate_policy_episodes,
-    find_run_config,
-    find_vecnormalize,
-    load_model,
     record_video,
     summarize,
 )
-from smartcar_gym.agents.export import export_run
-from smartcar_gym.agents.plots import plot_trajectories
 
 SHORT = {"max_episode_steps": 30}
 

@@ -16,7 +16,7 @@ import pandas as pd
 import pytest
 import yaml
 
-from smartcar_gym.agents import train
+from smartcar_gym.agents import run_folder, train
 from smartcar_gym.agents.hyperparams import algo_class
 
 TINY_NET = "policy_kwargs=dict(net_arch=[16, 16])"
@@ -154,7 +154,7 @@ class _InterruptAt:
 @pytest.mark.slow
 def test_keyboard_interrupt_saves_a_checkpoint_that_resumes(tmp_path):
     args = train.build_parser().parse_args(_argv("ppo", tmp_path / "x"))
-    config = train.new_config(args, "test")
+    config = run_folder.new_config(args, "test")
     config["checkpoint_freq"] = 0
     run_dir = tmp_path / "interrupted"
     result = train.train(config, run_dir, progress=False, extra_callbacks=[_InterruptAt(300)])

@@ -5,8 +5,13 @@ Modules (imported on demand; this package imports nothing heavy):
 * ``hyperparams``: zoo-format YAML (``smartcar_gym/config/<algo>.yaml``), key=value overrides.
 * ``env_factory``: Monitor-wrapped vector envs (SubprocVecEnv) and VecNormalize.
 * ``callbacks``: atomic checkpoints, evaluation by success rate, progress bar, Ctrl-C.
-* ``train``: the ``smartcar-train`` command and ``train()``.
-* ``evaluate``: ``evaluate_policy_episodes()`` (seeded, vectorised) and ``smartcar-eval``.
+* ``run_folder``: a new run's config and folder, or the run to resume (``config.yaml``).
+* ``training``: ``train()``, training a run with checkpoints and evaluation.
+* ``train``: the ``smartcar-train`` command.
+* ``rollouts``: ``evaluate_policy_episodes()`` (seeded, vectorised), ``summarize()``, videos.
+* ``model_files``: a model's run config and VecNormalize statistics, the shipped policy,
+  ``load_model()``.
+* ``evaluate``: the ``smartcar-eval`` command.
 * ``plots``: learning curve and top-down trajectory figures.
 * ``export``: package a run as the shipped policy with ``provenance.json``.
 """

@@ -22,13 +22,8 @@ from typing import Any
 
 import yaml
 
-from smartcar_gym.agents.evaluate import (
-    PRETRAINED_MODEL,
-    evaluate_policy_episodes,
-    find_vecnormalize,
-    load_model,
-    summarize,
-)
+from smartcar_gym.agents.model_files import PRETRAINED_MODEL, find_vecnormalize, load_model
+from smartcar_gym.agents.rollouts import evaluate_policy_episodes, summarize
 
 DEFAULT_OUT = Path(__file__).resolve().parent.parent / "pretrained"
 

@@ -193,6 +193,14 @@ def normalize_kwargs(value: Any) -> dict[str, Any] | None:
     raise HyperparamsError(f"normalize must be a bool or a dict, got {value!r}")
 
 
+def discount(hyperparams: dict[str, Any]) -> float:
+    """``gamma`` (default 0.99), also used by VecNormalize; raises ``HyperparamsError``."""
+    gamma = hyperparams.get("gamma", 0.99)
+    if isinstance(gamma, bool) or not isinstance(gamma, (int, float)) or not 0 <= gamma <= 1:
+        raise HyperparamsError(f"gamma must be a number in [0, 1], got {gamma!r}")
+    return float(gamma)
+
+
 def _schedule(key: str, value: Any) -> Any:
     """zoo's ``lin_<start>`` strings as a linear decay to 0 over the run."""
     if isinstance(value, str) and value.startswith("lin_"):

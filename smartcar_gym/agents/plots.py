@@ -22,7 +22,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Circle
 
 if TYPE_CHECKING:
-    from smartcar_gym.agents.evaluate import EpisodeRecord
+    from smartcar_gym.agents.rollouts import EpisodeRecord
 
 MONITOR_RE = re.compile(r"^seg(\d+)_(\d+)\.monitor\.csv$")
 # Trajectory figure: inches per episode panel, minimum width, title characters per inch.

@@ -1,0 +1,282 @@
+"""``train()``: train (or continue) a run of PPO, SAC or TD3 as its config says.
+
+The envs and the model are made from the config (``RunSetupError`` if they cannot be), then
+trained with checkpoints, evaluation by success rate and a progress bar; ``summary.json``
+and ``learning_curve.png`` are written at the end. ``smartcar-train`` (``train.py``) is the
+command line.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import signal
+import sys
+import time
+from collections.abc import Iterator, Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from smartcar_gym.agents.hyperparams import build_algo_kwargs, discount, normalize_kwargs
+from smartcar_gym.agents.run_folder import _now
+
+
+@dataclass
+class TrainResult:
+    """What a training call did (also written to ``summary.json``)."""
+
+    run_dir: str
+    start_timesteps: int
+    num_timesteps: int
+    wall_time_s: float
+    steps_per_s: float
+    interrupted: bool
+    stop_signal: str | None = None  # "SIGINT" or "SIGTERM" when interrupted
+    final_eval: dict[str, Any] | None = None
+    best_eval: dict[str, Any] | None = None
+    files: list[str] = field(default_factory=list)
+
+
+class RunSetupError(ValueError):
+    """The envs or the model of a run cannot be made from its config (the message says why)."""
+
+
+def train(
+    config: dict[str, Any],
+    run_dir: str | os.PathLike,
+    checkpoint: str | os.PathLike | None = None,
+    command: str = "",
+    progress: bool = True,
+    save_replay_buffer: bool | None = None,
+    extra_callbacks: Sequence[Any] = (),
+) -> TrainResult:
+    """Train (or continue from ``checkpoint``) as ``config`` says, writing into ``run_dir``.
+
+    Ctrl-C (SIGINT) or SIGTERM stops training at the next step; a checkpoint and
+    ``model.zip`` are saved and the result has ``interrupted=True``. A second signal, or a
+    KeyboardInterrupt raised by a callback, stops at once but still saves.
+
+    ``save_replay_buffer`` (SAC/TD3; default: ``config["save_replay_buffer"]``) keeps the
+    replay buffer with the checkpoints; the choice is stored in ``config.yaml``. Raises
+    ``RunSetupError`` (or ``HyperparamsError``) if the envs or the model cannot be made; the
+    failed start then leaves nothing behind (``config.yaml`` is written once both exist).
+    """
+    from stable_baselines3.common.callbacks import CallbackList
+
+    from smartcar_gym.agents.callbacks import (
+        CheckpointCallback,
+        ProgressBarCallback,
+        StopOnSigint,
+        SuccessEvalCallback,
+        atomic_write_text,
+        checkpoint_steps,
+        close_vec_env,
+        save_model_atomic,
+    )
+
+    run_dir = Path(run_dir)
+    algo = config["algo"]
+    if save_replay_buffer is not None:
+        config["save_replay_buffer"] = bool(save_replay_buffer)
+    config.setdefault("save_replay_buffer", False)
+    start = 0 if checkpoint is None else checkpoint_steps(checkpoint)
+    segment = len(config.get("resumes", [])) + (checkpoint is not None)
+    seed = int(config["seed"]) + start  # a resumed run does not replay the first run's goals
+    with _undo_on_failure(run_dir, f"seg{segment}_"):
+        venv, eval_env = _make_envs(config, run_dir, seed, segment, checkpoint)
+        try:
+            model = _make_model(config, venv, seed, run_dir / "tb", checkpoint)
+            if checkpoint is not None:
+                _load_replay_buffer(model, Path(checkpoint), config)
+                config["resumes"] = [*config.get("resumes", []), {
+                    "from_checkpoint": str(Path(checkpoint).relative_to(run_dir)),
+                    "from_timesteps": start, "n_timesteps": int(config["n_timesteps"]),
+                    "command": command, "started": _now(),
+                }]
+            atomic_write_text(run_dir / "config.yaml", yaml.safe_dump(config, sort_keys=False))
+        except BaseException:
+            for env in (venv, eval_env):
+                if env is not None:
+                    close_vec_env(env)
+            raise
+
+    target = int(config["n_timesteps"])
+    checkpoints = CheckpointCallback(run_dir, int(config["checkpoint_freq"]),
+                                     config["save_replay_buffer"])
+    callbacks: list[Any] = [checkpoints]
+    evaluation = None
+    if eval_env is not None:
+        evaluation = SuccessEvalCallback(
+            eval_env, run_dir / "eval", run_dir / "best_model.zip", int(config["eval_freq"]),
+            int(config["eval_episodes"]), eval_seed=int(config["seed"]) + 1_000_000,
+        )
+        callbacks.append(evaluation)
+    bar = ProgressBarCallback(target, evaluation) if progress else None
+    if bar is not None:
+        callbacks.append(bar)
+    callbacks.extend(extra_callbacks)
+
+    aborted = False  # a KeyboardInterrupt went through (second Ctrl-C, or raised by a callback)
+    t0 = time.monotonic()
+    with StopOnSigint() as stop:
+        try:
+            if model.num_timesteps < target:
+                model.learn(target - model.num_timesteps,
+                            callback=CallbackList([stop, *callbacks]),
+                            reset_num_timesteps=checkpoint is None, tb_log_name=algo.upper())
+        except KeyboardInterrupt:
+            aborted = True
+        finally:
+            if bar is not None:
+                bar.close()
+        wall = time.monotonic() - t0
+        trained = model.num_timesteps - start
+        try:
+            if checkpoints.model is None:  # learn() did not run (already at the target)
+                checkpoints.init_callback(model)
+            checkpoints.save()
+            save_model_atomic(model, run_dir / "model.zip")
+            if evaluation is not None and not (aborted or stop.requested):
+                if evaluation.model is None:
+                    evaluation.init_callback(model)
+                last = evaluation.last_result
+                if last is None or last.timesteps != model.num_timesteps:
+                    evaluation.evaluate()
+        except KeyboardInterrupt:
+            aborted = True
+        finally:
+            for env in (venv, eval_env):
+                if env is not None:
+                    close_vec_env(env, force=aborted)
+        interrupted = aborted or stop.requested
+        stop_signal = signal.Signals(stop.signum or signal.SIGINT).name if interrupted else None
+
+    from smartcar_gym.agents.plots import plot_learning_curve
+
+    plot_learning_curve(run_dir)
+    result = TrainResult(
+        run_dir=str(run_dir), start_timesteps=start, num_timesteps=int(model.num_timesteps),
+        wall_time_s=wall, steps_per_s=trained / wall if wall > 0 else 0.0,
+        interrupted=interrupted, stop_signal=stop_signal,
+        final_eval=None if evaluation is None or evaluation.last_result is None
+        else asdict(evaluation.last_result),
+        best_eval=_read_json(run_dir / "best_model.json"),
+    )
+    result.files = sorted(
+        {p.name + ("/" if p.is_dir() else "") for p in run_dir.iterdir()} | {"summary.json"}
+    )
+    atomic_write_text(run_dir / "summary.json", json.dumps(asdict(result), indent=2) + "\n")
+    return result
+
+
+@contextlib.contextmanager
+def _undo_on_failure(run_dir: Path, monitor_prefix: str) -> Iterator[None]:
+    """If the body raises, remove what a failed start-up created: this segment's Monitor files
+    and the folders that did not exist before (only if left empty)."""
+    created, folder = [], (run_dir / "monitor").absolute()
+    while not folder.exists():
+        created.append(folder)  # deepest first
+        folder = folder.parent
+    try:
+        yield
+    except BaseException:
+        for path in (run_dir / "monitor").glob(f"{monitor_prefix}*.monitor.csv"):
+            path.unlink(missing_ok=True)
+        for folder in created:
+            with contextlib.suppress(OSError):
+                folder.rmdir()
+        raise
+
+
+def _make_envs(config: dict[str, Any], run_dir: Path, seed: int, segment: int,
+               checkpoint: str | os.PathLike | None) -> tuple[Any, Any]:
+    """The training VecEnv (Monitor files ``seg<segment>_<i>``) and the eval VecEnv (or None),
+    wrapped in VecNormalize as the hyperparameters say (statistics from ``checkpoint``)."""
+    from smartcar_gym.agents.callbacks import close_vec_env, vecnormalize_path_for
+    from smartcar_gym.agents.env_factory import (
+        EnvSetupError,
+        check_env,
+        make_vec_env,
+        wrap_normalize,
+    )
+
+    env_id, hp = config["env"], config["hyperparams"]
+    n_envs, env_kwargs = int(config["n_envs"]), dict(config.get("env_kwargs") or {})
+    normalize, gamma = normalize_kwargs(hp.get("normalize")), discount(hp)
+    try:
+        check_env(env_id, env_kwargs)  # here, not in a worker: a clear error
+    except EnvSetupError as err:
+        raise RunSetupError(str(err)) from err
+    stats = None if checkpoint is None or normalize is None else vecnormalize_path_for(checkpoint)
+    venv = make_vec_env(env_id, n_envs, seed=seed, env_kwargs=env_kwargs,
+                        monitor_dir=run_dir / "monitor", monitor_prefix=f"seg{segment}_")
+    eval_env = None
+    try:
+        venv = wrap_normalize(venv, normalize, gamma, load_path=stats)
+        if config["eval_freq"] > 0:
+            n_eval_envs = min(n_envs, int(config["eval_episodes"]), os.cpu_count() or 1)
+            eval_env = make_vec_env(env_id, n_eval_envs, env_kwargs=env_kwargs)
+            eval_env = wrap_normalize(eval_env, normalize, gamma, training=False)
+    except BaseException:
+        for env in (venv, eval_env):
+            if env is not None:
+                close_vec_env(env)
+        raise
+    return venv, eval_env
+
+
+def _make_model(config: dict[str, Any], venv: Any, seed: int, tb_dir: Path,
+                checkpoint: str | os.PathLike | None) -> Any:
+    """A new model from the hyperparameters, or the checkpoint's; ``RunSetupError`` if the
+    algorithm refuses them."""
+    from smartcar_gym.agents.hyperparams import algo_class
+
+    algo, hp, device = config["algo"], config["hyperparams"], config["device"]
+    cls = algo_class(algo)
+    if checkpoint is not None:
+        try:
+            model = cls.load(str(checkpoint), env=venv, device=device, tensorboard_log=str(tb_dir))
+        except Exception as err:
+            raise RunSetupError(f"cannot load checkpoint {checkpoint}: {err}") from err
+        model.set_random_seed(seed)
+        return model
+    kwargs = build_algo_kwargs(algo, hp, n_actions=venv.action_space.shape[0])
+    try:
+        return cls(hp.get("policy", "MlpPolicy"), venv, seed=seed, device=device,
+                   tensorboard_log=str(tb_dir), verbose=0, **kwargs)
+    except (ValueError, TypeError, AssertionError, RuntimeError) as err:
+        given = ", ".join(f"{k}={v}" for k, v in hp.items() if k not in ("n_envs", "n_timesteps"))
+        raise RunSetupError(
+            f"{cls.__name__} refuses its hyperparameters: {type(err).__name__}: {err} "
+            f"(hyperparameters: {given}; set in {config.get('hyperparams_file', 'the file')} "
+            "or with --hyperparams)"
+        ) from err
+
+
+def _load_replay_buffer(model: Any, checkpoint: Path, config: dict[str, Any]) -> None:
+    """Load the replay buffer saved with ``checkpoint`` (SAC/TD3); warn if there is none."""
+    from smartcar_gym.agents.callbacks import replay_buffer_path_for
+
+    if not hasattr(model, "load_replay_buffer"):
+        return
+    path = replay_buffer_path_for(checkpoint)
+    if path.is_file():
+        model.load_replay_buffer(str(path))
+        return
+    others = sorted(p.name for p in checkpoint.parent.glob("*replay_buffer.pkl"))
+    if others:
+        why = f"{', '.join(others)} is not the buffer of {checkpoint.name}, so it is not used"
+    elif config.get("save_replay_buffer"):
+        why = f"no replay buffer was saved with {checkpoint.name}"
+    else:
+        why = "the run was started without --save-replay-buffer"
+    print(f"smartcar-train: warning: {config['algo'].upper()} resumes with an empty replay "
+          f"buffer: {why}", file=sys.stderr)
+
+
+def _read_json(path: Path) -> dict[str, Any] | None:
+    return json.loads(path.read_text()) if path.exists() else None

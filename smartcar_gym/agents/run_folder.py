@@ -56,7 +56,8 @@ def _versions() -> dict[str, str]:
     return {name: str(version) for name, version in versions.items()}
 
 
-def _now() -> str:
+def utc_timestamp() -> str:
+    """The current UTC time, ISO 8601 to the second (as written in config.yaml)."""
     return datetime.now(timezone.utc).isoformat(timespec="seconds")
 
 
@@ -95,7 +96,7 @@ def new_config(args: argparse.Namespace, command: str) -> dict[str, Any]:
         "device": args.device,
         "versions": _versions(),
         "command": command,
-        "created": _now(),
+        "created": utc_timestamp(),
         "resumes": [],
     }
 

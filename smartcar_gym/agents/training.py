@@ -22,7 +22,7 @@ from typing import Any
 import yaml
 
 from smartcar_gym.agents.hyperparams import build_algo_kwargs, discount, normalize_kwargs
-from smartcar_gym.agents.run_folder import _now
+from smartcar_gym.agents.run_folder import utc_timestamp
 
 
 @dataclass
@@ -95,7 +95,7 @@ def train(
                 config["resumes"] = [*config.get("resumes", []), {
                     "from_checkpoint": str(Path(checkpoint).relative_to(run_dir)),
                     "from_timesteps": start, "n_timesteps": int(config["n_timesteps"]),
-                    "command": command, "started": _now(),
+                    "command": command, "started": utc_timestamp(),
                 }]
             atomic_write_text(run_dir / "config.yaml", yaml.safe_dump(config, sort_keys=False))
         except BaseException:

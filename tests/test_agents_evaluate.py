@@ -3,6 +3,7 @@
 import json
 import math
 import re
+import shutil
 
 import gymnasium as gym
 import imageio.v3 as iio
@@ -189,6 +190,7 @@ def test_export_packages_a_run_that_smartcar_eval_can_load(tiny_run, tmp_path, c
         assert provenance[key] is not None
     assert provenance["evaluation"]["episodes"] == 2
     assert 0.0 <= provenance["evaluation"]["success_rate"] <= 1.0
+    assert provenance["selected_by_eval"] is None  # model.zip: the last one, not a selection
     # algo and env kwargs come from provenance.json beside the model
     argv = ["--model", str(tmp_path / "pretrained" / "ppo_smartcar.zip"), "--episodes", "1",
             "--no-progress", "--json", str(tmp_path / "e.json")]
@@ -215,3 +217,16 @@ def test_random_baseline_is_seeded_and_writes_a_short_gif(tmp_path, capsys):
     frames = iio.imread(gif)  # pillow merges repeated frames, so count only a few
     assert frames.shape[1:] == (120, 160, 3) and frames.shape[0] >= 5
     assert "random-policy" in capsys.readouterr().out
+
+
+def test_export_of_the_best_model_records_the_evaluation_that_selected_it(tiny_run, tmp_path):
+    run_dir = tmp_path / "run"
+    shutil.copytree(tiny_run, run_dir)
+    shutil.copyfile(run_dir / "model.zip", run_dir / "best_model.zip")
+    shutil.copyfile(run_dir / "vecnormalize.pkl", run_dir / "best_model_vecnormalize.pkl")
+    selected = {"timesteps": 96, "success_rate": 0.5, "mean_reward": 1.25}
+    (run_dir / "best_model.json").write_text(json.dumps(selected))
+    provenance = export_run(run_dir, tmp_path / "pretrained", "best_model.zip", episodes=1)
+    assert provenance["selected_by_eval"] == selected
+    assert provenance["source"] == "run/best_model.zip"
+

@@ -44,6 +44,9 @@ def export_run(
         raise FileNotFoundError(f"{model_path} does not exist")
     summary_path = run_dir / "summary.json"
     summary = json.loads(summary_path.read_text()) if summary_path.exists() else {}
+    # best_model.zip has best_model.json: the training evaluation that selected it
+    selected_path = model_path.with_suffix(".json")
+    selected_by = json.loads(selected_path.read_text()) if selected_path.exists() else None
     out_dir.mkdir(parents=True, exist_ok=True)
     target = out_dir / PRETRAINED_MODEL
     shutil.copyfile(model_path, target)
@@ -72,6 +75,7 @@ def export_run(
         "wall_time_s": summary.get("wall_time_s"),
         "steps_per_s": summary.get("steps_per_s"),
         "training_final_eval": summary.get("final_eval"),
+        "selected_by_eval": selected_by,
         "source": f"{run_dir.name}/{model_name}",
         "versions": config.get("versions"),
         "evaluation": {

@@ -86,10 +86,12 @@ def main() -> None:
     args = parser.parse_args()
     log = record()
     plot(log, args.output)
-    steady = (log["t"] > 3.5) & (log["t"] < 4.5)
-    print(f"wrote {args.output}; steady speed at 0.4 m/s command: "
-          f"{log['left'][steady].mean():.3f} m/s (target {log['cmd_left'][steady].mean():.3f})")
-
+    print(f"wrote {args.output}")
+    for command, (start, end) in ((0.2, (2.0, 2.5)), (0.4, (4.0, 4.5))):  # the last 0.5 s
+        steady = (log["t"] > start) & (log["t"] < end)
+        speed, target = log["left"][steady].mean(), log["cmd_left"][steady].mean()
+        print(f"cmd_vel {command} m/s: wheels at {speed:.4f} m/s, target {target:.4f} "
+              f"({100 * (speed / target - 1):+.1f} %)")
 
 if __name__ == "__main__":
     main()

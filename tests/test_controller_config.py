@@ -69,7 +69,7 @@ def test_shipped_config_is_the_seed_with_base_width_fixed():
     assert (config.driver_rate_hz, config.read_rate_hz, config.write_rate_hz) == (20, 20, 20)
     assert config.sim is False
     assert config.name == "base_controller"
-    assert config.motor == MotorConfig(0.34, 33.5, "coast", 2.0e-3, 0.03)
+    assert config.motor == MotorConfig(0.34, 33.5, "coast", 1.8e-3, 0.03)
     assert (config.encoder_left, config.encoder_right) == ("auto", "auto")
     assert config.frame_ms == 33 and config.pwm_zero == "coast"
 

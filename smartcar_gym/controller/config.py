@@ -156,7 +156,7 @@ class MotorConfig:
     no_load_speed_rad_s: float = 33.5  # at the wheels, PWM 255
     pwm_zero: str = "coast"  # "coast": output disconnected at PWM 0; "brake": shorted
     # Rotor inertia seen at the wheel (x gear ratio squared), added to the wheel's spin inertia
-    reflected_inertia_kg_m2: float = 2.0e-3
+    reflected_inertia_kg_m2: float = 1.8e-3
     # Coulomb friction of the gearbox, seen at the wheels: what stops a coasting car
     friction_torque_nm: float = 0.03
 

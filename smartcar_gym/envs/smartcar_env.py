@@ -237,31 +237,32 @@ class SmartCarEnv(gym.Env):
         unknown = set(options) - {"goal"}
         if unknown:
             raise ValueError(f"unknown reset option(s) {sorted(unknown)}; SmartCar-v0 takes 'goal'")
-        self.sim.reset()
-        self.robot.spawn(0.0, 0.0, 0.0)
-        if "goal" in options:
-            expected = f"options['goal'] must be a finite (x, y) pair, got {options['goal']!r}"
-            try:
-                goal = np.asarray(options["goal"], dtype=float)
-            except (TypeError, ValueError):
-                raise ValueError(expected) from None
-            if goal.shape != (2,) or not np.all(np.isfinite(goal)):
-                raise ValueError(expected)
-            if self.task.is_outside(goal):
-                raise ValueError(
-                    f"options['goal'] {goal.tolist()} lies outside the arena (|x|, |y| <= "
-                    f"{self.task.arena_half_size_m} m): raise arena_size"
-                )
-            self.goal = goal
-        else:
-            self.goal = self.task.sample_goal(self.np_random, np.zeros(2))
-        self._prev_action = np.zeros(2, dtype=np.float32)
-        self._odom = self.robot.base.odometry
-        pose = self.robot.pose()
-        self._distance = float(self.task.distance(np.array([pose.x, pose.y]), self.goal))
-        if self.markers is not None:
-            self.markers.create(self.goal)
-            self.markers.add_pose(self._odom.x, self._odom.y, self._odom.theta)
+        with self.sim.building():  # the GUI must not draw a half-built world
+            self.sim.reset()
+            self.robot.spawn(0.0, 0.0, 0.0)
+            if "goal" in options:
+                expected = f"options['goal'] must be a finite (x, y) pair, got {options['goal']!r}"
+                try:
+                    goal = np.asarray(options["goal"], dtype=float)
+                except (TypeError, ValueError):
+                    raise ValueError(expected) from None
+                if goal.shape != (2,) or not np.all(np.isfinite(goal)):
+                    raise ValueError(expected)
+                if self.task.is_outside(goal):
+                    raise ValueError(
+                        f"options['goal'] {goal.tolist()} lies outside the arena (|x|, |y| <= "
+                        f"{self.task.arena_half_size_m} m): raise arena_size"
+                    )
+                self.goal = goal
+            else:
+                self.goal = self.task.sample_goal(self.np_random, np.zeros(2))
+            self._prev_action = np.zeros(2, dtype=np.float32)
+            self._odom = self.robot.base.odometry
+            pose = self.robot.pose()
+            self._distance = float(self.task.distance(np.array([pose.x, pose.y]), self.goal))
+            if self.markers is not None:
+                self.markers.create(self.goal)
+                self.markers.add_pose(self._odom.x, self._odom.y, self._odom.theta)
         self._needs_reset = False
         if self.render_mode == "human":
             self.render()

@@ -11,7 +11,7 @@ import contextlib
 import math
 import os
 import sys
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -79,6 +79,23 @@ class Simulator:
         self._bodies = {"plane": c.loadURDF("plane.urdf")}
         c.changeDynamics(self._bodies["plane"], -1, lateralFriction=self.ground_friction)
         self.ticks = 0
+
+    @contextlib.contextmanager
+    def building(self) -> Iterator[None]:
+        """Pause the GUI's drawing while the world is rebuilt and bodies are created.
+
+        pybullet's GUI draws from its own thread; creating bodies while it draws can crash
+        the process (seen with the batch-created odometry arrows). Headless: does nothing.
+        """
+        if not self.gui:
+            yield
+            return
+        self.client.configureDebugVisualizer(pybullet.COV_ENABLE_RENDERING, 0)
+        try:
+            yield
+        finally:
+            if self.connected:
+                self.client.configureDebugVisualizer(pybullet.COV_ENABLE_RENDERING, 1)
 
     @property
     def time_s(self) -> float:

@@ -93,5 +93,6 @@ def main() -> None:
         print(f"cmd_vel {command} m/s: wheels at {speed:.4f} m/s, target {target:.4f} "
               f"({100 * (speed / target - 1):+.1f} %)")
 
+
 if __name__ == "__main__":
     main()

@@ -66,11 +66,14 @@ class RobotModel:
         right = [w.position_m[1] for w in self.right_wheels]
         return abs(sum(left) / len(left) - sum(right) / len(right))
 
-    def write_urdf(self, directory: str | os.PathLike) -> Path:
-        """Write the final URDF as ``<directory>/<name>.urdf`` (pybullet loads files)."""
+    def write_urdf(self, directory: str | os.PathLike, urdf: str | None = None) -> Path:
+        """Write the final URDF as ``<directory>/<name>.urdf`` (pybullet loads files).
+
+        ``urdf``: a variant of the text to write instead (see ``simulated_urdf``).
+        """
         path = Path(directory) / f"{self.name}.urdf"
         path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(self.urdf, encoding="utf-8")
+        path.write_text(self.urdf if urdf is None else urdf, encoding="utf-8")
         return path
 
 

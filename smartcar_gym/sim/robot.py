@@ -18,6 +18,7 @@ import numpy as np
 from smartcar_gym._bullet import pybullet
 from smartcar_gym.controller import ArbotixBase, ArbotixConfig, MotorOutput, Odometry
 from smartcar_gym.model import RobotModel, Wheel
+from smartcar_gym.model.contact import WheelContact, check_wheel_contact, simulated_urdf
 from smartcar_gym.sim.simulator import Simulator
 
 MODES = ("hardware", "sim")
@@ -53,6 +54,8 @@ class SmartCarRobot:
         config: the ArbotiX controller configuration.
         mode: ``"hardware"`` (PID, encoders, DC motors) or ``"sim"`` (kinematic, as ``sim: true``).
         name: body name in the simulator.
+        wheel_contact: ``"sphere"`` (one ground contact per drive wheel) or ``"urdf"`` (the
+            model's own wheel collision shapes); see ``smartcar_gym.model.contact``.
     """
 
     def __init__(
@@ -62,9 +65,11 @@ class SmartCarRobot:
         config: ArbotixConfig,
         mode: str = "hardware",
         name: str = "smartcar",
+        wheel_contact: WheelContact = "sphere",
     ) -> None:
         if mode not in MODES:
             raise ValueError(f"controller_mode must be one of {MODES}, got {mode!r}")
+        self.wheel_contact = check_wheel_contact(wheel_contact)
         self.sim = sim
         self.model = model
         self.config = config
@@ -76,6 +81,7 @@ class SmartCarRobot:
             self._encoder_wheel("right", config.encoder_right),
         )
         self.base = ArbotixBase(config, mode, model.wheel_radius_m, drive=self)
+        self._urdf = simulated_urdf(model, self.wheel_contact)
         # Height of base_link above the ground when every wheel touches it.
         self.spawn_z = max(w.radius_m - w.position_m[2] for w in self.wheels)
         self._body = -1
@@ -116,7 +122,7 @@ class SmartCarRobot:
         sim, c = self.sim, self.sim.client
         with tempfile.TemporaryDirectory(prefix="smartcar_gym_") as tmp:
             # pybullet parses the file while loading it: nothing needs to outlive this block
-            urdf_path = self.model.write_urdf(tmp)
+            urdf_path = self.model.write_urdf(tmp, self._urdf)
             self._body = sim.load_urdf(self.name, urdf_path, (x, y, self.spawn_z), yaw)
         self._joint_index = sim.joint_indices(self.name)
         self._wheel_idx = [self._joint_index[w.joint] for w in self.wheels]

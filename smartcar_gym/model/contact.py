@@ -1,0 +1,55 @@
+"""How the drive wheels touch the ground in the simulator: the URDF's shapes or spheres.
+
+A wheel of radius r standing on flat ground touches it at one point, r below its axle, whether
+its collision shape is a cylinder or a sphere of radius r. pybullet's cylinder-on-box contact
+keeps a manifold of up to four points per wheel (across the tyre's width) and makes a step
+about 1.5 times as expensive as one point per wheel, for a car that only ever drives on the
+ground plane. ``"sphere"`` swaps each drive wheel's round collision shape for a sphere of the
+same radius at the same place; ``"urdf"`` keeps the model's shapes as written.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from smartcar_gym.model.loader import RobotModel
+from smartcar_gym.model.urdf import parse_xml, serialize_xml
+
+WheelContact = Literal["sphere", "urdf"]
+WHEEL_CONTACTS: tuple[str, ...] = ("sphere", "urdf")
+
+
+def check_wheel_contact(value: object) -> WheelContact:
+    """``value`` if it names a wheel contact model; ValueError naming the choices otherwise."""
+    if value not in WHEEL_CONTACTS:
+        raise ValueError(f"wheel_contact must be one of {WHEEL_CONTACTS}, got {value!r}")
+    return value  # type: ignore[return-value]
+
+
+def simulated_urdf(model: RobotModel, wheel_contact: WheelContact = "sphere") -> str:
+    """The URDF text pybullet loads: ``model.urdf``, with sphere wheels for ``"sphere"``.
+
+    In each drive wheel link the first ``<collision>`` whose shape is a cylinder (the one that
+    gave the wheel its radius) becomes a sphere of that radius; its origin, the wheel's other
+    collision shapes, its visuals and its inertia are kept.
+    """
+    check_wheel_contact(wheel_contact)
+    if wheel_contact == "urdf":
+        return model.urdf
+    root = parse_xml(model.urdf, str(model.source))
+    wheel_links = {w.link for w in model.wheels}
+    changed = False
+    for link in root.findall("link"):
+        if link.get("name") not in wheel_links:
+            continue
+        for collision in link.findall("collision"):
+            geometry = collision.find("geometry")
+            shape = None if geometry is None else next(iter(geometry), None)
+            if shape is None or shape.tag not in ("cylinder", "sphere"):
+                continue
+            if shape.tag == "cylinder":
+                shape.tag = "sphere"
+                shape.attrib = {"radius": shape.get("radius", "")}
+                changed = True
+            break
+    return serialize_xml(root) if changed else model.urdf

@@ -4,7 +4,7 @@ The ratio is the figure of merit: how much the emulated ArbotiX base, the sensin
 Gymnasium plumbing cost on top of the physics itself (same model, same physics rate, same
 number of physics steps per env step). Also times sync vs async vectors of 2 envs.
 
-    python benchmarks/env_speed.py [--steps 2000] [--mode hardware]
+    python benchmarks/env_speed.py [--steps 2000] [--mode hardware] [--wheel-contact sphere]
 """
 
 from __future__ import annotations
@@ -19,12 +19,14 @@ import smartcar_gym  # noqa: F401
 from smartcar_gym._bullet import pybullet
 from smartcar_gym.controller import load_controller_config
 from smartcar_gym.model import load_model
+from smartcar_gym.model.contact import WHEEL_CONTACTS
 from smartcar_gym.sim.robot import SmartCarRobot
 from smartcar_gym.sim.simulator import Simulator
 
 
 def raw_pybullet(
-    steps: int, ticks_per_step: int, physics_hz: float, scale: tuple[float, float]
+    steps: int, ticks_per_step: int, physics_hz: float, scale: tuple[float, float],
+    wheel_contact: str = "sphere",
 ) -> tuple[float, float]:
     """Env-step-equivalents per second of bare stepping of the same robot, set up as the env does.
 
@@ -38,7 +40,7 @@ def raw_pybullet(
     sim = Simulator(physics_hz=physics_hz)
     config = load_controller_config()
     model = load_model()
-    robot = SmartCarRobot(sim, model, config, mode="hardware")
+    robot = SmartCarRobot(sim, model, config, mode="hardware", wheel_contact=wheel_contact)
     robot.spawn()
     c, body = sim.client, sim.body(robot.name)
     joints = sim.joint_indices(robot.name)
@@ -64,8 +66,10 @@ def raw_pybullet(
     return steps / elapsed, upright / steps
 
 
-def single_env(steps: int, mode: str) -> tuple[float, int, float, tuple[float, float]]:
-    env = gym.make("SmartCar-v0", controller_mode=mode)
+def single_env(
+    steps: int, mode: str, wheel_contact: str
+) -> tuple[float, int, float, tuple[float, float]]:
+    env = gym.make("SmartCar-v0", controller_mode=mode, wheel_contact=wheel_contact)
     env.action_space.seed(0)
     env.reset(seed=0)
     start = time.perf_counter()
@@ -81,10 +85,10 @@ def single_env(steps: int, mode: str) -> tuple[float, int, float, tuple[float, f
     return steps / elapsed, ticks, hz, scale
 
 
-def vector_env(steps: int, mode: str, vectorization_mode: str) -> float:
+def vector_env(steps: int, mode: str, vectorization_mode: str, wheel_contact: str) -> float:
     envs = gym.make_vec(
         "SmartCar-v0", num_envs=2, vectorization_mode=vectorization_mode,
-        controller_mode=mode,
+        controller_mode=mode, wheel_contact=wheel_contact,
     )
     envs.action_space.seed(0)
     envs.reset(seed=0)
@@ -100,12 +104,15 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=2000)
     parser.add_argument("--mode", default="hardware", choices=["hardware", "sim"])
+    parser.add_argument("--wheel-contact", default="sphere", choices=WHEEL_CONTACTS)
     args = parser.parse_args()
-    env_rate, ticks, hz, scale = single_env(args.steps, args.mode)
-    raw_rate, upright = raw_pybullet(args.steps, ticks, hz, scale)
-    sync_rate = vector_env(args.steps, args.mode, "sync")
-    async_rate = vector_env(args.steps, args.mode, "async")
-    print(f"SmartCar-v0 ({args.mode}), {hz:.0f} Hz physics, {ticks} physics steps per env step")
+    contact = args.wheel_contact
+    env_rate, ticks, hz, scale = single_env(args.steps, args.mode, contact)
+    raw_rate, upright = raw_pybullet(args.steps, ticks, hz, scale, contact)
+    sync_rate = vector_env(args.steps, args.mode, "sync", contact)
+    async_rate = vector_env(args.steps, args.mode, "async", contact)
+    print(f"SmartCar-v0 ({args.mode}, wheel_contact={contact}), {hz:.0f} Hz physics, {ticks} "
+          "physics steps per env step")
     print("| what | env steps/s | relative |")
     print("|---|---:|---:|")
     print(f"| raw pybullet: the same robot, spawned as the env spawns it, driven by pybullet's "

@@ -84,6 +84,8 @@ def test_bad_action_leaves_the_episode_usable(env):
         ({"render_width": -5}, r"render_width must be a positive integer, got -5"),
         ({"render_height": 0}, r"render_height must be a positive integer, got 0"),
         ({"render_height": 240.5}, r"render_height must be a positive integer, got 240\.5"),
+        ({"wheel_contact": "cylinder"},
+         r"wheel_contact must be one of \('sphere', 'urdf'\), got 'cylinder'"),
     ],
 )
 def test_bad_kwargs_raise_value_error_naming_them(kwargs, match):

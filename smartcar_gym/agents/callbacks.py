@@ -182,6 +182,8 @@ class EvalResult:
 class SuccessEvalCallback(BaseCallback):
     """Evaluate every ``eval_freq`` steps on the same seeded episodes; keep the best model.
 
+    Evaluations run at the multiples of ``eval_freq`` from ``eval_start`` steps on.
+
     Logs ``eval/success_rate``, ``eval/mean_final_distance`` (m), ``eval/mean_reward`` and
     ``eval/mean_ep_length``; appends to ``<eval_dir>/evaluations.npz`` (zoo's arrays
     ``timesteps, results, ep_lengths, successes`` plus ``final_distances``). The best model (by
@@ -199,6 +201,7 @@ class SuccessEvalCallback(BaseCallback):
         n_eval_episodes: int = 20,
         eval_seed: int = 10_000,
         deterministic: bool = True,
+        eval_start: int = 0,
     ) -> None:
         super().__init__()
         self.eval_env = eval_env
@@ -207,6 +210,7 @@ class SuccessEvalCallback(BaseCallback):
         self.eval_freq = int(eval_freq)
         self.n_eval_episodes = int(n_eval_episodes)
         self.eval_seed = int(eval_seed)
+        self.eval_start = int(eval_start)
         self.deterministic = deterministic
         self.history: list[tuple[EvalResult, list[float], list[int], list[bool], list[float]]] = []
         self.best_score: tuple[float, float] | None = None
@@ -230,7 +234,12 @@ class SuccessEvalCallback(BaseCallback):
         self.eval_dir.mkdir(parents=True, exist_ok=True)
         self._restore()
         if self.eval_freq > 0:
-            self._next = (self.num_timesteps // self.eval_freq + 1) * self.eval_freq
+            self._next = self._next_after(self.num_timesteps)
+
+    def _next_after(self, steps: int) -> int:
+        """The first multiple of ``eval_freq`` after ``steps`` and at or after ``eval_start``."""
+        first = -(-self.eval_start // self.eval_freq) * self.eval_freq
+        return max((steps // self.eval_freq + 1) * self.eval_freq, first)
 
     def _restore(self) -> None:
         """On resume: keep earlier evaluations up to the current step and the best score."""
@@ -257,7 +266,7 @@ class SuccessEvalCallback(BaseCallback):
     def _on_step(self) -> bool:
         if self.eval_freq > 0 and self.num_timesteps >= self._next:
             self.evaluate()
-            self._next = (self.num_timesteps // self.eval_freq + 1) * self.eval_freq
+            self._next = self._next_after(self.num_timesteps)
         return True
 
     def _collect(self, locals_: dict[str, Any], globals_: dict[str, Any]) -> None:

@@ -91,6 +91,7 @@ def new_config(args: argparse.Namespace, command: str) -> dict[str, Any]:
         "hyperparams_file": str(args.hyperparams_file or f"smartcar_gym/config/{algo}.yaml"),
         "eval_freq": 20_000 if args.eval_freq is None else args.eval_freq,
         "eval_episodes": args.eval_episodes or 40,
+        "eval_start": int(timesteps) // 2 if args.eval_start is None else args.eval_start,
         "checkpoint_freq": 50_000 if args.checkpoint_freq is None else args.checkpoint_freq,
         "save_replay_buffer": bool(args.save_replay_buffer),
         "device": args.device,
@@ -164,7 +165,7 @@ def resume_config(parser: argparse.ArgumentParser, args: argparse.Namespace,
     if given:
         parser.error(f"--resume reloads the run's config.yaml; {', '.join(given)} cannot be "
                      "changed (allowed: --timesteps, --eval-freq, --eval-episodes, "
-                     "--checkpoint-freq, --device, --torch-threads, --no-progress, "
+                     "--eval-start, --checkpoint-freq, --device, --torch-threads, --no-progress, "
                      "--save-replay-buffer)")
     run_dir = args.resume
     config_path = run_dir / "config.yaml"
@@ -176,7 +177,7 @@ def resume_config(parser: argparse.ArgumentParser, args: argparse.Namespace,
         parser.error(f"--resume: {config_path} is not valid YAML: {err}")
     if not isinstance(config, dict):
         parser.error(f"--resume: {config_path} is not a run config (expected a mapping)")
-    for key in ("eval_freq", "eval_episodes", "checkpoint_freq"):
+    for key in ("eval_freq", "eval_episodes", "eval_start", "checkpoint_freq"):
         if getattr(args, key) is not None:
             config[key] = getattr(args, key)
     if args.timesteps is not None:

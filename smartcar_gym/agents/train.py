@@ -66,6 +66,11 @@ def build_parser() -> argparse.ArgumentParser:
                         help="evaluate every N environment steps (0: never; default 20000)")
     parser.add_argument("--eval-episodes", type=positive_int_arg, default=None,
                         help="episodes per evaluation (default 40)")
+    parser.add_argument("--eval-start", type=non_negative_int_arg, default=None,
+                        help="first evaluation at the first multiple of --eval-freq from N "
+                             "steps on (default: half the run's steps; a policy that still "
+                             "times out makes early evaluations long, and the best model comes "
+                             "late)")
     parser.add_argument("--checkpoint-freq", type=non_negative_int_arg, default=None,
                         help="checkpoint every N environment steps (0: only at the end; "
                              "default 50000)")

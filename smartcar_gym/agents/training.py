@@ -113,6 +113,7 @@ def train(
         evaluation = SuccessEvalCallback(
             eval_env, run_dir / "eval", run_dir / "best_model.zip", int(config["eval_freq"]),
             int(config["eval_episodes"]), eval_seed=int(config["seed"]) + 1_000_000,
+            eval_start=int(config.get("eval_start", 0)),  # runs before it existed: 0
         )
         callbacks.append(evaluation)
     bar = ProgressBarCallback(target, evaluation) if progress else None

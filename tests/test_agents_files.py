@@ -12,6 +12,7 @@ from smartcar_gym.agents import evaluate, train
 from smartcar_gym.agents.callbacks import (
     CheckpointCallback,
     StopOnSigint,
+    SuccessEvalCallback,
     atomic_path,
     atomic_write_text,
     checkpoint_steps,
@@ -72,6 +73,7 @@ def _exit_code(main, argv, capsys):
     (["--hyperparams", "policy_kwargs=dict(net_arch=os.system)"], "cannot read"),
     (["--n-envs", "0"], "expected a positive integer"),
     (["--timesteps", "many"], "expected an integer"),
+    (["--eval-start", "-1"], "argument --eval-start: expected a non-negative integer, got '-1'"),
     (["--env", "Unknown-v0"], "no hyperparameters for env 'Unknown-v0'"),
 ])
 def test_train_argument_errors_exit_2_with_a_clear_message(argv, message, capsys, tmp_path):
@@ -79,6 +81,22 @@ def test_train_argument_errors_exit_2_with_a_clear_message(argv, message, capsys
     assert code == 2
     assert message in err
     assert not (tmp_path / "run").exists()
+
+
+@pytest.mark.parametrize(("freq", "start", "schedule"), [
+    (20_000, 0, [20_000, 40_000, 60_000]),
+    (20_000, 40_000, [40_000, 60_000, 80_000]),  # a multiple: evaluated there
+    (20_000, 100_352, [120_000, 140_000, 160_000]),  # half of the default 200,704 steps
+    (256, 256, [256, 512, 768]),
+])
+def test_evaluations_run_at_multiples_of_eval_freq_from_eval_start(freq, start, schedule):
+    callback = SuccessEvalCallback(None, "eval", None, freq, eval_start=start)
+    steps, due = 0, []
+    for _ in range(3):
+        steps = callback._next_after(steps)
+        due.append(steps)
+    assert due == schedule
+    assert callback._next_after(schedule[0] - 1) == schedule[0]
 
 
 def test_train_refuses_to_overwrite_or_resume_badly(tmp_path, capsys):

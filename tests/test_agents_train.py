@@ -64,6 +64,7 @@ def _check_run_folder(run_dir: Path, algo: str, steps: int) -> None:
     assert config["versions"]["smartcar_gym"] and config["versions"]["stable_baselines3"]
     assert config["command"].startswith(f"smartcar-train --algo {algo} --n-envs 2")
     assert config["resumes"] == [] and config["save_replay_buffer"] is False
+    assert config["eval_start"] == 256  # default: half the run, so evaluations at 256 and 512
 
     names = sorted(p.name for p in (run_dir / "checkpoints").iterdir())
     assert names[:2] == ["ckpt_256_steps.zip", "ckpt_256_steps_vecnormalize.pkl"]

@@ -100,3 +100,8 @@ def test_the_simulated_wheels_touch_the_ground_as_told(sim, shipped_model, shipp
         assert counts == [4] * 10  # one point per wheel
     else:  # the cylinder manifold keeps several points across each tyre (measured 8-16)
         assert np.mean(counts) > 6
+
+
+def test_a_robot_refuses_an_unknown_contact_model(sim, shipped_model, shipped_config) -> None:
+    with pytest.raises(ValueError, match=r"wheel_contact must be one of .*got 'cylinder'"):
+        SmartCarRobot(sim, shipped_model, shipped_config, wheel_contact="cylinder")

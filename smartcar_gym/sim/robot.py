@@ -18,7 +18,7 @@ import numpy as np
 from smartcar_gym._bullet import pybullet
 from smartcar_gym.controller import ArbotixBase, ArbotixConfig, MotorOutput, Odometry
 from smartcar_gym.model import RobotModel, Wheel
-from smartcar_gym.model.contact import WheelContact, check_wheel_contact, simulated_urdf
+from smartcar_gym.model.contact import WheelContact, simulated_urdf
 from smartcar_gym.sim.simulator import Simulator
 
 MODES = ("hardware", "sim")
@@ -69,7 +69,8 @@ class SmartCarRobot:
     ) -> None:
         if mode not in MODES:
             raise ValueError(f"controller_mode must be one of {MODES}, got {mode!r}")
-        self.wheel_contact = check_wheel_contact(wheel_contact)
+        self._urdf = simulated_urdf(model, wheel_contact)  # ValueError naming a bad choice
+        self.wheel_contact = wheel_contact
         self.sim = sim
         self.model = model
         self.config = config
@@ -81,7 +82,6 @@ class SmartCarRobot:
             self._encoder_wheel("right", config.encoder_right),
         )
         self.base = ArbotixBase(config, mode, model.wheel_radius_m, drive=self)
-        self._urdf = simulated_urdf(model, self.wheel_contact)
         # Height of base_link above the ground when every wheel touches it.
         self.spawn_z = max(w.radius_m - w.position_m[2] for w in self.wheels)
         self._body = -1

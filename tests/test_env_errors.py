@@ -171,6 +171,17 @@ def test_goal_option_outside_the_arena(env):
         env.reset(options={"goal": (3.0, 0.0)})
 
 
+def test_a_bad_goal_is_refused_before_the_world_is_rebuilt(env):
+    env.reset(seed=0)
+    for _ in range(10):
+        env.step(np.array([1.0, 0.0], dtype=np.float32))
+    pose = env.unwrapped.robot.pose()
+    assert pose.x > 0.05  # it has driven off the start
+    with pytest.raises(ValueError, match=r"options\['goal'\] must be a finite"):
+        env.reset(options={"goal": (np.nan, 0.0)})
+    assert env.unwrapped.robot.pose() == pose  # the car is where it was: nothing was rebuilt
+
+
 def test_a_closed_env_refuses_steps_until_reset_reopens_it():
     env = gym.make("SmartCar-v0", render_mode="rgb_array")
     first, _ = env.reset(seed=0)

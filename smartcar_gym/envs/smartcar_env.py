@@ -244,25 +244,13 @@ class SmartCarEnv(gym.Env):
         unknown = set(options) - {"goal"}
         if unknown:
             raise ValueError(f"unknown reset option(s) {sorted(unknown)}; SmartCar-v0 takes 'goal'")
+        goal = self._goal_option(options["goal"]) if "goal" in options else None
         with self.sim.building():  # the GUI must not draw a half-built world
             self.sim.reset()
             self.robot.spawn(0.0, 0.0, 0.0)
-            if "goal" in options:
-                expected = f"options['goal'] must be a finite (x, y) pair, got {options['goal']!r}"
-                try:
-                    goal = np.asarray(options["goal"], dtype=float)
-                except (TypeError, ValueError):
-                    raise ValueError(expected) from None
-                if goal.shape != (2,) or not np.all(np.isfinite(goal)):
-                    raise ValueError(expected)
-                if self.task.is_outside(goal):
-                    raise ValueError(
-                        f"options['goal'] {goal.tolist()} lies outside the arena (|x|, |y| <= "
-                        f"{self.task.arena_half_size_m} m): raise arena_size"
-                    )
-                self.goal = goal
-            else:
-                self.goal = self.task.sample_goal(self.np_random, np.zeros(2))
+            self.goal = (
+                goal if goal is not None else self.task.sample_goal(self.np_random, np.zeros(2))
+            )
             self._prev_action = np.zeros(2, dtype=np.float32)
             self._odom = self.robot.base.odometry
             pose = self.robot.pose()
@@ -274,6 +262,22 @@ class SmartCarEnv(gym.Env):
         if self.render_mode == "human":
             self.render()
         return self._observation(), self._info(pose, False)
+
+    def _goal_option(self, value: Any) -> np.ndarray:
+        """``options["goal"]`` checked before the world is rebuilt: a finite (x, y) in the arena."""
+        expected = f"options['goal'] must be a finite (x, y) pair, got {value!r}"
+        try:
+            goal = np.asarray(value, dtype=float)
+        except (TypeError, ValueError):
+            raise ValueError(expected) from None
+        if goal.shape != (2,) or not np.all(np.isfinite(goal)):
+            raise ValueError(expected)
+        if self.task.is_outside(goal):
+            raise ValueError(
+                f"options['goal'] {goal.tolist()} lies outside the arena (|x|, |y| <= "
+                f"{self.task.arena_half_size_m} m): raise arena_size"
+            )
+        return goal
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         self._check_ready("step")

@@ -1,130 +1,246 @@
-"""Env steps per second for SmartCar-v0, against raw pybullet stepping of the same model.
+"""SmartCar-v0 stepping speed as ratios, measured interleaved in one run.
 
-The ratio is the figure of merit: how much the emulated ArbotiX base, the sensing and the
-Gymnasium plumbing cost on top of the physics itself (same model, same physics rate, same
-number of physics steps per env step). Also times sync vs async vectors of 2 envs.
+    python benchmarks/env_speed.py [--steps 1500] [--rounds 3] [--baseline-ref 1103dff]
 
-    python benchmarks/env_speed.py [--steps 2000] [--mode hardware] [--wheel-contact sphere]
+Each round measures every variant once, in turn, each in a fresh subprocess (random actions,
+seeded, timed after a warm-up, resets excluded); a ratio is taken within a round, and the table
+shows the median over rounds. This machine's speed drifts by up to a half within minutes, so
+only ratios measured side by side mean anything. Variants, for each wheel contact model:
+
+- ``env``: ``gym.make("SmartCar-v0")`` of this checkout (event-driven stepping, 10 ms substeps).
+- ``round-1 env``: the same, from the round-1 code (``--baseline-ref``, extracted with
+  ``git archive``): fixed 2 ms stepping, 50 physics steps per 0.1 s.
+- ``raw 500 Hz``: the same robot, spawned as the env spawns it, driven by pybullet's velocity
+  motors (diff-drive targets from the random actions), ``stepSimulation`` 50 times per 0.1 s:
+  bare physics at the rate the board's 34 ms frames needed before, nothing of the env.
+- ``racecar``: bullet3's ``RacecarGymEnv`` (pybullet_envs, which needs the old ``gym`` API: a
+  shim maps it to gymnasium in the worker only) at 10 physics steps of 10 ms per action, the
+  same 0.1 s as one SmartCar-v0 step. Compared by real-time factor (simulated s per wall s).
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tarfile
+import tempfile
 import time
+import types
+from pathlib import Path
 
-import gymnasium as gym
-import numpy as np
-
-import smartcar_gym  # noqa: F401
-from smartcar_gym._bullet import pybullet
-from smartcar_gym.controller import load_controller_config
-from smartcar_gym.model import load_model
-from smartcar_gym.model.contact import WHEEL_CONTACTS
-from smartcar_gym.sim.robot import SmartCarRobot
-from smartcar_gym.sim.simulator import Simulator
+HERE = Path(__file__).resolve()
+REPO = HERE.parent.parent
+CONTROL_PERIOD_S = 0.1
+WARMUP = 100
 
 
-def raw_pybullet(
-    steps: int, ticks_per_step: int, physics_hz: float, scale: tuple[float, float],
-    wheel_contact: str = "sphere",
-) -> tuple[float, float]:
-    """Env-step-equivalents per second of bare stepping of the same robot, set up as the env does.
+# -- workers (run in a subprocess: python env_speed.py --worker NAME ...) ----------------------
+def _random_actions(n: int):
+    import numpy as np
 
-    The robot is spawned by ``SmartCarRobot`` (gearbox friction, the 1:1 chains, rotor inertia)
-    and driven the way a bare pybullet script would: pybullet's velocity motors on the wheels,
-    at most the stall torque, targets from random actions scaled as the env scales them (diff
-    drive kinematics), redrawn every env-step period, then ``stepSimulation`` as many times as
-    one env step does. Left out is everything the env adds: the ArbotiX driver and board, the
-    DC motor model, sensing, the task and Gymnasium. Returns (rate, fraction of time upright).
-    """
-    sim = Simulator(physics_hz=physics_hz)
+    return np.random.default_rng(0).uniform(-1, 1, size=(n, 2)).astype(np.float32)
+
+
+def worker_env(steps: int, contact: str) -> float:
+    """Env steps per second of ``gym.make("SmartCar-v0")`` (whichever smartcar_gym imports)."""
+    import gymnasium as gym
+
+    import smartcar_gym  # noqa: F401
+
+    env = gym.make("SmartCar-v0", wheel_contact=contact)
+    env.reset(seed=0)
+    actions = _random_actions(steps + WARMUP)
+    elapsed = 0.0
+    for i, action in enumerate(actions):
+        start = time.perf_counter()
+        _, _, terminated, truncated, _ = env.step(action)
+        if i >= WARMUP:
+            elapsed += time.perf_counter() - start
+        if terminated or truncated:
+            env.reset()
+    env.close()
+    return steps / elapsed
+
+
+def worker_raw(steps: int, contact: str) -> float:
+    """Env-step equivalents per second of bare 500 Hz stepping of the same robot."""
+    import numpy as np
+
+    from smartcar_gym.controller import load_controller_config
+    from smartcar_gym.envs.robots import SmartCarRobot
+    from smartcar_gym.model import load_model
+    from smartcar_gym.sim import Simulator
+
+    sim = Simulator(max_substep_s=0.002)
     config = load_controller_config()
     model = load_model()
-    robot = SmartCarRobot(sim, model, config, mode="hardware", wheel_contact=wheel_contact)
+    robot = SmartCarRobot(sim, model, config, mode="hardware", wheel_contact=contact)
     robot.spawn()
-    c, body = sim.client, sim.body(robot.name)
-    joints = sim.joint_indices(robot.name)
-    idx = [joints[w.joint] for w in robot.wheels]
+    c, body = sim.client, robot.body.uid
+    idx = robot.wheel_joint_indices
     signs = np.array([w.forward_sign for w in robot.wheels])
     left = np.array([w.side == "left" for w in robot.wheels])
     forces = [config.motor.stall_torque_nm / 2] * len(idx)  # each wheel's share of its motor
     half_track = config.base_width_m / 2
-    rng = np.random.default_rng(0)
+    scale = np.array([0.5, 2.0])  # SmartCar-v0's max_linear, max_angular
+    physics_steps = round(CONTROL_PERIOD_S / 0.002)
     step, set_motors = c.stepSimulation, c.setJointMotorControlArray
-    upright = 0
-    start = time.perf_counter()
-    for _ in range(steps):
-        v, w = rng.uniform(-1, 1, 2) * scale
+    elapsed = 0.0
+    for i, action in enumerate(_random_actions(steps + WARMUP)):
+        start = time.perf_counter()
+        v, w = action * scale
         speeds = np.where(left, v - w * half_track, v + w * half_track) / model.wheel_radius_m
-        set_motors(body, idx, pybullet.VELOCITY_CONTROL, targetVelocities=list(speeds * signs),
+        set_motors(body, idx, c.VELOCITY_CONTROL, targetVelocities=list(speeds * signs),
                    forces=forces)
-        for _ in range(ticks_per_step):
+        for _ in range(physics_steps):
             step()
-        upright += c.getMatrixFromQuaternion(c.getBasePositionAndOrientation(body)[1])[8] > 0.5
-    elapsed = time.perf_counter() - start
+        if i >= WARMUP:
+            elapsed += time.perf_counter() - start
     sim.close()
-    return steps / elapsed, upright / steps
+    return steps / elapsed
 
 
-def single_env(
-    steps: int, mode: str, wheel_contact: str
-) -> tuple[float, int, float, tuple[float, float]]:
-    env = gym.make("SmartCar-v0", controller_mode=mode, wheel_contact=wheel_contact)
-    env.action_space.seed(0)
-    env.reset(seed=0)
-    start = time.perf_counter()
-    for _ in range(steps):
-        _, _, terminated, truncated, _ = env.step(env.action_space.sample())
-        if terminated or truncated:
+def _old_gym_shim() -> None:
+    """Let pybullet_envs (written for ``gym`` < 0.26) import against gymnasium."""
+    import gymnasium
+    import gymnasium.spaces
+    import gymnasium.utils.seeding
+
+    sys.modules.setdefault("gym", gymnasium)
+    sys.modules.setdefault("gym.spaces", gymnasium.spaces)
+    sys.modules.setdefault("gym.utils", gymnasium.utils)
+    sys.modules.setdefault("gym.utils.seeding", gymnasium.utils.seeding)
+    # pybullet_envs/__init__.py registers its envs with gym's old registry: skip it
+    import importlib.util
+
+    spec = importlib.util.find_spec("pybullet")
+    root = Path(spec.origin).parent / "pybullet_envs"
+    for name, folder in (("pybullet_envs", root), ("pybullet_envs.bullet", root / "bullet")):
+        package = types.ModuleType(name)
+        package.__path__ = [str(folder)]
+        sys.modules.setdefault(name, package)
+    try:
+        import pkg_resources  # noqa: F401
+    except ImportError:  # setuptools without pkg_resources: racecarGymEnv only compares versions
+        from packaging.version import parse
+
+        sys.modules["pkg_resources"] = types.SimpleNamespace(parse_version=parse)
+
+
+def worker_racecar(steps: int, contact: str) -> float:
+    """Actions per second of bullet3's RacecarGymEnv at 10 physics steps of 10 ms per action."""
+    del contact
+    import contextlib
+    import io
+
+    _old_gym_shim()
+    with contextlib.redirect_stdout(io.StringIO()):  # it prints "init"
+        from pybullet_envs.bullet.racecarGymEnv import RacecarGymEnv
+
+        env = RacecarGymEnv(actionRepeat=10, renders=False)
+    env.seed(0)
+    env.reset()
+    elapsed = 0.0
+    for i, action in enumerate(_random_actions(steps + WARMUP)):
+        start = time.perf_counter()
+        _, _, done, _ = env.step(action)
+        if i >= WARMUP:
+            elapsed += time.perf_counter() - start
+        if done:
             env.reset()
-    elapsed = time.perf_counter() - start
-    unwrapped = env.unwrapped
-    ticks, hz = unwrapped.ticks_per_step, unwrapped.sim.physics_hz
-    scale = (unwrapped.max_linear, unwrapped.max_angular)
-    env.close()
-    return steps / elapsed, ticks, hz, scale
+    return steps / elapsed
 
 
-def vector_env(steps: int, mode: str, vectorization_mode: str, wheel_contact: str) -> float:
-    envs = gym.make_vec(
-        "SmartCar-v0", num_envs=2, vectorization_mode=vectorization_mode,
-        controller_mode=mode, wheel_contact=wheel_contact,
+WORKERS = {"env": worker_env, "raw": worker_raw, "racecar": worker_racecar}
+
+
+# -- driver ------------------------------------------------------------------------------------
+def extract_baseline(ref: str, into: Path) -> Path | None:
+    """The package at git ``ref`` in ``into``; None (with a note) if git cannot give it."""
+    archive = into / "baseline.tar"
+    try:
+        subprocess.run(["git", "-C", str(REPO), "archive", "-o", str(archive), ref,
+                        "smartcar_gym"], check=True, capture_output=True, timeout=60)
+    except (OSError, subprocess.SubprocessError) as err:
+        print(f"note: no round-1 baseline ({ref}): {err}", file=sys.stderr)
+        return None
+    with tarfile.open(archive) as tar:
+        tar.extractall(into / "baseline", filter="data")
+    return into / "baseline"
+
+
+def measure(worker: str, steps: int, contact: str, pythonpath: Path | None = None) -> float:
+    env = {**os.environ, "PYTHONPATH": str(pythonpath or REPO)}
+    out = subprocess.run(
+        [sys.executable, str(HERE), "--worker", worker, "--steps", str(steps),
+         "--wheel-contact", contact],
+        capture_output=True, text=True, env=env, timeout=1800, check=False,
     )
-    envs.action_space.seed(0)
-    envs.reset(seed=0)
-    start = time.perf_counter()
-    for _ in range(steps // 2):
-        envs.step(envs.action_space.sample())
-    elapsed = time.perf_counter() - start
-    envs.close()
-    return (steps // 2) * 2 / elapsed
+    if out.returncode != 0:
+        raise RuntimeError(f"worker {worker} ({contact}) failed:\n{out.stderr[-2000:]}")
+    return float(json.loads(out.stdout.strip().splitlines()[-1])["rate"])
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--steps", type=int, default=2000)
-    parser.add_argument("--mode", default="hardware", choices=["hardware", "sim"])
-    parser.add_argument("--wheel-contact", default="sphere", choices=WHEEL_CONTACTS)
+    parser.add_argument("--steps", type=int, default=1500)
+    parser.add_argument("--rounds", type=int, default=3)
+    parser.add_argument("--baseline-ref", default="1103dff",
+                        help="git ref of the round-1 code (fixed 2 ms stepping)")
+    parser.add_argument("--no-racecar", action="store_true")
+    parser.add_argument("--worker", choices=sorted(WORKERS), help=argparse.SUPPRESS)
+    parser.add_argument("--wheel-contact", default="sphere", help=argparse.SUPPRESS)
     args = parser.parse_args()
-    contact = args.wheel_contact
-    env_rate, ticks, hz, scale = single_env(args.steps, args.mode, contact)
-    raw_rate, upright = raw_pybullet(args.steps, ticks, hz, scale, contact)
-    sync_rate = vector_env(args.steps, args.mode, "sync", contact)
-    async_rate = vector_env(args.steps, args.mode, "async", contact)
-    print(f"SmartCar-v0 ({args.mode}, wheel_contact={contact}), {hz:.0f} Hz physics, {ticks} "
-          "physics steps per env step")
-    print("| what | env steps/s | relative |")
+    if args.worker:
+        print(json.dumps({"rate": WORKERS[args.worker](args.steps, args.wheel_contact)}))
+        return
+
+    with tempfile.TemporaryDirectory(prefix="smartcar_bench_") as tmp:
+        baseline = extract_baseline(args.baseline_ref, Path(tmp))
+        variants = []
+        for contact in ("sphere", "urdf"):
+            variants.append((f"env/{contact}", "env", contact, None))
+            if baseline is not None:
+                variants.append((f"round-1 env/{contact}", "env", contact, baseline))
+            variants.append((f"raw 500 Hz/{contact}", "raw", contact, None))
+        if not args.no_racecar:
+            variants.append(("racecar", "racecar", "sphere", None))
+        rates: dict[str, list[float]] = {name: [] for name, *_ in variants}
+        for round_ in range(args.rounds):
+            for name, worker, contact, path in variants:
+                rates[name].append(measure(worker, args.steps, contact, path))
+                print(f"round {round_ + 1}: {name}: {rates[name][-1]:,.0f} steps/s",
+                      file=sys.stderr, flush=True)
+    report(rates, args)
+
+
+def report(rates: dict[str, list[float]], args: argparse.Namespace) -> None:
+    def ratio(a: str, b: str) -> str:
+        if a not in rates or b not in rates:
+            return "-"
+        return f"{statistics.median(x / y for x, y in zip(rates[a], rates[b], strict=True)):.2f}"
+
+    print(f"SmartCar-v0, random actions, {args.steps} steps per measurement, median of "
+          f"{args.rounds} interleaved rounds (round-1 code: {args.baseline_ref})")
+    print("| what | sphere wheels (default) | urdf wheels (cylinders) |")
     print("|---|---:|---:|")
-    print(f"| raw pybullet: the same robot, spawned as the env spawns it, driven by pybullet's "
-          f"velocity motors, `stepSimulation` {ticks} times per step | {raw_rate:,.0f} | 1.00 |")
-    print(f"| one env (gym.make) | {env_rate:,.0f} | {env_rate / raw_rate:.2f} |")
-    print(f"| 2 envs, sync vector | {sync_rate:,.0f} | {sync_rate / raw_rate:.2f} |")
-    print(f"| 2 envs, async vector | {async_rate:,.0f} | {async_rate / raw_rate:.2f} |")
-    print(f"(random actions, {args.steps} steps each; the raw car was upright {upright:.0%} "
-          f"of the time; numpy {np.__version__})")
-    if args.mode == "sim":
-        print("(sim mode moves the car kinematically, with no physics steps: its ratio is the "
-              "speed-up over stepping the physics, not an overhead)")
+    for label in ("env", "round-1 env", "raw 500 Hz"):
+        cells = [f"{statistics.median(rates[f'{label}/{c}']):,.0f}"
+                 if f"{label}/{c}" in rates else "-" for c in ("sphere", "urdf")]
+        print(f"| {label}, env steps/s | {cells[0]} | {cells[1]} |")
+    print(f"| env / round-1 env | {ratio('env/sphere', 'round-1 env/sphere')} | "
+          f"{ratio('env/urdf', 'round-1 env/urdf')} |")
+    print(f"| env / raw 500 Hz | {ratio('env/sphere', 'raw 500 Hz/sphere')} | "
+          f"{ratio('env/urdf', 'raw 500 Hz/urdf')} |")
+    if "racecar" in rates:
+        # both advance 0.1 s of simulated time per step: the rate ratio is the RTF ratio
+        rtf = statistics.median(rates["racecar"]) * CONTROL_PERIOD_S
+        print(f"| env real-time factor / RacecarGymEnv's ({rtf:,.0f}x real time at 10 x 10 ms "
+              f"per action) | {ratio('env/sphere', 'racecar')} | {ratio('env/urdf', 'racecar')} |")
 
 
 if __name__ == "__main__":

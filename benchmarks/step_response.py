@@ -3,7 +3,8 @@
     python benchmarks/step_response.py -o docs/step_response.png
 
 cmd_vel steps 0 -> 0.2 -> 0.4 -> 0 m/s (then a turn at 1 rad/s) in hardware mode; the wheel
-speed is read from the simulator every physics step, the PWM from the board.
+speed is read from the simulator after every physics substep (the env's default stepping), the
+PWM from the board.
 """
 
 from __future__ import annotations
@@ -17,18 +18,18 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from smartcar_gym.controller import load_controller_config  # noqa: E402
+from smartcar_gym.envs.robots import SmartCarRobot, drive  # noqa: E402
 from smartcar_gym.model import load_model  # noqa: E402
-from smartcar_gym.sim.robot import SmartCarRobot  # noqa: E402
-from smartcar_gym.sim.simulator import Simulator  # noqa: E402
+from smartcar_gym.sim import Simulator  # noqa: E402
 
 SCHEDULE = [(0.5, 0.0, 0.0), (2.0, 0.2, 0.0), (2.0, 0.4, 0.0), (1.5, 0.0, 0.0), (2.0, 0.0, 1.0)]
 
 
-def record(physics_hz: float = 500.0) -> dict[str, np.ndarray]:
-    """Run the schedule; return per-physics-step time, commands, wheel speeds and PWM."""
+def record(max_substep_s: float = 0.01) -> dict[str, np.ndarray]:
+    """Run the schedule; return per-physics-substep time, commands, wheel speeds and PWM."""
     config = load_controller_config()
     model = load_model()
-    sim = Simulator(physics_hz=physics_hz)
+    sim = Simulator(max_substep_s=max_substep_s)
     robot = SmartCarRobot(sim, model, config, mode="hardware")
     robot.spawn()
     radius = model.wheel_radius_m
@@ -36,7 +37,6 @@ def record(physics_hz: float = 500.0) -> dict[str, np.ndarray]:
     right = [i for i, w in enumerate(robot.wheels) if w.side == "right"][0]
     keys = ("t", "cmd_left", "cmd_right", "left", "right", "pwm_l", "pwm_r")
     log: dict[str, list[float]] = {k: [] for k in keys}
-    ticks = round(physics_hz / config.rate_hz)
     to_m_s = 30.0 / config.ticks_meter  # ticks per 1/30 s frame -> m/s, as the driver means it
 
     def probe(t: float) -> None:
@@ -51,8 +51,7 @@ def record(physics_hz: float = 500.0) -> dict[str, np.ndarray]:
         log["pwm_r"].append(state["pwm"][1])
 
     for seconds, v, w in SCHEDULE:
-        for _ in range(round(seconds * config.rate_hz)):
-            robot.advance(v, w, ticks, probe=probe)
+        drive(robot, v, w, round(seconds * config.rate_hz), probe=probe)
     sim.close()
     return {k: np.asarray(x) for k, x in log.items()}
 

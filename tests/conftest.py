@@ -7,9 +7,9 @@ from collections.abc import Iterator
 import pytest
 
 from smartcar_gym.controller import ArbotixConfig, load_controller_config
+from smartcar_gym.envs.robots import SmartCarRobot
 from smartcar_gym.model import RobotModel, load_model
-from smartcar_gym.sim.robot import SmartCarRobot
-from smartcar_gym.sim.simulator import Simulator
+from smartcar_gym.sim import Simulator
 
 
 @pytest.fixture(scope="session")
@@ -24,7 +24,7 @@ def shipped_config() -> ArbotixConfig:
 
 @pytest.fixture
 def sim() -> Iterator[Simulator]:
-    world = Simulator(physics_hz=500.0)
+    world = Simulator()  # the env's default stepping: 10 ms substeps between events
     yield world
     world.close()
 

@@ -58,7 +58,7 @@ def run(base: ArbotixBase, wheels: FakeWheels, start_s, periods, cmd=None, physi
         if cmd is not None:
             base.cmd_vel(*cmd, tick / physics_hz)
         for _ in range(steps):
-            base.physics_tick(tick / physics_hz)
+            base.board_tick(tick / physics_hz)
             wheels.step(1.0 / physics_hz)
             tick += 1
         out.append(base.update(tick / physics_hz))
@@ -140,13 +140,13 @@ def test_reset_zeroes_encoders_sets_gains_and_coasts():
     assert base.state()["encoder_ticks"] == (102, 102)
 
 
-def test_physics_tick_is_cheap_while_stopped():
+def test_board_tick_is_cheap_while_stopped():
     wheels = FakeWheels()
     base = ArbotixBase(load_controller_config(), "hardware", WHEEL_RADIUS_M, wheels)
     base.reset(0.0)
     reads = wheels.reads
     for k in range(100):
-        base.physics_tick(k / 500)
+        base.board_tick(k / 500)
     assert wheels.reads == reads
 
 
@@ -154,7 +154,7 @@ def test_sim_mode_needs_no_drive():
     base = ArbotixBase(load_controller_config(), "sim", WHEEL_RADIUS_M)
     base.reset(0.0)
     base.cmd_vel(0.4, 0.5, 0.0)
-    base.physics_tick(0.05)
+    base.board_tick(0.05)
     odom = base.update(0.1)
     assert (odom.x, odom.theta, odom.v) == pytest.approx((0.04, 0.05, 0.4))
     assert base.commanded_twist == (0.4, 0.5)

@@ -66,8 +66,15 @@ def test_bad_action_leaves_the_episode_usable(env):
         ({"max_angular": float("nan")}, r"max_angular must be a positive number, got nan"),
         ({"max_angular": "2"}, r"max_angular must be a positive number, got '2'"),
         ({"arena_size": -1.0}, r"arena_size must be a positive number, got -1\.0"),
-        ({"physics_hz": 333}, r"physics_hz=333 must be a whole multiple of the controller rate 10"),
-        ({"physics_hz": 5}, r"physics_hz=5 must be a whole multiple"),
+        ({"physics_hz": 5}, r"1 / physics_hz \(physics_hz=5\) must be a number of seconds in "
+                            r"\[0\.0001, 0\.02\]"),
+        ({"physics_hz": 1e7}, r"1 / physics_hz \(physics_hz=10000000\.0\) must be .*\[0\.0001"),
+        ({"max_substep_s": 0.05}, r"max_substep_s must be a number of seconds in "
+                                  r"\[0\.0001, 0\.02\] .*got 0\.05"),
+        ({"max_substep_s": 1e-7}, r"max_substep_s must be .*got 1e-07"),
+        ({"max_substep_s": "0.01"}, r"max_substep_s must be .*got '0\.01'"),
+        ({"max_substep_s": True}, r"max_substep_s must be .*got True"),
+        ({"max_substep_s": 0.01, "physics_hz": 500}, r"pass max_substep_s or physics_hz, not both"),
         ({"goal_range": (2, 1)}, r"goal_range must be \(min, max\).*got \(2\.0, 1\.0\)"),
         ({"goal_range": (-0.5, 1)}, r"0 <= min <= max"),
         ({"goal_range": (0.5, 3.0)}, r"goal_range max \(3\.0 m\) must lie inside the arena"),
@@ -80,7 +87,12 @@ def test_bad_action_leaves_the_episode_usable(env):
         ({"goal_range": (1,)}, r"goal_range must be a \(min, max\) pair of numbers, got \(1,\)"),
         ({"goal_range": "ab"}, r"goal_range must be a \(min, max\) pair of finite numbers"),
         ({"physics_hz": "500"}, r"physics_hz must be a positive number, got '500'"),
-        ({"physics_hz": None}, r"physics_hz must be a positive number, got None"),
+        ({"render_width": 8000}, r"render_width must be at most 4096 \(rgb_array images are at "
+                                 r"most 4096 px a side\), got 8000"),
+        ({"goal_tolerance": 3.0}, r"goal_tolerance \(3\.0 m\) must be smaller than the arena"),
+        ({"render_mode": 1}, r"render_mode must be None or one of \('human', 'rgb_array'\), got 1"),
+        ({"max_linear": 1e6}, r"max_linear=1000000\.0 and max_angular=2\.0 ask a wheel for "
+                              r"1e\+06 m/s.*ticks_meter 4100.*at most 239\.759 m/s"),
         ({"render_width": -5}, r"render_width must be a positive integer, got -5"),
         ({"render_height": 0}, r"render_height must be a positive integer, got 0"),
         ({"render_height": 240.5}, r"render_height must be a positive integer, got 240\.5"),
@@ -132,19 +144,28 @@ def test_controller_config_that_does_not_exist(tmp_path):
         gym.make("SmartCar-v0", controller_config=path)
 
 
-def test_physics_hz_error_names_the_config_file_rate(tmp_path):
+def test_physics_hz_is_a_deprecated_alias_of_the_substep():
+    with pytest.warns(DeprecationWarning, match=r"physics_hz is deprecated.*max_substep_s=0\.002"):
+        env = gym.make("SmartCar-v0", physics_hz=500)
+    try:
+        assert env.unwrapped.max_substep_s == 0.002
+        assert env.unwrapped.sim.max_substep_s == 0.002
+    finally:
+        env.close()
+
+
+def test_any_controller_rate_steps_one_period(tmp_path):
+    """The step is one controller period whatever the rate (no physics-rate multiple needed)."""
     shipped = resources.files("smartcar_gym") / "config" / "smartcar_arbotix.yaml"
     data = yaml.safe_load(shipped.read_text("utf-8"))
     data["controllers"]["base_controller"]["rate"] = 30
     path = tmp_path / "fast_rate.yaml"
     path.write_text(yaml.safe_dump(data), encoding="utf-8")
-    with pytest.raises(ValueError, match=re.escape(f"rate 30.0 Hz ({path}), e.g. 1500")):
-        gym.make("SmartCar-v0", controller_config=path, physics_hz=500)
-    # 600 Hz steps of 1.67 ms do not add up to the board's 34 ms frames: they run at 35 ms
-    with pytest.warns(UserWarning, match=r"physics_hz=600: the board's 34 ms PID frames"):
-        env = gym.make("SmartCar-v0", controller_config=path, physics_hz=600)
+    env = gym.make("SmartCar-v0", controller_config=path)
     try:
-        assert env.unwrapped.ticks_per_step == 20
+        env.reset(seed=0)
+        env.step(np.zeros(2, dtype=np.float32))
+        assert env.unwrapped.sim.now_ns == 33_333_333  # round(1e9 / 30)
         assert env.metadata["render_fps"] == 30  # one step per controller update
     finally:
         env.close()

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import smartcar_gym  # noqa: F401
-from smartcar_gym._bullet import pybullet
+from smartcar_gym.sim.bullet import pybullet
 
 pytestmark = pytest.mark.skipif(
     shutil.which("Xvfb") is None,

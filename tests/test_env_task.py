@@ -95,7 +95,7 @@ def test_flipping_over_terminates_with_penalty():
         env.reset(seed=0)
         unwrapped = env.unwrapped
         # teleport the car upside down (180 degrees about x), a little above the ground
-        unwrapped.sim.set_pose(unwrapped.robot.name, (0.0, 0.0, 0.1), (1.0, 0.0, 0.0, 0.0))
+        unwrapped.robot.body.set_com_pose((0.0, 0.0, 0.1), (1.0, 0.0, 0.0, 0.0))
         _, reward, terminated, truncated, info = env.step(ZERO)
         assert terminated is True and truncated is False
         assert info["is_success"] is False

@@ -8,10 +8,10 @@ from pathlib import Path
 
 import pytest
 
-from smartcar_gym._bullet import pybullet
 from smartcar_gym.model import ModelError, load_model
 from smartcar_gym.model.defects import GEOMETRY_MISMATCH, find_defects
 from smartcar_gym.model.urdf import parse_urdf
+from smartcar_gym.sim.bullet import pybullet
 
 FIXTURE_PKG = Path(__file__).parent / "fixtures" / "meshbot_description"
 CUBE = FIXTURE_PKG / "meshes" / "cube.obj"
@@ -41,8 +41,8 @@ def test_mesh_paths_become_absolute_and_pybullet_loads_them(sim, tmp_path: Path,
     assert mesh_files(model) == [str(CUBE)] * 3
     assert model.packages == packages
     assert model.urdf.count(f'filename="{CUBE}"') == 3
-    body = sim.load_urdf("meshbot", model.write_urdf(tmp_path / "elsewhere"))
-    sensor = sim.joint_indices("meshbot")["sensor_joint"]
+    body = sim.load_urdf("meshbot", model.write_urdf(tmp_path / "elsewhere")).uid
+    sensor = sim.body("meshbot").joints["sensor_joint"]
     shapes = sim.client.getCollisionShapeData(body, sensor)
     assert [(s[2], s[4].decode()) for s in shapes] == [(pybullet.GEOM_MESH, str(CUBE))]
     visuals = {(s[1], s[4].decode()) for s in sim.client.getVisualShapeData(body)}

@@ -3,27 +3,19 @@
 from __future__ import annotations
 
 import dataclasses
-import math
 
 import numpy as np
 import pytest
 
-from smartcar_gym.sim.robot import SmartCarRobot
-
-PERIOD_TICKS = 50  # 0.1 s controller period at 500 Hz physics
+from smartcar_gym.envs.robots import SmartCarRobot, drive
+from smartcar_gym.envs.robots.maneuvers import circle_centre_drift, hold, run
 
 
 def _turn(robot: SmartCarRobot, angular_z: float, seconds: float):
-    """Turn in place; return true (unwrapped) yaw, odometry yaw and the centre's offsets (m)."""
-    start = robot.pose()
-    yaw, previous, offsets = 0.0, start.yaw, []
-    for _ in range(round(seconds * 10)):
-        odom = robot.advance(0.0, angular_z, PERIOD_TICKS)
-        pose = robot.pose()
-        yaw += (pose.yaw - previous + math.pi) % (2 * math.pi) - math.pi
-        previous = pose.yaw
-        offsets.append(math.hypot(pose.x - start.x, pose.y - start.y))
-    return yaw, odom.theta, np.array(offsets)
+    """Turn in place: (true unwrapped yaw turned, odometry yaw, the recorded samples)."""
+    start = robot.pose().yaw
+    samples = run(robot, hold((0.0, angular_z), seconds, robot.config.rate_hz))
+    return samples[-1].yaw - start, samples[-1].odom_theta, samples
 
 
 @pytest.fixture(params=["sphere", "urdf"])
@@ -36,7 +28,7 @@ def contact_robot(request, sim, shipped_model, shipped_config) -> SmartCarRobot:
 
 # Measured with each wheel contact model: steady speed at cmd_vel 0.2 m/s (m/s), and how much
 # odometry overstates a turn in place at 1 rad/s (odometry yaw / true yaw over 30 s).
-MEASURED = {"sphere": (0.2036, 1.266), "urdf": (0.2020, 1.337)}
+MEASURED = {"sphere": (0.2020, 1.265), "urdf": (0.2004, 1.335)}
 
 
 def test_straight_cmd_vel_reaches_a_steady_speed_and_odometry_follows(contact_robot):
@@ -44,7 +36,7 @@ def test_straight_cmd_vel_reaches_a_steady_speed_and_odometry_follows(contact_ro
     config = robot.config
     speeds = []
     for step in range(50):  # cmd_vel (0.2, 0) held for 5 s
-        odom = robot.advance(0.2, 0.0, PERIOD_TICKS)
+        odom = drive(robot, 0.2, 0.0)
         if step >= 30:
             speeds.append(robot.joint_states().velocity.mean() * robot.model.wheel_radius_m)
     # The driver asks for trunc(0.2 * 4100 / 30) = 27 ticks per 1/30 s frame (0.1976 m/s);
@@ -57,10 +49,11 @@ def test_straight_cmd_vel_reaches_a_steady_speed_and_odometry_follows(contact_ro
     # |e| <= 4 ticks/frame with Kp = Kd = 12, Ko = 50: the steady speed sits in that dead band.
     dead_band = config.ko / (config.kp + config.kd) * 2
     assert abs(ticks_per_frame - 27) <= dead_band
-    # Where in that band it rests depends on the plant (reflected_inertia, wheel contact). With
-    # the shipped plant it is within 5 % of what the driver means (27 ticks per 1/30 s =
-    # 0.1976 m/s) and of the cmd_vel: measured 0.2036 m/s with sphere wheels (3.0 % and 1.8 %
-    # above them), 0.2020 m/s with the URDF's cylinders (2.2 % and 1.0 %).
+    # Where in that band it rests depends on the plant (reflected_inertia, wheel contact) and a
+    # little on the stepping. With the shipped plant it is within 5 % of what the driver means
+    # (27 ticks per 1/30 s = 0.1976 m/s) and of the cmd_vel: measured 0.2020 m/s with sphere
+    # wheels (2.2 % and 1.0 % above them), 0.2004 m/s with the URDF's cylinders (1.4 % and
+    # 0.2 %); at fixed 2 ms steps 0.2036 and 0.2020.
     assert speed == pytest.approx(27 * 30 / config.ticks_meter, rel=0.05)
     assert speed == pytest.approx(0.2, rel=0.05)
     # pinned, so that a change of the plant shows
@@ -73,18 +66,18 @@ def test_straight_cmd_vel_reaches_a_steady_speed_and_odometry_follows(contact_ro
 
 
 def test_turning_in_place_keeps_the_centre_and_odometry_overestimates_rotation(contact_robot):
-    yaw, odom_yaw, offsets = _turn(contact_robot, 1.0, 30.0)
-    revolutions = yaw / (2 * math.pi)
-    # it does turn: measured 3.27 revolutions in 30 s (sphere), 3.08 (urdf)
+    yaw, odom_yaw, samples = _turn(contact_robot, 1.0, 30.0)
+    revolutions, drift = circle_centre_drift(samples)
+    # it does turn: measured 3.22 revolutions in 30 s (sphere), 3.10 (urdf)
     assert revolutions > 2.5
-    # The centre moves under 5 cm per revolution (measured at most 3.8 cm, 1.2 cm/rev, with
-    # sphere wheels; 8.9 cm, 2.9 cm/rev, with cylinders): it circles a point a few cm off
-    # base_link and does not drift away from it.
-    assert offsets.max() / revolutions < 0.05
-    assert offsets[200:].max() < offsets[:100].max() + 0.01
+    # It circles a point a few cm off base_link, and that point moves under 5 cm per revolution
+    # (measured 0.08 cm/rev with sphere wheels, 4.3 cm/rev with cylinders).
+    assert drift < 0.05
+    offsets = np.hypot([s.x for s in samples], [s.y for s in samples])
+    assert offsets.max() < 0.25
     # Skid steer: the wheels slip sideways, so the body turns less than base_width = 0.26 m
-    # implies; odometry (which trusts base_width) overestimates rotation: measured 27 %
-    # (sphere: 25.97 rad for 20.51), 34 % (urdf: 25.84 rad for 19.33). Pinned.
+    # implies; odometry (which trusts base_width) overestimates rotation: measured 26.5 %
+    # (sphere: 25.6 rad for 20.3), 33.5 % (urdf: 26.0 rad for 19.5). Pinned.
     ratio = odom_yaw / yaw
     assert 1.15 < ratio < 1.45
     assert ratio == pytest.approx(MEASURED[contact_robot.wheel_contact][1], abs=0.01)
@@ -96,22 +89,22 @@ def test_effective_base_width_removes_the_heading_drift(sim, shipped_model, ship
     robot = SmartCarRobot(sim, shipped_model, calibrated, mode="hardware")
     robot.spawn()
     yaw, odom_yaw, _ = _turn(robot, 1.0, 10.0)
-    assert odom_yaw == pytest.approx(yaw, rel=0.02)  # measured 0.25 % under (0.26 m: 27 % over)
+    assert odom_yaw == pytest.approx(yaw, rel=0.02)  # measured 0.3 % under (0.26 m: 27 % over)
 
 
 def test_timeout_stops_the_base_after_one_second(hardware_robot):
     robot = hardware_robot
     for _ in range(10):
-        robot.advance(0.3, 0.0, PERIOD_TICKS)
+        drive(robot, 0.3, 0.0)
     assert robot.joint_states().velocity.mean() > 5.0  # rad/s
     # No new cmd_vel: after 1 s the driver's timeout writes (0, 0); the board stops and coasts.
     for _ in range(9):
-        robot.advance(None, None, PERIOD_TICKS)
+        drive(robot, None, None)
     assert robot.base.state()["v_des"] == (41, 41)  # 0.3 m/s, still commanded at 0.9 s
     for _ in range(3):
-        robot.advance(None, None, PERIOD_TICKS)
+        drive(robot, None, None)
     state = robot.base.state()
     assert state["v_des"] == (0, 0) and state["pwm"] == (0, 0)
     for _ in range(20):
-        robot.advance(None, None, PERIOD_TICKS)
+        drive(robot, None, None)
     assert abs(robot.joint_states().velocity.mean()) < 0.2  # rolled to a stop

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from smartcar_gym.envs.task import GoalReachingTask
+from smartcar_gym.envs.tasks import GoalReachingTask
 
 
 def test_goal_sampling_respects_range_and_is_seeded():

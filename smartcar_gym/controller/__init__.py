@@ -16,11 +16,20 @@ from smartcar_gym.controller.config import (
     load_controller_config,
     parse_controller_config,
 )
-from smartcar_gym.controller.diff_controller import MODES, DiffController, Mode, Odometry
+from smartcar_gym.controller.diff_controller import (
+    HARDWARE,
+    KINEMATIC,
+    MODES,
+    DiffController,
+    Mode,
+    Odometry,
+)
 from smartcar_gym.controller.encoder import WheelEncoder, ticks_from_angle
 from smartcar_gym.controller.motor import DCMotor, MotorOutput
 
 __all__ = [
+    "HARDWARE",
+    "KINEMATIC",
     "MODES",
     "ArbotixBase",
     "ArbotixBoard",

@@ -12,6 +12,8 @@ from smartcar_gym.controller.board import ArbotixBoard
 from smartcar_gym.controller.config import ArbotixConfig
 from smartcar_gym.controller.diff_controller import (
     FRAMES_PER_S,
+    HARDWARE,
+    KINEMATIC,
     MODES,
     DiffController,
     Mode,
@@ -45,7 +47,7 @@ class ArbotixBase:
     """The ArbotiX ROS driver's base controller and board, in ``hardware`` or ``sim`` mode.
 
     ``hardware``: ``cmd_vel`` -> integer wheel targets -> slew limit -> board write; the board's
-    PID frames (``physics_tick``) turn encoder counts into PWM, and the DC-motor model into
+    PID frames (``board_tick``) turn encoder counts into PWM, and the DC-motor model into
     wheel torques applied through ``drive``; odometry comes from the encoders. ``sim`` (the
     driver's ``sim: true``): odometry integrates the commanded twist, which the simulator
     applies kinematically (``commanded_twist``); no drive, PID or timeout effect.
@@ -53,8 +55,9 @@ class ArbotixBase:
     Joint states are not produced here: the simulator reports the real wheel angles. Upstream
     publishes ``base_l_wheel_joint``/``base_r_wheel_joint`` always at 0 in both modes.
 
-    Call ``reset`` (after the wheels exist) before use, ``physics_tick`` before every physics
-    step, and ``update`` once per controller period (``1/config.rate_hz``).
+    Call ``reset`` (after the wheels exist) before use, ``board_tick`` whenever the board's next
+    frame is due (``next_frame_ms``; calling it more often is harmless), and ``update`` once per
+    controller period (``1/config.rate_hz``).
     """
 
     def __init__(
@@ -66,7 +69,7 @@ class ArbotixBase:
     ) -> None:
         if mode not in MODES:
             raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
-        if mode == "hardware" and drive is None:
+        if mode == HARDWARE and drive is None:
             raise ValueError("hardware mode needs a WheelDrive to read encoders and drive motors")
         self.config = config
         self.mode: Mode = mode
@@ -80,7 +83,7 @@ class ArbotixBase:
         self.board = ArbotixBoard(config.frame_ms)
         self.ticks: tuple[int, int] = (0, 0)
         self._applied_pwm: tuple[int, int] = (0, 0)
-        self._ready = mode == "sim"
+        self._ready = mode == KINEMATIC
 
     # -- lifecycle -------------------------------------------------------------------------
     def reset(self, now_s: float = 0.0) -> None:
@@ -89,7 +92,7 @@ class ArbotixBase:
         self.board = ArbotixBoard(self.config.frame_ms)
         self.ticks = (0, 0)
         self._applied_pwm = (0, 0)
-        if self.mode == "hardware":
+        if self.mode == HARDWARE:
             drive = self._wheel_drive()
             left, right = drive.encoder_angles()
             self.encoders[0].reset(left)
@@ -106,7 +109,7 @@ class ArbotixBase:
     def update(self, now_s: float) -> Odometry:
         """One controller firing: odometry, timeout, and (hardware) the write to the board."""
         self._check_ready()
-        if self.mode == "sim":
+        if self.mode == KINEMATIC:
             return self.controller.update(now_s, None)
         ticks = self._read_encoders()
         odometry = self.controller.update(now_s, ticks)
@@ -117,9 +120,15 @@ class ArbotixBase:
         return odometry
 
     # -- board side ------------------------------------------------------------------------
-    def physics_tick(self, now_s: float) -> None:
+    def next_frame_ms(self) -> int | None:
+        """The board's ``millis()`` of its next PID frame; None while it idles (or in sim mode)."""
+        if self.mode == KINEMATIC:
+            return None
+        return self.board.next_frame_ms()
+
+    def board_tick(self, now_s: float) -> None:
         """Let the board run a PID frame if one is due at ``now_s``; cheap otherwise."""
-        if self.mode == "sim":
+        if self.mode == KINEMATIC:
             return
         now_ms = board_millis(now_s)
         if not self.board.frame_due(now_ms):
@@ -142,7 +151,7 @@ class ArbotixBase:
         wheel speeds last written to the board, converted back at upstream's 30 frames/s.
         """
         c = self.controller
-        if self.mode == "sim":
+        if self.mode == KINEMATIC:
             return c.dx, c.dr
         scale = FRAMES_PER_S / self.config.ticks_meter
         left, right = c.v_left * scale, c.v_right * scale

@@ -69,6 +69,15 @@ class ArbotixBoard:
         self.left.velocity = left
         self.right.velocity = right
 
+    def next_frame_ms(self) -> int | None:
+        """The first ``millis()`` at which ``updatePID`` runs a frame; None while idle.
+
+        Due when ``millis() > f_time``: at ``f_time + 1`` (a frame already due says so too).
+        """
+        if not (self.moving and self.pid_mode):
+            return None
+        return self.f_time + 1
+
     def frame_due(self, now_ms: int) -> bool:
         """Whether ``updatePID`` would run a frame at ``millis() == now_ms``."""
         return self.moving and self.pid_mode and now_ms > self.f_time

@@ -14,7 +14,9 @@ from typing import Any, Literal
 from smartcar_gym.controller.config import ArbotixConfig
 
 Mode = Literal["hardware", "sim"]
-MODES: tuple[Mode, ...] = ("hardware", "sim")
+HARDWARE: Mode = "hardware"  # the real path: encoders, board PID, motors
+KINEMATIC: Mode = "sim"  # the driver's `sim: true`: the base follows the commanded twist
+MODES: tuple[Mode, ...] = (HARDWARE, KINEMATIC)
 FRAMES_PER_S = 30.0  # upstream divides m/s by 30.0 to get ticks per frame
 
 
@@ -110,7 +112,7 @@ class DiffController:
         if not (math.isfinite(linear_x) and math.isfinite(angular_z)):
             raise ValueError(f"cmd_vel must be finite, got ({linear_x!r}, {angular_z!r})")
         self.last_cmd = float(now_s)
-        if self.mode == "sim":
+        if self.mode == KINEMATIC:
             self.dx, self.dr = float(linear_x), float(angular_z)
             return
         width, ticks = self.config.base_width_m, self.config.ticks_meter
@@ -129,7 +131,7 @@ class DiffController:
             raise ValueError(f"time went backwards: update at {now_s} s after {self.then} s")
         self.then = float(now_s)
         self.last_write = None
-        if self.mode == "sim":
+        if self.mode == KINEMATIC:
             self._integrate_twist(elapsed)
         elif encoders is None:
             return self.odometry
@@ -138,7 +140,7 @@ class DiffController:
         self.odometry = self._odometry(now_s)
         if _ns(now_s) > _ns(self.last_cmd) + _ns(self.config.timeout_s):
             self.v_des_left = self.v_des_right = 0  # no effect in sim mode, as upstream
-        if self.mode == "hardware":
+        if self.mode == HARDWARE:
             self.v_left = self._ramp(self.v_left, self.v_des_left)
             self.v_right = self._ramp(self.v_right, self.v_des_right)
             self.last_write = (self.v_left, self.v_right)

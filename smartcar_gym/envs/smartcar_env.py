@@ -4,7 +4,10 @@ from __future__ import annotations
 
 import math
 import os
+import threading
 import warnings
+from collections.abc import Iterator
+from contextlib import contextmanager
 from typing import Any
 
 import gymnasium as gym
@@ -12,14 +15,41 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.error import ResetNeeded
 
-from smartcar_gym.controller import ArbotixConfig, load_controller_config
-from smartcar_gym.envs import kwargs as kw
-from smartcar_gym.envs.task import GoalReachingTask
+from smartcar_gym import checks
+from smartcar_gym.controller import MODES, ArbotixConfig, load_controller_config
+from smartcar_gym.envs.observation import Entry, Observation, Readings
+from smartcar_gym.envs.robots.entries import robot_entries
+from smartcar_gym.envs.robots.smartcar import Pose2D, SmartCarRobot
+from smartcar_gym.envs.tasks.reach import GoalReachingTask
 from smartcar_gym.model import RobotModel, load_model
 from smartcar_gym.model.contact import check_wheel_contact
 from smartcar_gym.sim.markers import SceneMarkers
-from smartcar_gym.sim.robot import MODES, SmartCarRobot
-from smartcar_gym.sim.simulator import Simulator
+from smartcar_gym.sim.simulator import DEFAULT_MAX_SUBSTEP_S, Simulator, check_max_substep
+
+MAX_RENDER_PX = 4096  # 8000 x 8000 took 2.4 GB and minutes per frame
+#: the rows of SmartCar-v0's observation, in order (entries come from robot, task and env)
+OBSERVATION_ORDER = (
+    "odom_position", "odom_heading", "odom_linear", "odom_angular", "wheel_positions",
+    "wheel_velocities", "goal_base", "goal_distance", "previous_action", "goal_odom",
+)
+
+
+class RenderModes(list):
+    """The render modes, as ``metadata["render_modes"]`` lists them.
+
+    ``gymnasium.make`` calls string methods on a ``render_mode`` it does not find in this list
+    (``render_mode=1`` died with an AttributeError inside gymnasium); a value that is not a
+    string is let through so that the env refuses it with a message naming it.
+    """
+
+    def __contains__(self, item: object) -> bool:
+        return not isinstance(item, str) or super().__contains__(item)
+
+
+def previous_action_entry() -> Entry:
+    """The action of the previous step (zeros after reset), as the agent sent it."""
+    return Entry("previous_action", ("prev_linear", "prev_angular"), -1.0, 1.0, "",
+                 "previous action", lambda r: r.previous_action)
 
 
 class SmartCarEnv(gym.Env):
@@ -46,24 +76,15 @@ class SmartCarEnv(gym.Env):
     One step is one controller update period (``1 / rate``: 0.1 s with the shipped config): the
     command arrives, the world runs for one period, then the controller fires (odometry, 1 s
     timeout, ramp, write to the board). As on the robot, a command therefore reaches the wheels
-    at the next controller update.
+    at the next controller update. Within the period the simulator steps pybullet from event to
+    event (the board's 34 ms PID frames, the controller update), each interval in the fewest
+    equal substeps no longer than ``max_substep_s``.
 
     ## Observation Space
 
     ``Box(low, high, (21,), float32)`` with finite bounds (values are clipped into them):
 
-    | Num   | Observation                                              | Min    | Max   | Unit  |
-    |-------|----------------------------------------------------------|--------|-------|-------|
-    | 0, 1  | odom pose x, y (``odom`` -> ``base_link``)               | -2A    | 2A    | m     |
-    | 2, 3  | cos, sin of odom yaw                                     | -1     | 1     |       |
-    | 4     | odom twist linear.x                                      | -5     | 5     | m/s   |
-    | 5     | odom twist angular.z                                     | -50    | 50    | rad/s |
-    | 6-9   | wheel joint positions, wrapped (lf, lb, rf, rb)          | -pi    | pi    | rad   |
-    | 10-13 | wheel joint velocities (lf, lb, rf, rb)                  | -200   | 200   | rad/s |
-    | 14,15 | goal in the odometry base_link frame (ahead, left)       | -4A    | 4A    | m     |
-    | 16    | goal distance from the odometry pose                     | 0      | 4A    | m     |
-    | 17,18 | previous action                                          | -1     | 1     |       |
-    | 19,20 | goal in the ``odom`` frame (as a goal is given in ROS)   | -2A    | 2A    | m     |
+    {observation_table}
 
     where A = ``arena_size / 2``. Wheels are listed left then right, front then back, as the
     model's wheels are found (``env.unwrapped.observation_names`` names every entry, e.g.
@@ -81,7 +102,9 @@ class SmartCarEnv(gym.Env):
     to settle for 0.1 s, and the controller starts: the start pose is the odometry origin. The
     goal is drawn with ``self.np_random`` at a uniform distance in ``goal_range`` and a uniform
     bearing. ``reset(options={"goal": (x, y)})`` sets it instead (the only option).
-    ``close()`` disconnects the pybullet client; a later ``reset()`` connects a new one.
+    ``close()`` disconnects the pybullet client; a later ``reset()`` connects a new one, and so
+    does the first ``reset()`` of a copy (``copy.deepcopy`` or pickle): a copy has the same
+    settings and random state but a world of its own.
 
     ## Episode End
 
@@ -100,27 +123,31 @@ class SmartCarEnv(gym.Env):
     | package_path      | None           | folders searched for ``$(find pkg)``                 |
     | wheels            | None (auto)    | ``{"left": [joints], "right": [joints]}``            |
     | controller_config | shipped YAML   | arbotix YAML (``controllers: {..: diff_controller}``)|
-    | controller_mode   | None           | "hardware" (PID, encoders, motors) or "sim"; None:   |
-    |                   |                | the YAML's ``sim`` key (hardware unless sim: true)   |
+    | controller_mode   | None           | "hardware" (PID, encoders, motors) or "sim"          |
+    |                   |                | (kinematic, the driver's ``sim: true``); None: the   |
+    |                   |                | YAML's ``sim`` key (hardware unless sim: true)       |
     | render_mode       | None           | None, "human" (pybullet GUI) or "rgb_array"          |
     | max_linear        | 0.5            | m/s for a[0] = 1                                     |
     | max_angular       | 2.0            | rad/s for a[1] = 1                                   |
     | goal_range        | (0.5, 1.5)     | min, max goal distance from the start (m)            |
     | goal_tolerance    | 0.1            | success radius (m)                                   |
     | arena_size        | 5.0            | side of the square arena centred on the start (m)    |
-    | physics_hz        | 500            | physics rate: a whole multiple of the controller    |
-    |                   |                | rate; 34 ms PID frames need 34 ms in whole steps     |
+    | max_substep_s     | 0.01           | longest physics substep between events (s), in       |
+    |                   |                | [1e-4, 0.02]; 0.002 gives fixed 500 Hz stepping      |
+    | physics_hz        | None           | deprecated: ``max_substep_s = 1 / physics_hz``       |
     | wheel_contact     | "sphere"       | drive wheels touch the ground as spheres of their    |
-    |                   |                | radius (one contact each, 1.5x faster) or "urdf":    |
-    |                   |                | the model's own collision shapes (cylinders)         |
-    | render_width/height | 480, 360     | rgb_array image size (px)                            |
+    |                   |                | radius (one contact each, faster) or "urdf": the     |
+    |                   |                | model's own collision shapes (cylinders)             |
+    | render_width/height | 480, 360     | rgb_array image size (px, at most 4096)              |
 
     ## Version History
 
-    * v0: initial version.
+    * v0 (0.2.0): event-driven stepping (``max_substep_s``, default 0.01 s); ``physics_hz``
+      deprecated. ``max_substep_s=0.002`` reproduces 0.1.0's fixed 500 Hz stepping bit for bit.
+    * v0 (0.1.0): initial version.
     """
 
-    metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 10}
+    metadata = {"render_modes": RenderModes(["human", "rgb_array"]), "render_fps": 10}
 
     def __init__(
         self,
@@ -133,38 +160,34 @@ class SmartCarEnv(gym.Env):
         goal_range: tuple[float, float] = (0.5, 1.5),
         goal_tolerance: float = 0.1,
         arena_size: float = 5.0,
-        physics_hz: float = 500.0,
+        max_substep_s: float | None = None,
+        physics_hz: float | None = None,
         package_path: list[str | os.PathLike] | None = None,
         wheels: dict[str, list[str]] | None = None,
         render_width: int = 480,
         render_height: int = 360,
         wheel_contact: str = "sphere",
     ) -> None:
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(
-                f"render_mode must be None or one of {self.metadata['render_modes']}, "
-                f"got {render_mode!r}"
-            )
-        if controller_mode is not None and controller_mode not in MODES:
-            raise ValueError(
-                f"controller_mode must be None or one of {MODES}, got {controller_mode!r}"
-            )
+        checks.one_of("render_mode", render_mode, list(self.metadata["render_modes"]),
+                      none_ok=True)
+        checks.one_of("controller_mode", controller_mode, MODES, none_ok=True)
         self.render_mode = render_mode
         self.wheel_contact = check_wheel_contact(wheel_contact)
-        self.max_linear = kw.positive_number("max_linear", max_linear)
-        self.max_angular = kw.positive_number("max_angular", max_angular)
-        half = kw.positive_number("arena_size", arena_size) / 2.0
-        self.physics_hz = kw.positive_number("physics_hz", physics_hz)
-        self.render_width = kw.positive_int("render_width", render_width)
-        self.render_height = kw.positive_int("render_height", render_height)
+        self.max_linear = checks.positive_number("max_linear", max_linear)
+        self.max_angular = checks.positive_number("max_angular", max_angular)
+        half = checks.positive_number("arena_size", arena_size) / 2.0
+        self.max_substep_s = self._substep(max_substep_s, physics_hz)
+        size = f"rgb_array images are at most {MAX_RENDER_PX} px a side"
+        self.render_width = checks.positive_int("render_width", render_width, MAX_RENDER_PX, size)
+        self.render_height = checks.positive_int("render_height", render_height, MAX_RENDER_PX,
+                                                 size)
         self.task = GoalReachingTask(
-            goal_range_m=kw.number_pair("goal_range", goal_range),
-            goal_tolerance_m=kw.positive_number("goal_tolerance", goal_tolerance),
+            goal_range_m=checks.number_pair("goal_range", goal_range),
+            goal_tolerance_m=checks.positive_number("goal_tolerance", goal_tolerance),
             arena_half_size_m=half,
         )
-        model = kw.source("model", model, RobotModel)
-        controller_config = kw.source("controller_config", controller_config, ArbotixConfig)
-
+        model = checks.source("model", model, RobotModel)
+        controller_config = checks.source("controller_config", controller_config, ArbotixConfig)
         self.robot_model = (
             model if isinstance(model, RobotModel)
             else load_model(model, package_path=package_path, wheels=wheels)
@@ -173,56 +196,67 @@ class SmartCarEnv(gym.Env):
             controller_config if isinstance(controller_config, ArbotixConfig)
             else load_controller_config(controller_config)
         )
-        rate = self.controller_config.rate_hz
-        ticks = self.physics_hz / rate
-        if not (ticks >= 1 and abs(ticks - round(ticks)) < 1e-9):
-            raise ValueError(
-                f"physics_hz={physics_hz} must be a whole multiple of the controller rate "
-                f"{rate} Hz ({self.controller_config.source}), e.g. {int(rate) * 50}"
-            )
-        self.ticks_per_step = round(ticks)
+        self._check_tick_targets()
         if controller_mode is None:  # as the driver: its `sim` parameter picks the mode
             controller_mode = "sim" if self.controller_config.sim else "hardware"
         self.controller_mode = controller_mode
-        frame_ms = self.controller_config.frame_ms + 1  # the firmware's PID frame spacing
-        frame_steps = frame_ms * self.physics_hz / 1000
-        if controller_mode == "hardware" and abs(frame_steps - round(frame_steps)) > 1e-9:
-            warnings.warn(
-                f"physics_hz={physics_hz}: the board's {frame_ms} ms PID frames are not a whole "
-                "number of physics steps, so each runs late, at the next step; 500 or 1000 Hz "
-                "keeps them exact",
-                stacklevel=2,
-            )
-        self.metadata = {**self.metadata, "render_fps": rate}
+        self.metadata = {**self.metadata, "render_fps": self.controller_config.rate_hz}
 
         self.sim: Simulator | None = None
         self._open()
-        wheels_found = [w.joint for w in self.robot.wheels]
-        n = len(wheels_found)
+        self.observation = self._declare_observation()
         #: what each observation entry is, in order (wheels as found: left then right)
-        self.observation_names: tuple[str, ...] = (
-            "odom_x", "odom_y", "odom_cos_yaw", "odom_sin_yaw", "odom_v", "odom_omega",
-            *(f"{joint}.position" for joint in wheels_found),
-            *(f"{joint}.velocity" for joint in wheels_found),
-            "goal_x_base", "goal_y_base", "goal_distance", "prev_linear", "prev_angular",
-            "goal_x_odom", "goal_y_odom",
-        )
-        high = np.concatenate([
-            [2 * half, 2 * half, 1, 1, 5, 50], [math.pi] * n, [200] * n,
-            [4 * half, 4 * half, 4 * half], [1, 1], [2 * half, 2 * half],
-        ]).astype(np.float32)
-        low = -high
-        low[6 + 2 * n + 2] = 0.0  # goal distance
-        self.observation_space = spaces.Box(low, high, dtype=np.float32)
+        self.observation_names: tuple[str, ...] = self.observation.names
+        self.observation_space = self.observation.space
         self.action_space = spaces.Box(-1.0, 1.0, (2,), dtype=np.float32)
         self.goal = np.zeros(2)
         self._distance = 0.0
         self._prev_action = np.zeros(2, dtype=np.float32)
-        self._odom = None
+
+    def _declare_observation(self) -> Observation:
+        """Robot, task and action entries in ``OBSERVATION_ORDER``."""
+        wheels = [w.joint for w in self.robot_model.left_wheels + self.robot_model.right_wheels]
+        return Observation.compose(
+            OBSERVATION_ORDER,
+            robot_entries(wheels, 2 * self.task.arena_half_size_m),
+            self.task.observation_entries(),
+            [previous_action_entry()],
+        )
+
+    @staticmethod
+    def _substep(max_substep_s: float | None, physics_hz: float | None) -> float:
+        if physics_hz is None:
+            if max_substep_s is None:
+                return DEFAULT_MAX_SUBSTEP_S
+            return check_max_substep(max_substep_s)
+        if max_substep_s is not None:
+            raise ValueError(
+                f"pass max_substep_s or physics_hz, not both (got max_substep_s={max_substep_s!r}, "
+                f"physics_hz={physics_hz!r}); physics_hz is deprecated"
+            )
+        hz = checks.positive_number("physics_hz", physics_hz)
+        substep = check_max_substep(1.0 / hz, f"1 / physics_hz (physics_hz={physics_hz!r})")
+        warnings.warn(
+            f"physics_hz is deprecated: the simulator steps from event to event; pass "
+            f"max_substep_s={substep:g} instead", DeprecationWarning, stacklevel=3,
+        )
+        return substep
+
+    def _check_tick_targets(self) -> None:
+        """Refuse speeds whose wheel targets overflow the board's 16-bit ticks per frame."""
+        config = self.controller_config
+        wheel_speed = self.max_linear + self.max_angular * config.base_width_m / 2.0
+        limit = 32767 * 30.0 / config.ticks_meter  # upstream: ticks per 1/30 s frame
+        if wheel_speed > limit:
+            raise ValueError(
+                f"max_linear={self.max_linear} and max_angular={self.max_angular} ask a wheel for "
+                f"{wheel_speed:g} m/s, but with ticks_meter {config.ticks_meter:g} "
+                f"({config.source}) the board's 16-bit target holds at most {limit:g} m/s"
+            )
 
     def _open(self) -> None:
         """Connect a fresh simulator (its own BulletClient) with the robot and the markers."""
-        self.sim = Simulator(physics_hz=self.physics_hz, gui=self.render_mode == "human")
+        self.sim = Simulator(max_substep_s=self.max_substep_s, gui=self.render_mode == "human")
         self.robot = SmartCarRobot(
             self.sim, self.robot_model, self.controller_config, mode=self.controller_mode,
             wheel_contact=self.wheel_contact,
@@ -237,68 +271,62 @@ class SmartCarEnv(gym.Env):
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
-        super().reset(seed=seed)
-        if self.sim is None:  # closed: reopen, as a fresh env would start
-            self._open()
-        options = options or {}
+        with self._exclusive("reset"):
+            super().reset(seed=seed)
+            goal = self._check_options(options)
+            if self.sim is None:  # closed (or a copy): open a world of its own
+                self._open()
+            with self.sim.building():  # the GUI must not draw a half-built world
+                self.sim.reset()
+                self.robot.spawn(0.0, 0.0, 0.0)
+                self.goal = goal if goal is not None else self.task.sample_goal(
+                    self.np_random, np.zeros(2))
+                self._prev_action = np.zeros(2, dtype=np.float32)
+                pose = self.robot.pose()
+                self._distance = float(self.task.distance(np.array([pose.x, pose.y]), self.goal))
+                if self.markers is not None:
+                    self.markers.create(self.goal)
+                    self._mark_odometry()
+            self._needs_reset = False
+            if self.render_mode == "human":
+                self.render()
+            return self._observe(), self._info(pose, False)
+
+    def _check_options(self, options: Any) -> np.ndarray | None:
+        """``reset``'s options, checked before the world is rebuilt; the goal if one is given."""
+        if options is None:
+            return None
+        if not isinstance(options, dict):
+            raise TypeError(
+                f"reset options must be a dict such as {{'goal': (x, y)}}, got "
+                f"{type(options).__name__}: {options!r}"
+            )
         unknown = set(options) - {"goal"}
         if unknown:
-            raise ValueError(f"unknown reset option(s) {sorted(unknown)}; SmartCar-v0 takes 'goal'")
-        goal = self._goal_option(options["goal"]) if "goal" in options else None
-        with self.sim.building():  # the GUI must not draw a half-built world
-            self.sim.reset()
-            self.robot.spawn(0.0, 0.0, 0.0)
-            self.goal = (
-                goal if goal is not None else self.task.sample_goal(self.np_random, np.zeros(2))
-            )
-            self._prev_action = np.zeros(2, dtype=np.float32)
-            self._odom = self.robot.base.odometry
-            pose = self.robot.pose()
-            self._distance = float(self.task.distance(np.array([pose.x, pose.y]), self.goal))
-            if self.markers is not None:
-                self.markers.create(self.goal)
-                self.markers.add_pose(self._odom.x, self._odom.y, self._odom.theta)
-        self._needs_reset = False
-        if self.render_mode == "human":
-            self.render()
-        return self._observation(), self._info(pose, False)
-
-    def _goal_option(self, value: Any) -> np.ndarray:
-        """``options["goal"]`` checked before the world is rebuilt: a finite (x, y) in the arena."""
-        expected = f"options['goal'] must be a finite (x, y) pair, got {value!r}"
-        try:
-            goal = np.asarray(value, dtype=float)
-        except (TypeError, ValueError):
-            raise ValueError(expected) from None
-        if goal.shape != (2,) or not np.all(np.isfinite(goal)):
-            raise ValueError(expected)
-        if self.task.is_outside(goal):
-            raise ValueError(
-                f"options['goal'] {goal.tolist()} lies outside the arena (|x|, |y| <= "
-                f"{self.task.arena_half_size_m} m): raise arena_size"
-            )
-        return goal
+            raise ValueError(f"unknown reset option(s) {sorted(unknown, key=str)}; SmartCar-v0 "
+                             "takes 'goal'")
+        return self.task.check_goal(options["goal"]) if "goal" in options else None
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
-        self._check_ready("step")
-        action = self._validate_action(action)
-        self._odom = self.robot.advance(
-            float(action[0]) * self.max_linear, float(action[1]) * self.max_angular,
-            self.ticks_per_step,
-        )
-        pose = self.robot.pose()
-        position = np.array([pose.x, pose.y])
-        distance = float(self.task.distance(position, self.goal))
-        success = bool(self.task.is_success(distance))
-        failure = bool(pose.up_z < 0.5 or self.task.is_outside(position))
-        reward = float(self.task.reward(self._distance, distance, action, success, failure))
-        self._distance = distance
-        self._prev_action = action.astype(np.float32)
-        if self.markers is not None:
-            self.markers.add_pose(self._odom.x, self._odom.y, self._odom.theta)
-        if self.render_mode == "human":
-            self.render()
-        return self._observation(), reward, success or failure, False, self._info(pose, success)
+        with self._exclusive("step"):
+            self._check_ready("step")
+            action = self._validate_action(action)
+            self.robot.cmd_vel(float(action[0]) * self.max_linear,
+                               float(action[1]) * self.max_angular)
+            self.sim.run_until(self.sim.now_ns + self.robot.update_period_ns,
+                               physics=not self.robot.kinematic)
+            pose = self.robot.pose()
+            outcome = self.task.evaluate(self._distance, np.array([pose.x, pose.y]), pose.up_z,
+                                         self.goal, action)
+            self._distance = outcome.distance
+            self._prev_action = action.astype(np.float32)
+            if self.markers is not None:
+                self._mark_odometry()
+            if self.render_mode == "human":
+                self.render()
+            terminated = outcome.success or outcome.failure
+            return (self._observe(), outcome.reward, terminated, False,
+                    self._info(pose, outcome.success))
 
     def render(self) -> np.ndarray | None:
         if self.render_mode is None:
@@ -315,7 +343,7 @@ class SmartCarEnv(gym.Env):
         distance = max(0.9, 1.1 * span + 0.5)
         target3 = (float(target[0]), float(target[1]), 0.0)
         if self.render_mode == "human":
-            self.sim.client.resetDebugVisualizerCamera(distance, 0.0, -60.0, target3)
+            self.sim.point_gui_camera(target3, distance, yaw_deg=0.0, pitch_deg=-60.0)
             return None
         return self.sim.render(
             self.render_width, self.render_height, target3, distance, yaw_deg=0.0, pitch_deg=-60.0
@@ -326,7 +354,36 @@ class SmartCarEnv(gym.Env):
             self.sim.close()
             self.sim = None
 
+    # -- copies --------------------------------------------------------------------------------
+    def __getstate__(self) -> dict[str, Any]:
+        """A copy keeps settings and random state, never this env's pybullet world."""
+        state = self.__dict__.copy()
+        for key in ("sim", "robot", "markers", "_lock", "observation"):  # world; lambdas
+            state.pop(key, None)
+        state["sim"] = None
+        state["_needs_reset"] = True
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        self.observation = self._declare_observation()
+
     # -- helpers -------------------------------------------------------------------------------
+    @contextmanager
+    def _exclusive(self, call: str) -> Iterator[None]:
+        """One thread at a time: a second one gets a clear error, not a corrupted world."""
+        lock = self.__dict__.setdefault("_lock", threading.Lock())
+        if not lock.acquire(blocking=False):
+            raise RuntimeError(
+                f"SmartCarEnv.{call}() called while another thread is inside this env: an env "
+                "is one simulated world and is not thread-safe; give each thread its own env "
+                "(gym.make_vec with vectorization_mode='async' runs envs in parallel)"
+            )
+        try:
+            yield
+        finally:
+            lock.release()
+
     def _check_ready(self, call: str) -> None:
         if self.sim is None:
             raise RuntimeError(f"SmartCarEnv is closed: call reset() to reopen it before {call}()")
@@ -348,21 +405,21 @@ class SmartCarEnv(gym.Env):
             raise ValueError(f"action must be finite, got {arr.tolist()}")
         return np.clip(arr, -1.0, 1.0)
 
-    def _observation(self) -> np.ndarray:
-        odom = self._odom
-        joints = self.robot.joint_states()
-        dx, dy = self.goal[0] - odom.x, self.goal[1] - odom.y
-        c, s = math.cos(odom.theta), math.sin(odom.theta)
-        wrapped = (joints.position + math.pi) % (2 * math.pi) - math.pi
-        obs = np.concatenate([
-            [odom.x, odom.y, c, s, odom.v, odom.omega], wrapped, joints.velocity,
-            [c * dx + s * dy, -s * dx + c * dy, math.hypot(dx, dy)], self._prev_action,
-            self.goal,  # the odom frame is the world frame at reset
-        ]).astype(np.float32)
-        return np.clip(obs, self.observation_space.low, self.observation_space.high)
+    def _mark_odometry(self) -> None:
+        odom = self.robot.odometry
+        self.markers.add_pose(odom.x, odom.y, odom.theta)
 
-    def _info(self, pose: Any, success: bool) -> dict[str, Any]:
-        odom = self._odom
+    def readings(self) -> Readings:
+        """What the robot knows now (odometry, wheel joint states), the goal and last action."""
+        position, velocity = self.robot.body.joint_lists(self.robot.wheel_joint_indices)
+        return Readings(self.robot.odometry, position, velocity, self.goal.tolist(),
+                        self._prev_action.tolist())
+
+    def _observe(self) -> np.ndarray:
+        return self.observation.build(self.readings())
+
+    def _info(self, pose: Pose2D, success: bool) -> dict[str, Any]:
+        odom = self.robot.odometry
         return {
             "is_success": success,
             "distance": self._distance,
@@ -371,3 +428,16 @@ class SmartCarEnv(gym.Env):
             "odom_pose": np.array([odom.x, odom.y, math.remainder(odom.theta, 2 * math.pi)]),
             "odom_error": math.hypot(odom.x - pose.x, odom.y - pose.y),
         }
+
+
+def _doc_table() -> str:
+    """SmartCar-v0's observation table as its docstring shows it (the shipped four wheels)."""
+    task = GoalReachingTask()
+    observation = Observation.compose(
+        OBSERVATION_ORDER, robot_entries(["lf", "lb", "rf", "rb"], 2 * task.arena_half_size_m),
+        task.observation_entries(), [previous_action_entry()],
+    )
+    return observation.table().replace("\n", "\n    ")
+
+
+SmartCarEnv.__doc__ = SmartCarEnv.__doc__.replace("{observation_table}", _doc_table())

@@ -9,16 +9,32 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from collections.abc import Iterable
 
 import numpy as np
 
-from smartcar_gym._bullet import pybullet
+from smartcar_gym.sim.body import Body
+from smartcar_gym.sim.camera import BoxPart
 from smartcar_gym.sim.simulator import Simulator
 
 TRAIL_COLOR = (221 / 255, 200 / 255, 14 / 255, 1.0)  # the seed's rviz Odometry colour
 GOAL_COLOR = (0.1, 0.8, 0.2, 0.6)
 _HIDDEN = (0.0, 0.0, -10.0)
+
+
+def arrow_parts(length: float) -> list[BoxPart]:
+    """An arrow along +x from the origin: a shaft and two barbs at its tip."""
+    head = length * 0.35
+    barb = math.radians(150)
+    tip_x = length + head / 2 * math.cos(barb)
+    tip_y = head / 2 * math.sin(barb)
+    quat = (0.0, 0.0, math.sin(barb / 2), math.cos(barb / 2))
+    quat_r = (0.0, 0.0, -quat[2], quat[3])
+    return [
+        BoxPart((length / 2, 0.003, 0.002), (length / 2, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0),
+                TRAIL_COLOR),
+        BoxPart((head / 2, 0.003, 0.002), (tip_x, tip_y, 0.0), quat, TRAIL_COLOR),
+        BoxPart((head / 2, 0.003, 0.002), (tip_x, -tip_y, 0.0), quat_r, TRAIL_COLOR),
+    ]
 
 
 class SceneMarkers:
@@ -36,40 +52,18 @@ class SceneMarkers:
         self.arrow_length_m = arrow_length_m
         self.goal_radius_m = goal_radius_m
         self.trail: deque[tuple[float, float, float]] = deque(maxlen=keep)
-        self._arrows: list[int] = []
-        self._goal = -1
+        self._arrows: list[Body] = []
+        self._goal: Body | None = None
 
     def create(self, goal_xy: np.ndarray) -> None:
         """Add the markers to a freshly reset world and clear the trail."""
-        c = self.sim.client
         self._goal = self.sim.add_visual(
             "goal", "cylinder", (self.goal_radius_m, 0.004), GOAL_COLOR,
             (float(goal_xy[0]), float(goal_xy[1]), 0.002),
         )
-        length = self.arrow_length_m
-        head = length * 0.35
-        barb = (0.0, 0.0, math.sin(math.radians(150) / 2), math.cos(math.radians(150) / 2))
-        barb_r = (0.0, 0.0, -barb[2], barb[3])
-        # an arrow: a shaft along +x from the pose and two barbs at its tip
-        shaft = c.createVisualShapeArray(
-            shapeTypes=[pybullet.GEOM_BOX] * 3,
-            halfExtents=[[length / 2, 0.003, 0.002], [head / 2, 0.003, 0.002],
-                         [head / 2, 0.003, 0.002]],
-            rgbaColors=[TRAIL_COLOR] * 3,
-            visualFramePositions=[
-                [length / 2, 0.0, 0.0],
-                [length + head / 2 * math.cos(math.radians(150)),
-                 head / 2 * math.sin(math.radians(150)), 0.0],
-                [length + head / 2 * math.cos(math.radians(150)),
-                 -head / 2 * math.sin(math.radians(150)), 0.0],
-            ],
-            visualFrameOrientations=[[0.0, 0.0, 0.0, 1.0], list(barb), list(barb_r)],
+        self._arrows = self.sim.add_visual_copies(
+            "odom_arrow_", arrow_parts(self.arrow_length_m), self.keep, _HIDDEN
         )
-        ids = c.createMultiBody(
-            baseMass=0.0, baseVisualShapeIndex=shaft,
-            batchPositions=[list(_HIDDEN)] * self.keep,
-        )
-        self._arrows = list(ids) if isinstance(ids, (list, tuple)) else [ids]
         self.trail.clear()
 
     def add_pose(self, x: float, y: float, theta: float) -> None:
@@ -78,9 +72,5 @@ class SceneMarkers:
 
     def draw(self) -> None:
         """Move the arrow pool onto the recorded trail."""
-        c = self.sim.client
-        poses: Iterable = list(self.trail)
-        for body, (x, y, theta) in zip(self._arrows, poses, strict=False):
-            c.resetBasePositionAndOrientation(
-                body, (x, y, 0.006), (0.0, 0.0, math.sin(theta / 2), math.cos(theta / 2))
-            )
+        for body, (x, y, theta) in zip(self._arrows, list(self.trail), strict=False):
+            body.set_com_pose((x, y, 0.006), (0.0, 0.0, math.sin(theta / 2), math.cos(theta / 2)))

@@ -1,8 +1,19 @@
-"""The simulator facade: one pybullet ``BulletClient`` with a ground plane and named bodies.
+"""The simulator facade: one pybullet ``BulletClient``, its clock and its stepping.
 
-Robots, tasks and the env never hold pybullet ids of other bodies or call pybullet on the global
-client; they go through this class (the panda-gym pattern). Time is counted in physics ticks, so
-``time_s`` is exact (``ticks / physics_hz``) and seeded runs are reproducible.
+Robots, tasks and envs never call pybullet; they go through this class and the ``Body``
+handles it returns (the panda-gym pattern).
+
+**Time.** The clock counts integer nanoseconds from the start of an episode, so event times
+(the board's 34 ms PID frames, the controller's 0.1 s updates) are exact. ``run_until`` steps
+the physics from event to event: each interval between two events is split into the fewest
+equal substeps no longer than ``max_substep_s``. Event sources (``EventSource``) say when they
+next need to act; the simulator never looks inside them.
+
+**What depends on the time step.** pybullet turns a force-limited velocity motor's ``maxForce``
+and a constraint's ``maxForce`` into an impulse ``force * dt`` at the moment they are set, and
+it clears applied joint torques after every physics step. So the simulator keeps those itself:
+torques held by ``Body.hold_torques`` are re-applied before every substep, force-limited motors
+and constraints are re-sent whenever the time step changes.
 """
 
 from __future__ import annotations
@@ -11,40 +22,84 @@ import contextlib
 import math
 import os
 import sys
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
+from typing import Protocol
 
 import numpy as np
 
-from smartcar_gym._bullet import connect, pybullet, silenced_output
+from smartcar_gym.sim import camera
+from smartcar_gym.sim.body import Body
+from smartcar_gym.sim.bullet import connect, pybullet, silenced_output
 
 Vec3 = tuple[float, float, float]
 Quat = tuple[float, float, float, float]
+NS_PER_S = 1_000_000_000
+DEFAULT_MAX_SUBSTEP_S = 0.01
+# A substep below 0.1 ms only burns time (1e7 Hz made one env step take 17 s); above 20 ms the
+# car's contacts jitter (they start to between 10 and 16 ms).
+MAX_SUBSTEP_RANGE_S = (1e-4, 0.02)
+MAX_FIRINGS_PER_INSTANT = 100
+
+
+class EventSource(Protocol):
+    """Something that acts at instants of simulated time (a board's PID frames, a controller)."""
+
+    def next_event_ns(self, now_ns: int) -> int | None:
+        """The earliest time (ns, >= ``now_ns``) at which it must act; None: nothing pending."""
+        ...
+
+    def on_event(self, now_ns: int) -> None:
+        """Act at ``now_ns`` (everything due by then)."""
+        ...
+
+
+def seconds_to_ns(seconds: float) -> int:
+    """Seconds to the clock's integer nanoseconds (rounded to the nearest)."""
+    return round(seconds * NS_PER_S)
+
+
+def check_max_substep(value: object, name: str = "max_substep_s") -> float:
+    """``value`` as a float in ``MAX_SUBSTEP_RANGE_S``; ValueError naming ``name`` otherwise."""
+    low, high = MAX_SUBSTEP_RANGE_S
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, int | float | np.floating | np.integer)
+        or not math.isfinite(value)
+        or not low <= value <= high
+    ):
+        raise ValueError(
+            f"{name} must be a number of seconds in [{low:g}, {high:g}] (the longest physics "
+            f"substep; default {DEFAULT_MAX_SUBSTEP_S}, 0.002 steps at a fixed 500 Hz), "
+            f"got {value!r}"
+        )
+    return float(value)
 
 
 class Simulator:
-    """A pybullet world stepped at ``physics_hz`` with gravity and a ground plane.
+    """A pybullet world (gravity, a ground plane) with an event-driven clock.
 
     Args:
-        physics_hz: physics rate (Hz); the step is ``1 / physics_hz`` s.
+        max_substep_s: the longest physics substep (s); intervals between events are split
+            into the fewest equal substeps no longer than this. 0.002 reproduces fixed 500 Hz
+            stepping.
         gui: open the pybullet GUI instead of a headless DIRECT client.
         gravity_m_s2: gravitational acceleration (positive number, applied along -z).
         ground_friction: lateral friction coefficient of the ground plane.
-        solver_iterations: constraint solver iterations per physics step.
+        solver_iterations: constraint solver iterations per physics step (10: 5 jitters at
+            10 ms substeps, 20 costs 15 % for nothing).
     """
 
     def __init__(
         self,
-        physics_hz: float = 500.0,
+        max_substep_s: float = DEFAULT_MAX_SUBSTEP_S,
         gui: bool = False,
         gravity_m_s2: float = 9.81,
         ground_friction: float = 1.0,
         solver_iterations: int = 10,
     ) -> None:
-        if not (math.isfinite(physics_hz) and physics_hz > 0):
-            raise ValueError(f"physics_hz must be a positive number, got {physics_hz!r}")
-        self.physics_hz = float(physics_hz)
-        self.dt = 1.0 / self.physics_hz
+        self.max_substep_s = check_max_substep(max_substep_s)
+        self.max_substep_ns = seconds_to_ns(self.max_substep_s)
         self.gui = gui
         if gui and sys.platform.startswith("linux") and not (
             os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
@@ -58,27 +113,44 @@ class Simulator:
         self.ground_friction = ground_friction
         self.solver_iterations = int(solver_iterations)
         self.client = connect(gui=gui)
-        self._bodies: dict[str, int] = {}
-        self.ticks = 0
+        # bound once: every attribute access of a BulletClient builds a new partial
+        self._step_simulation = self.client.stepSimulation
+        self._set_joint_motors = self.client.setJointMotorControlArray
+        self._set_time_step_raw = self.client.setTimeStep
+        self.now_ns = 0
+        self.physics_steps = 0  # stepSimulation calls since the last reset (for benchmarks)
+        self._bodies: dict[str, Body] = {}
+        self._sources: list[EventSource] = []
+        self._dt = 0.0
+        self._held: dict[tuple[str, str], tuple[int, list[int], list[float]]] = {}
+        self._motors: dict[tuple[str, str], tuple[int, list[int], list[float], list[float]]] = {}
         self.reset()
 
     # -- world ---------------------------------------------------------------------------------
     def reset(self) -> None:
-        """Clear the world (``resetSimulation``) and add the ground plane: fully deterministic."""
+        """Clear the world (``resetSimulation``), add the ground plane, restart the clock.
+
+        Fully deterministic: what was loaded, held or scheduled before is gone.
+        """
         c = self.client
         c.resetSimulation()
         if self.gui:
             c.configureDebugVisualizer(pybullet.COV_ENABLE_GUI, 0)
-        # 10 solver iterations (pybullet: 50) converge the wheel contacts, gear and friction
-        # constraints of this small car to the same trajectories, at half the cost per step
+        self._dt = self.max_substep_s
         c.setPhysicsEngineParameter(
-            fixedTimeStep=self.dt, deterministicOverlappingPairs=1,
+            fixedTimeStep=self._dt, deterministicOverlappingPairs=1,
             numSolverIterations=self.solver_iterations,
         )
         c.setGravity(0.0, 0.0, -self.gravity_m_s2)
-        self._bodies = {"plane": c.loadURDF("plane.urdf")}
-        c.changeDynamics(self._bodies["plane"], -1, lateralFriction=self.ground_friction)
-        self.ticks = 0
+        self._bodies = {}
+        self._sources = []
+        self._held = {}
+        self._motors = {}
+        plane = Body(self, "plane", c.loadURDF("plane.urdf"))  # pybullet_data's, no flags
+        plane.change_dynamics(-1, lateralFriction=self.ground_friction)
+        self._bodies["plane"] = plane
+        self.now_ns = 0
+        self.physics_steps = 0
 
     @contextlib.contextmanager
     def building(self) -> Iterator[None]:
@@ -97,21 +169,6 @@ class Simulator:
             if self.connected:
                 self.client.configureDebugVisualizer(pybullet.COV_ENABLE_RENDERING, 1)
 
-    @property
-    def time_s(self) -> float:
-        """Simulated time since the last ``reset`` or ``restart_clock`` (s)."""
-        return self.ticks / self.physics_hz
-
-    def restart_clock(self) -> None:
-        """Set the simulated clock back to 0 (after settling bodies at reset)."""
-        self.ticks = 0
-
-    def step(self, ticks: int = 1) -> None:
-        """Advance the physics by ``ticks`` steps of ``dt``."""
-        for _ in range(ticks):
-            self.client.stepSimulation()
-        self.ticks += ticks
-
     def close(self) -> None:
         """Disconnect the client (idempotent)."""
         client = getattr(self, "client", None)
@@ -121,9 +178,139 @@ class Simulator:
                 client.disconnect()
             self.client = None
 
+    def __getstate__(self) -> None:
+        raise TypeError(
+            "a Simulator cannot be copied or pickled: a copy of its BulletClient would drive the "
+            "same physics server (and disconnect it when collected); make a new Simulator"
+        )
+
     @property
     def connected(self) -> bool:
         return self.client is not None and self.client.isConnected()
+
+    # -- clock and stepping --------------------------------------------------------------------
+    @property
+    def time_s(self) -> float:
+        """Simulated time since the last ``reset`` or ``settle`` (s)."""
+        return self.now_ns / NS_PER_S
+
+    def add_event_source(self, source: EventSource) -> None:
+        """Let ``source`` act at the instants it asks for (until the next ``reset``).
+
+        Sources due at the same instant act in the order they were added.
+        """
+        self._sources.append(source)
+
+    def settle(self, seconds: float) -> None:
+        """Let the world come to rest for ``seconds`` before time starts: the clock stays at 0.
+
+        Used once bodies are placed (wheels onto the ground) and before anything is scheduled.
+        """
+        if self.now_ns != 0:
+            raise RuntimeError(f"settle() is for t = 0, before time starts; now {self.time_s} s")
+        self._step_physics(seconds_to_ns(seconds), None)
+        self.now_ns = 0
+
+    def run_for(self, seconds: float, *, physics: bool = True,
+                probe: Callable[[float], None] | None = None) -> None:
+        """``run_until`` the current time plus ``seconds``."""
+        self.run_until(self.now_ns + seconds_to_ns(seconds), physics=physics, probe=probe)
+
+    def run_until(self, end_ns: int, *, physics: bool = True,
+                  probe: Callable[[float], None] | None = None) -> None:
+        """Advance the clock to ``end_ns``, stepping the physics from event to event.
+
+        Every event source acts at each instant it asks for, the last ones at ``end_ns``
+        itself. ``physics=False`` moves the clock without stepping the physics (bodies that
+        are moved kinematically). ``probe(time_s)``, if given, runs after every physics
+        substep (for logging).
+        """
+        if end_ns < self.now_ns:
+            raise ValueError(f"time cannot go back: run_until({end_ns} ns) at {self.now_ns} ns")
+        while True:
+            now = self.now_ns
+            target = end_ns
+            for source in self._sources:  # each acts on what is due, in the order added
+                due = self._fire(source, now)
+                if due is not None and due < target:
+                    target = due
+            if now >= end_ns:
+                return
+            if physics:
+                self._step_physics(target - now, probe)
+            self.now_ns = target
+
+    @staticmethod
+    def _fire(source: EventSource, now: int) -> int | None:
+        """Let ``source`` act while it is due at ``now``; its next event time after that."""
+        due = source.next_event_ns(now)
+        firings = 0
+        while due is not None and due <= now:
+            if firings == MAX_FIRINGS_PER_INSTANT:
+                raise RuntimeError(
+                    f"{type(source).__name__} is still due after {firings} firings at {now} ns: "
+                    "an event source must move its next event past the present"
+                )
+            source.on_event(now)
+            firings += 1
+            due = source.next_event_ns(now)
+        return due
+
+    def _step_physics(self, interval_ns: int, probe: Callable[[float], None] | None) -> None:
+        """Step ``interval_ns`` in the fewest equal substeps no longer than ``max_substep_s``."""
+        if interval_ns <= 0:
+            return
+        n = -(-interval_ns // self.max_substep_ns)
+        dt = interval_ns / (n * NS_PER_S)
+        if dt != self._dt:
+            self._set_time_step(dt)
+        step, set_joints = self._step_simulation, self._set_joint_motors
+        held = list(self._held.values())
+        torque = pybullet.TORQUE_CONTROL
+        start = self.now_ns
+        for i in range(n):
+            for body, joints, torques in held:  # pybullet clears them after every step
+                set_joints(body, joints, torque, forces=torques)
+            step()
+            if probe is not None:
+                probe((start + interval_ns * (i + 1) / n) / NS_PER_S)
+        self.physics_steps += n
+
+    def _set_time_step(self, dt: float) -> None:
+        """Change the physics step and re-send the motors pybullet scaled by the old one.
+
+        Gear constraints are not re-sent: their force cap (also stored as ``force * dt``) is
+        chosen far above what they ever carry, so it never binds at any step in range
+        (``tests/test_sim_stepping.py`` measures it).
+        """
+        self._set_time_step_raw(dt)
+        self._dt = dt
+        for body, joints, targets, forces in self._motors.values():
+            self._set_joint_motors(body, joints, pybullet.VELOCITY_CONTROL,
+                                   targetVelocities=targets, forces=forces)
+
+    @property
+    def time_step_s(self) -> float:
+        """The physics step pybullet used last (s)."""
+        return self._dt
+
+    # -- what the simulator keeps applying (used by Body) --------------------------------------
+    def _hold(self, key: tuple[str, str], body: int, joints: list[int],
+              torques: list[float]) -> None:
+        self._held[key] = (body, joints, torques)
+
+    def _motor(self, key: tuple[str, str], body: int, joints: list[int], targets: list[float],
+               forces: list[float]) -> None:
+        self._motors[key] = (body, joints, targets, forces)
+        self.client.setJointMotorControlArray(body, joints, pybullet.VELOCITY_CONTROL,
+                                              targetVelocities=targets, forces=forces)
+
+    def _gear(self, body: int, parent: int, child: int, ratio: float, force: float) -> int:
+        c = self.client
+        cid = c.createConstraint(body, parent, body, child, pybullet.JOINT_GEAR,
+                                 [0.0, 0.0, 1.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0])
+        c.changeConstraint(cid, gearRatio=ratio, maxForce=force)
+        return cid
 
     # -- bodies --------------------------------------------------------------------------------
     def load_urdf(
@@ -132,23 +319,25 @@ class Simulator:
         path: str | Path,
         position: Sequence[float] = (0.0, 0.0, 0.0),
         yaw: float = 0.0,
-    ) -> int:
+        fixed: bool = False,
+    ) -> Body:
         """Load a URDF file as body ``name`` with its link frame at ``position``, heading ``yaw``.
 
         The inertias written in the file are used (pybullet would otherwise recompute them
         from the collision shapes). pybullet's importer messages are silenced; a file it cannot
         load raises ``ModelError`` naming the file (and the reason where it can be told).
         """
-        from smartcar_gym.model.bodies import load_body  # the model package imports xacro
+        from smartcar_gym.sim.loading import load_body  # imports the model package (xacro)
 
+        if name in self._bodies:
+            raise ValueError(
+                f"a body named {name!r} already exists; bodies: {sorted(self._bodies)}"
+            )
         flags = pybullet.URDF_USE_INERTIA_FROM_FILE | pybullet.URDF_USE_IMPLICIT_CYLINDER
-        body = load_body(
-            self.client,
-            path,
-            position,
-            self.client.getQuaternionFromEuler([0.0, 0.0, yaw]),
-            flags=flags,
-        )
+        orientation = (0.0, 0.0, math.sin(yaw / 2.0), math.cos(yaw / 2.0))
+        uid = load_body(self.client, path, position, orientation, flags=flags,
+                        fixed=fixed)
+        body = Body(self, name, uid)
         self._bodies[name] = body
         return body
 
@@ -159,28 +348,27 @@ class Simulator:
         size: Sequence[float],
         rgba: Sequence[float],
         position: Sequence[float] = (0.0, 0.0, 0.0),
-    ) -> int:
+    ) -> Body:
         """Add a visual-only, collision-free marker: ``shape`` is 'sphere', 'cylinder' or 'box'.
 
         ``size`` is (radius,), (radius, length) or box half-extents respectively.
         """
-        c = self.client
-        if shape == "sphere":
-            vis = c.createVisualShape(pybullet.GEOM_SPHERE, radius=size[0], rgbaColor=rgba)
-        elif shape == "cylinder":
-            vis = c.createVisualShape(
-                pybullet.GEOM_CYLINDER, radius=size[0], length=size[1], rgbaColor=rgba
-            )
-        elif shape == "box":
-            vis = c.createVisualShape(pybullet.GEOM_BOX, halfExtents=list(size), rgbaColor=rgba)
-        else:
-            raise ValueError(f"unknown marker shape {shape!r}: expected sphere, cylinder or box")
-        body = c.createMultiBody(baseMass=0.0, baseVisualShapeIndex=vis, basePosition=position)
+        uid = camera.visual_body(self.client, shape, size, rgba, position)
+        body = Body(self, name, uid)
         self._bodies[name] = body
         return body
 
-    def body(self, name: str) -> int:
-        """The pybullet id of body ``name``."""
+    def add_visual_copies(self, prefix: str, parts: Sequence[camera.BoxPart], count: int,
+                          position: Sequence[float]) -> list[Body]:
+        """``count`` copies of one visual-only shape made of boxes, created in one batch."""
+        uids = camera.visual_batch(self.client, parts, count, position)
+        bodies = [Body(self, f"{prefix}{i}", uid) for i, uid in enumerate(uids)]
+        for body in bodies:
+            self._bodies[body.name] = body
+        return bodies
+
+    def body(self, name: str) -> Body:
+        """The body called ``name``."""
         try:
             return self._bodies[name]
         except KeyError:
@@ -188,18 +376,6 @@ class Simulator:
 
     def has_body(self, name: str) -> bool:
         return name in self._bodies
-
-    def joint_indices(self, name: str) -> dict[str, int]:
-        """Joint name -> pybullet joint index for body ``name``."""
-        body = self.body(name)
-        c = self.client
-        return {
-            c.getJointInfo(body, i)[1].decode(): i for i in range(c.getNumJoints(body))
-        }
-
-    def set_pose(self, name: str, position: Sequence[float], orientation: Sequence[float]) -> None:
-        """Teleport a body's base (centre-of-mass frame) to ``position``/``orientation``."""
-        self.client.resetBasePositionAndOrientation(self.body(name), position, orientation)
 
     # -- rendering -----------------------------------------------------------------------------
     def render(
@@ -212,21 +388,12 @@ class Simulator:
         pitch_deg: float,
         fov_deg: float = 50.0,
     ) -> np.ndarray:
-        """An RGB image (height, width, 3) uint8 from an orbit camera, headless (TinyRenderer)."""
-        c = self.client
-        view = c.computeViewMatrixFromYawPitchRoll(
-            cameraTargetPosition=list(target),
-            distance=distance,
-            yaw=yaw_deg,
-            pitch=pitch_deg,
-            roll=0.0,
-            upAxisIndex=2,
-        )
-        proj = c.computeProjectionMatrixFOV(
-            fov=fov_deg, aspect=width / height, nearVal=0.02, farVal=100.0
-        )
-        renderer = pybullet.ER_BULLET_HARDWARE_OPENGL if self.gui else pybullet.ER_TINY_RENDERER
-        _, _, rgba, _, _ = c.getCameraImage(
-            width, height, viewMatrix=view, projectionMatrix=proj, renderer=renderer
-        )
-        return np.asarray(rgba, dtype=np.uint8).reshape(height, width, 4)[:, :, :3].copy()
+        """An RGB image (height, width, 3) uint8 from an orbit camera (TinyRenderer headless)."""
+        return camera.orbit_image(self.client, width, height, target, distance, yaw_deg,
+                                  pitch_deg, fov_deg, opengl=self.gui)
+
+    def point_gui_camera(self, target: Sequence[float], distance: float, yaw_deg: float,
+                         pitch_deg: float) -> None:
+        """Point the GUI's camera (``render_mode="human"``); nothing when headless."""
+        if self.gui:
+            self.client.resetDebugVisualizerCamera(distance, yaw_deg, pitch_deg, list(target))

@@ -1,0 +1,86 @@
+"""Shared value checks: each returns the normalised value or raises naming what was wrong.
+
+``name`` is how the user wrote the value (a keyword argument, or ``file: key`` for a config),
+so every message says which value was wrong, what it was and what was expected.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+import os
+from collections.abc import Sequence
+from typing import Any
+
+Error = type[Exception]
+
+
+def is_real(value: Any) -> bool:
+    """A real number (numpy scalars count; bool does not)."""
+    return isinstance(value, numbers.Real) and not isinstance(value, bool)
+
+
+def positive_number(name: str, value: Any, upper: float | None = None,
+                    why: str = "", error: Error = ValueError) -> float:
+    """``value`` as a float if it is a finite number > 0 (and <= ``upper``, if given)."""
+    if not (is_real(value) and math.isfinite(value) and value > 0):
+        raise error(f"{name} must be a positive number, got {value!r}")
+    if upper is not None and value > upper:
+        raise error(f"{name} must be at most {upper:g}{why}, got {value!r}")
+    return float(value)
+
+
+def positive_int(name: str, value: Any, upper: int | None = None, why: str = "",
+                 error: Error = ValueError) -> int:
+    """``value`` as an int if it is a whole number >= 1 (and <= ``upper``, if given)."""
+    if not (isinstance(value, numbers.Integral) and not isinstance(value, bool) and value >= 1):
+        raise error(f"{name} must be a positive integer, got {value!r}")
+    if upper is not None and value > upper:
+        raise error(f"{name} must be at most {upper}{f' ({why})' if why else ''}, got {value!r}")
+    return int(value)
+
+
+def integer_in(name: str, value: Any, low: int, high: int, why: str = "",
+               error: Error = ValueError) -> int:
+    """``value`` as an int in ``low..high`` (numpy integers count; bool does not)."""
+    if not (isinstance(value, numbers.Integral) and not isinstance(value, bool)
+            and low <= value <= high):
+        raise error(f"{name}: expected an integer in {low}..{high}{f' ({why})' if why else ''}, "
+                    f"got {value!r}")
+    return int(value)
+
+
+def number_pair(name: str, value: Any, error: Error = ValueError) -> tuple[float, float]:
+    """``value`` as two finite floats, e.g. ``goal_range=(0.5, 1.5)``."""
+    try:
+        low, high = value
+    except (TypeError, ValueError):
+        raise error(f"{name} must be a (min, max) pair of numbers, got {value!r}") from None
+    if not all(is_real(v) and math.isfinite(v) for v in (low, high)):
+        raise error(f"{name} must be a (min, max) pair of finite numbers, got {value!r}")
+    return float(low), float(high)
+
+
+def one_of(name: str, value: Any, choices: Sequence[Any], error: Error = ValueError,
+           none_ok: bool = False) -> Any:
+    """``value`` if it is one of ``choices`` (or None, if ``none_ok``), without type coercion."""
+    if none_ok and value is None:
+        return value
+    if not any(type(value) is type(c) and value == c for c in choices):
+        also = "None or " if none_ok else ""
+        raise error(f"{name} must be {also}one of {tuple(choices)}, got {value!r}")
+    return value
+
+
+def source(name: str, value: Any, loaded: type) -> Any:
+    """A file argument: ``None`` (the shipped default), a path, or an already loaded object."""
+    if isinstance(value, str | os.PathLike) and not os.fspath(value):
+        raise ValueError(
+            f"{name} is an empty path: pass a file path, or None (the default) for the shipped one"
+        )
+    if value is None or isinstance(value, str | os.PathLike | loaded):
+        return value
+    raise TypeError(
+        f"{name} must be a file path or a {loaded.__name__} (or None for the shipped one), "
+        f"got {type(value).__name__}: {value!r}"
+    )

@@ -1,0 +1,163 @@
+"""Goal reaching: goal sampling, success, failure and reward as pure functions of arrays.
+
+The functions take ``(..., 2)`` positions, so they work on one state or a batch of them. The task
+also declares its part of the observation: the goal as the robot sees it through odometry.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from smartcar_gym.envs.observation import Entry, Readings
+
+FLIP_UP_Z = 0.5  # base_link's z axis tilted more than 60 degrees: flipped over
+
+
+def _goal_in_base(r: Readings) -> tuple[float, float, float]:
+    odom = r.odometry
+    dx, dy = r.goal[0] - odom.x, r.goal[1] - odom.y
+    c, s = math.cos(odom.theta), math.sin(odom.theta)
+    return c * dx + s * dy, -s * dx + c * dy, math.hypot(dx, dy)
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """What one step did for the task: reward, success, failure and the new distance (m)."""
+
+    reward: float
+    success: bool
+    failure: bool
+    distance: float
+
+
+@dataclass(frozen=True)
+class GoalReachingTask:
+    """Drive base_link to within ``goal_tolerance_m`` of a goal on the ground.
+
+    Reward per step: ``progress_weight`` x (metres the robot got closer to the goal)
+    - ``time_cost`` - ``action_cost`` x |action|^2, plus ``success_bonus`` on reaching the goal
+    and minus ``failure_penalty`` on flipping over or leaving the arena.
+    """
+
+    goal_range_m: tuple[float, float] = (0.5, 1.5)
+    goal_tolerance_m: float = 0.1
+    arena_half_size_m: float = 2.5
+    progress_weight: float = 10.0
+    success_bonus: float = 10.0
+    failure_penalty: float = 10.0
+    time_cost: float = 0.01
+    action_cost: float = 0.01
+
+    def __post_init__(self) -> None:
+        lo, hi = self.goal_range_m
+        if not (0.0 <= lo <= hi and math.isfinite(hi)):
+            raise ValueError(
+                "goal_range must be (min, max) metres with 0 <= min <= max, "
+                f"got {self.goal_range_m}"
+            )
+        if not self.goal_tolerance_m > 0:
+            raise ValueError(f"goal_tolerance must be > 0 m, got {self.goal_tolerance_m}")
+        if not hi < self.arena_half_size_m:
+            raise ValueError(
+                f"goal_range max ({hi} m) must lie inside the arena (half size "
+                f"{self.arena_half_size_m} m): raise arena_size or lower goal_range"
+            )
+        if not self.goal_tolerance_m < self.arena_half_size_m:
+            raise ValueError(
+                f"goal_tolerance ({self.goal_tolerance_m} m) must be smaller than the arena "
+                f"(half size {self.arena_half_size_m} m): every position would be a success"
+            )
+
+    # -- goals ---------------------------------------------------------------------------------
+    def sample_goal(self, rng: np.random.Generator, origin: np.ndarray) -> np.ndarray:
+        """A goal at a uniform distance in ``goal_range_m``, uniform bearing, from ``origin``."""
+        distance = rng.uniform(*self.goal_range_m)
+        bearing = rng.uniform(-math.pi, math.pi)
+        return np.asarray(origin, dtype=float) + distance * np.array(
+            [math.cos(bearing), math.sin(bearing)]
+        )
+
+    def check_goal(self, value: object) -> np.ndarray:
+        """A user's goal (``reset(options={"goal": ...})``): a finite (x, y) in the arena."""
+        expected = f"options['goal'] must be a finite (x, y) pair, got {value!r}"
+        try:
+            goal = np.asarray(value, dtype=float)
+        except (TypeError, ValueError):
+            raise ValueError(expected) from None
+        if goal.shape != (2,) or not np.all(np.isfinite(goal)):
+            raise ValueError(expected)
+        if self.is_outside(goal):
+            raise ValueError(
+                f"options['goal'] {goal.tolist()} lies outside the arena (|x|, |y| <= "
+                f"{self.arena_half_size_m} m): raise arena_size"
+            )
+        return goal
+
+    # -- pure functions ------------------------------------------------------------------------
+    @staticmethod
+    def distance(position: np.ndarray, goal: np.ndarray) -> np.ndarray:
+        """Euclidean distance (m) between ``(..., 2)`` positions and goals."""
+        return np.linalg.norm(np.asarray(position) - np.asarray(goal), axis=-1)
+
+    def is_success(self, distance: np.ndarray) -> np.ndarray:
+        """True where the distance to the goal is under the tolerance."""
+        return np.asarray(distance) < self.goal_tolerance_m
+
+    def is_outside(self, position: np.ndarray) -> np.ndarray:
+        """True where a ``(..., 2)`` position has left the square arena."""
+        return np.any(np.abs(np.asarray(position)) > self.arena_half_size_m, axis=-1)
+
+    @staticmethod
+    def is_flipped(up_z: np.ndarray) -> np.ndarray:
+        """True where base_link's z axis has tilted more than 60 degrees (``up_z < 0.5``)."""
+        return np.asarray(up_z) < FLIP_UP_Z
+
+    def is_failure(self, position: np.ndarray, up_z: np.ndarray) -> np.ndarray:
+        """True where the robot flipped over or left the arena."""
+        return self.is_flipped(up_z) | self.is_outside(position)
+
+    def reward(
+        self,
+        previous_distance: np.ndarray,
+        distance: np.ndarray,
+        action: np.ndarray,
+        success: np.ndarray,
+        failure: np.ndarray,
+    ) -> np.ndarray:
+        """Dense reward: progress, minus time and action costs, plus success/failure terms."""
+        action = np.asarray(action, dtype=float)
+        return (
+            self.progress_weight * (np.asarray(previous_distance) - np.asarray(distance))
+            - self.time_cost
+            - self.action_cost * np.sum(action * action, axis=-1)
+            + self.success_bonus * np.asarray(success, dtype=float)
+            - self.failure_penalty * np.asarray(failure, dtype=float)
+        )
+
+    def evaluate(self, previous_distance: float, position: np.ndarray, up_z: float,
+                 goal: np.ndarray, action: np.ndarray) -> Outcome:
+        """One step's outcome from the ground-truth position and uprightness."""
+        distance = float(self.distance(position, goal))
+        success = bool(self.is_success(distance))
+        failure = bool(self.is_failure(position, up_z))
+        reward = float(self.reward(previous_distance, distance, action, success, failure))
+        return Outcome(reward, success, failure, distance)
+
+    # -- observation ---------------------------------------------------------------------------
+    def observation_entries(self) -> list[Entry]:
+        """The goal as the robot sees it through odometry (A = ``arena_half_size_m``)."""
+        a = self.arena_half_size_m
+        return [
+            Entry("goal_base", ("goal_x_base", "goal_y_base"), -4 * a, 4 * a, "m",
+                  "goal in the odometry base_link frame (ahead, left)",
+                  lambda r: _goal_in_base(r)[:2], ("-4A", "4A")),
+            Entry("goal_distance", ("goal_distance",), 0.0, 4 * a, "m",
+                  "goal distance from the odometry pose", lambda r: _goal_in_base(r)[2:],
+                  ("0", "4A")),
+            Entry("goal_odom", ("goal_x_odom", "goal_y_odom"), -2 * a, 2 * a, "m",
+                  "goal in the ``odom`` frame (as a goal is given in ROS)",
+                  lambda r: r.goal, ("-2A", "2A")),
+        ]

@@ -149,8 +149,7 @@ def check_path(path: object) -> Path:
     return source
 
 
-def _non_physical(errors: Sequence[Defect], robot: UrdfRobot, locate: Locator,
-                  repair: bool) -> ModelError:
+def _non_physical(errors: Sequence[Defect], robot: UrdfRobot, locate: Locator) -> ModelError:
     """The ModelError for a model with unrepaired error defects: each link, value, and why."""
     parts = []
     for defect in errors:
@@ -253,7 +252,7 @@ def _load(path: object, *, package_path: object, mappings: object, wheels: objec
         note = f"; repaired: {fix}" if fix else ""
         warnings.warn(f"{source.name}: {defect}{note}", ModelDefectWarning, stacklevel=3)
     if refused:
-        raise _non_physical(errors, robot, locate, repair)
+        raise _non_physical(errors, robot, locate)
     return RobotModel(
         urdf=text,
         source=source,

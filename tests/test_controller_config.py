@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import re
 import textwrap
+import warnings
 from pathlib import Path
 
 import pytest
@@ -237,8 +238,97 @@ def test_other_upstream_controllers_are_ignored_with_a_warning():
 
 def test_driver_level_keys_are_tolerated():
     data = {**minimal(), "port": "/dev/ttyACM0", "baud": 57600, "sync_read": False,
-            "diagnostic_rate": 1.0, "joints": {}}
-    assert parse(data).ticks_meter == 4100
+            "sync_write": True, "timeout": 0.1, "rate": 20, "read_rate": 20, "write_rate": 20,
+            "sim": False, "diagnostic_rate": 1.0, "joints": {}, "dynamixels": {}, "servos": {},
+            "digital_servos": {}, "digital_sensors": {}, "analog_sensors": {}, "smartcar_gym": {}}
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # none of arbotix_driver's keys is warned about
+        assert parse(data).ticks_meter == 4100
+
+
+@pytest.mark.parametrize(("key", "hint"), [
+    ("rat", " (did you mean 'rate'?)"),
+    ("ticks_meter", " (a diff_controller key: it belongs under controllers.base_controller)"),
+    ("colour", ""),
+])
+def test_unknown_top_level_key_warns_like_unknown_controller_keys(key, hint):
+    with pytest.warns(UserWarning) as caught:  # `rat: 5` used to pass without a word
+        parse({**minimal(), key: 5})
+    assert [str(w.message) for w in caught] == [
+        f"test.yaml: unknown top-level key {key!r} ignored{hint}"]
+
+
+BASE = ("rate: 20\ncontrollers:\n  base_controller:\n    type: diff_controller\n"
+        "    ticks_meter: 4100\n    base_width: 0.26\n    Kp: 12\n")
+
+
+def test_duplicate_key_names_the_key_and_both_lines(tmp_path):
+    path = write(tmp_path, BASE + "    ticks_meter: 10\n")  # PyYAML keeps 10: the car stands
+    with pytest.raises(ControllerConfigError) as err:
+        load_controller_config(path)
+    assert str(err.value) == (
+        f"{path}:8: key 'ticks_meter' given twice in one mapping, on lines 5 and 8 "
+        "(ticks_meter: 4100, then ticks_meter: 10); YAML would keep the last one without a "
+        "word; expected each key once")
+
+
+@pytest.mark.parametrize(("text", "match"), [
+    ("rate: 10\n" + BASE, r":2: key 'rate' given twice in one mapping, on lines 1 and 2 "),
+    (BASE + "smartcar_gym:\n  motor: {stall_torque: 0.3, stall_torque: 3}\n",
+     r":9: key 'stall_torque' given twice in one mapping, on line 9 \(stall_torque: 0.3, then "
+     r"stall_torque: 3\)"),
+    (BASE + "smartcar_gym:\n  board: {}\n  board:\n    frame_ms: 20\n",
+     r":10: key 'board' given twice .* \(board: a mapping, then board: a mapping\)"),
+])
+def test_duplicate_keys_at_any_depth(tmp_path, text, match):
+    with pytest.raises(ControllerConfigError, match=match):
+        load_controller_config(write(tmp_path, text))
+
+
+def test_a_merge_key_may_be_overridden(tmp_path):
+    config = load_controller_config(write(tmp_path, BASE + "    <<: {Kd: 3, Ki: 2}\n    Kd: 4\n"))
+    assert (config.kp, config.kd, config.ki) == (12, 4, 2)
+
+
+def test_ticks_meter_that_overflows_the_board_is_refused_naming_the_limit():
+    with pytest.raises(ControllerConfigError) as err:
+        parse(minimal(ticks_meter="1e12"))  # YAML 1.1 reads 1e12 as text; upstream float()s it
+    assert str(err.value) == (
+        "test.yaml: controllers.base_controller.ticks_meter: 1e+12 ticks/m overflows the emulated "
+        "board's integers: a 1 m/s wheel target would be 3.33333e+10 ticks per 1/30 s frame, "
+        "beyond the 16-bit int the board takes (32767), and its 32-bit encoder count would wrap "
+        "after 2.15 mm of travel; expected at most 983010 (a 16-bit target up to 1 m/s)")
+    assert parse(minimal(ticks_meter=983010)).max_target_speed_m_s == 1.0
+    with pytest.raises(ControllerConfigError, match="expected at most 983010"):
+        ArbotixConfig(ticks_meter=983011, base_width_m=0.26)
+
+
+def test_max_target_speed_is_the_fastest_target_that_fits_int16():
+    config = load_controller_config()
+    assert config.max_target_speed_m_s == pytest.approx(239.7585, abs=1e-4)  # 32767*30/4100
+    assert round(config.max_target_speed_m_s * config.ticks_meter / 30) == 2**15 - 1
+
+
+def test_an_infinite_ramp_step_is_refused():
+    with pytest.raises(ControllerConfigError, match=r"accel_limit: 1e\+308 makes the ramp step "
+                                                    r"int\(accel_limit\*ticks_meter/rate\) "
+                                                    "infinite"):
+        parse(minimal(accel_limit=1e308))
+
+
+def test_empty_path_directory_and_wrong_type(tmp_path):
+    with pytest.raises(ControllerConfigError) as err:  # was ": controller config file not found"
+        load_controller_config("")
+    assert str(err.value) == ("controller config path is empty (''); expected the path of an "
+                              "ArbotiX driver YAML file, or None for the shipped "
+                              "smartcar_arbotix.yaml")
+    write(tmp_path, SEED_YAML)
+    with pytest.raises(ControllerConfigError) as err:  # was "cannot read: Is a directory"
+        load_controller_config(tmp_path)
+    assert str(err.value) == (f"{tmp_path}: is a directory; expected an ArbotiX driver YAML "
+                              "file; it holds smartcar_arbotix.yaml")
+    with pytest.raises(TypeError, match=r"^controller config path=5: expected the path \(str"):
+        load_controller_config(5)
 
 
 def test_yaml_syntax_error_names_file_and_line(tmp_path):

@@ -103,6 +103,31 @@ def test_check_error_defect_exits_1(capsys, tmp_path: Path) -> None:
     assert out.rstrip().endswith("result: FAILED (1 errors, 16 warnings, 0 repairs)")
 
 
+def test_check_a_repaired_error_passes_as_load_model_does(capsys, tmp_path: Path) -> None:
+    path = tmp_path / "flipped.urdf"  # base_link izz -0.001: repaired from its box collision
+    text = SEEDLIKE.read_text()
+    base = text.index('<link name="base_link"')
+    inertia = text.index('izz="', base)
+    path.write_text(text[:inertia] + 'izz="-0.001' + text[text.index('"', inertia + 5):])
+    code, out, _ = run(capsys, "check", str(path))
+    assert code == 0  # was 1 (FAILED), while load_model and the env took the repaired model
+    assert "error: non-positive-definite inertia: base_link/inertia" in out
+    assert out.rstrip().endswith("result: OK (0 errors, 16 warnings, 16 repairs, 1 errors "
+                                 "repaired)")
+    code, out, _ = run(capsys, "check", str(path), "--no-repair")
+    assert code == 1
+    assert out.rstrip().endswith("result: FAILED (1 errors, 16 warnings, 0 repairs)")
+
+
+def test_urdf_still_works_on_a_non_physical_model(capsys, tmp_path: Path) -> None:
+    path = tmp_path / "light.urdf"
+    path.write_text(SEEDLIKE.read_text().replace('<mass value="0.1" />', '<mass value="0" />', 1))
+    code, out, err = run(capsys, "urdf", str(path))
+    assert code == 0 and out.startswith("<?xml")
+    assert ("smartcar-model: warning: light.urdf: error: non-positive mass: "
+            "left_front_wheel/inertial: mass 0 kg; expected > 0\n") in err
+
+
 def test_check_model_error_exits_2_with_one_line(capsys) -> None:
     code, out, err = run(capsys, "check", str(LEGACY), "--package-path",
                          str(FIXTURES / "legacy"), "--no-legacy", "--arg", "with_head:=1")

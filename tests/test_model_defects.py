@@ -15,10 +15,12 @@ from smartcar_gym.model.defects import (
     DUPLICATED_ORIGIN,
     GEOMETRY_MISMATCH,
     IMPLAUSIBLE_INERTIA,
+    NON_PHYSICAL_INERTIA,
     NON_POSITIVE_MASS,
     NOT_POSITIVE_DEFINITE,
 )
 from smartcar_gym.model.inertia import shape_inertia
+from smartcar_gym.model.loader import inspect_model
 from smartcar_gym.model.urdf import Geometry
 
 SEEDLIKE = Path(__file__).parent / "fixtures" / "seedlike.urdf"
@@ -207,6 +209,10 @@ def test_repair_keeps_an_rpy_that_does_not_repeat_the_joint_and_rotates_inertia(
     assert len(messages) == 2
 
 
+NOT_REPAIRABLE = (" (not repairable: an inertia is computed only for a link with one box, "
+                  "cylinder or sphere collision)")
+
+
 @pytest.mark.parametrize(("inertial", "kind", "text"), [
     ('<mass value="0"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/>',
      NON_POSITIVE_MASS, "mass 0 kg; expected > 0"),
@@ -214,32 +220,127 @@ def test_repair_keeps_an_rpy_that_does_not_repeat_the_joint_and_rotates_inertia(
      NON_POSITIVE_MASS, "mass -1 kg; expected > 0"),
     ('<mass value="1"/><inertia ixx="1" ixy="2" ixz="0" iyy="1" iyz="0" izz="1"/>',
      NOT_POSITIVE_DEFINITE, "inertia principal moments -1 1 3 kg m^2; expected all > 0"),
+    ('<mass value="1"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="3"/>',
+     NON_PHYSICAL_INERTIA, "inertia principal moments 1 1 3 kg m^2: 1 + 1 < 3, which no mass "
+                           "distribution has; expected each moment at most the sum of the other "
+                           "two"),
 ])
 def test_error_severity_defects(tmp_path: Path, inertial: str, kind: str, text: str) -> None:
-    body = f'<inertial>{inertial}</inertial>'
-    model, messages = load(write_one_wheel_robot(tmp_path, body))
+    path = write_one_wheel_robot(tmp_path, f'<inertial>{inertial}</inertial>')
+    element = f"arm/{'inertial' if kind == NON_POSITIVE_MASS else 'inertia'}"
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        model = inspect_model(path)
     assert [(d.kind, d.element, d.message, d.severity) for d in model.defects] == [
-        (kind, f"arm/{'inertial' if kind == NON_POSITIVE_MASS else 'inertia'}", text, "error")]
-    assert messages == [f"robot.urdf: error: {kind}: {model.defects[0].element}: {text}"]
+        (kind, element, text, "error")]
+    assert model.errors == model.defects
+    assert [str(w.message) for w in caught] == [f"robot.urdf: error: {kind}: {element}: {text}"]
     with pytest.raises(ModelError, match=f"1 model defect\\(s\\) \\(strict=True\\): error: {kind}"):
-        load_model(write_one_wheel_robot(tmp_path, body), strict=True)
+        load_model(path, strict=True)
+
+
+@pytest.mark.parametrize(("inertial", "kind", "text"), [
+    ('<mass value="-1"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/>',
+     NON_POSITIVE_MASS, "mass -1 kg; expected > 0"),
+    ('<mass value="1"/><inertia ixx="1" ixy="2" ixz="0" iyy="1" iyz="0" izz="1"/>',
+     NOT_POSITIVE_DEFINITE, "inertia principal moments -1 1 3 kg m^2; expected all > 0"
+     + NOT_REPAIRABLE),
+    ('<mass value="1"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="3"/>',
+     NON_PHYSICAL_INERTIA, "inertia principal moments 1 1 3 kg m^2: 1 + 1 < 3, which no mass "
+                           "distribution has; expected each moment at most the sum of the other "
+                           "two" + NOT_REPAIRABLE),
+])
+def test_load_model_refuses_a_non_physical_model_naming_file_link_and_value(
+        tmp_path: Path, inertial: str, kind: str, text: str) -> None:
+    path = write_one_wheel_robot(tmp_path, f'<inertial>{inertial}</inertial>')
+    with pytest.raises(ModelError) as info:
+        load_model(path)
+    assert str(info.value) == (f"{path}:7: non-physical model, cannot be simulated (1 error; "
+                               f"`smartcar-model check` lists every defect): link 'arm': {kind}: "
+                               f"{text}")
+    assert (info.value.file, info.value.line) == (str(path), 7)
+
+
+def test_a_non_physical_link_in_a_xacro_file_is_located_there(tmp_path: Path) -> None:
+    path = write_one_wheel_robot(tmp_path, '<inertial><mass value="-0.5"/><inertia ixx="1" '
+                                           'ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial>')
+    xacro_file = path.rename(tmp_path / "robot.urdf.xacro")
+    with pytest.raises(ModelError) as info:
+        load_model(xacro_file)
+    assert (info.value.file, info.value.line) == (str(xacro_file), 7)
+    assert "link 'arm': non-positive mass: mass -0.5 kg; expected > 0" in str(info.value)
+
+
+def test_all_unrepaired_errors_are_listed_and_warnings_still_warned(tmp_path: Path) -> None:
+    body = ('<inertial><mass value="-1"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" '
+            'izz="1"/></inertial><collision><geometry><box size="0.1 0.1 0.1"/></geometry>'
+            '</collision><visual><geometry><sphere radius="0.1"/></geometry></visual>')
+    path = write_one_wheel_robot(tmp_path, body)
+    text = path.read_text().replace('<link name="base"/>', '<link name="base"><inertial><mass '
+                                    'value="1"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" '
+                                    'iyz="0" izz="-1"/></inertial></link>')
+    path.write_text(text)
+    with warnings.catch_warnings(record=True) as caught, pytest.raises(ModelError) as info:
+        warnings.simplefilter("always")
+        load_model(path, repair=False)
+    message = str(info.value)
+    assert message.startswith(f"{path}:2: non-physical model, cannot be simulated (2 errors;")
+    assert "link 'base': non-positive-definite inertia: inertia principal moments -1 1 1" in message
+    assert message.endswith("; link 'arm': non-positive mass: mass -1 kg; expected > 0")
+    assert [str(w.message) for w in caught] == [  # the warning-level defect is still warned
+        "robot.urdf: warning: geometry mismatch: arm/collision: collision geometry box differs "
+        "from visual geometry sphere; expected the same shape"]
 
 
 def test_non_positive_definite_inertia_is_repaired_when_the_shape_is_known(tmp_path) -> None:
     body = ('<inertial><mass value="1"/><inertia ixx="-1" ixy="0" ixz="0" iyy="1" iyz="0" '
             'izz="1"/></inertial><collision><geometry><sphere radius="0.1"/></geometry>'
             '</collision>')
-    model, _ = load(write_one_wheel_robot(tmp_path, body))
+    model, messages = load(write_one_wheel_robot(tmp_path, body))
     assert [(d.kind, d.severity) for d in model.defects] == [(NOT_POSITIVE_DEFINITE, "error")]
     assert [r.kind for r in model.repairs] == [NOT_POSITIVE_DEFINITE]
+    assert model.errors == ()
+    assert messages[0].endswith("; repaired: ixx=-1 iyy=1 izz=1 -> ixx=0.004 iyy=0.004 "
+                                "izz=0.004 kg m^2 (solid sphere 0.1 m, 1 kg)")
+    np.testing.assert_allclose(np.array(model.links["arm"].inertial.inertia),
+                               np.eye(3) * 0.4 * 0.1**2, atol=1e-15)
+    with pytest.raises(ModelError, match="repair=True replaces it with the inertia of its "
+                                         "collision shape"):
+        load_model(write_one_wheel_robot(tmp_path, body), repair=False)
+
+
+def test_non_physical_inertia_is_repaired_when_the_shape_is_known(tmp_path) -> None:
+    body = ('<inertial><mass value="1"/><inertia ixx="0.001" ixy="0" ixz="0" iyy="0.001" '
+            'iyz="0" izz="0.003"/></inertial><collision><geometry><sphere radius="0.1"/>'
+            '</geometry></collision>')
+    model, _ = load(write_one_wheel_robot(tmp_path, body))
+    assert [(d.kind, d.severity) for d in model.defects] == [(NON_PHYSICAL_INERTIA, "error")]
+    assert [r.kind for r in model.repairs] == [NON_PHYSICAL_INERTIA] and model.errors == ()
     np.testing.assert_allclose(np.array(model.links["arm"].inertial.inertia),
                                np.eye(3) * 0.4 * 0.1**2, atol=1e-15)
 
 
-def test_plausible_inertia_within_ten_times_is_not_flagged(tmp_path: Path) -> None:
-    i = 0.4 * 0.1**2  # solid sphere, 1 kg, r = 0.1 m
-    body = (f'<inertial><mass value="1"/><inertia ixx="{9 * i}" ixy="0" ixz="0" iyy="{i / 9}" '
-            f'iyz="0" izz="{i}"/></inertial><collision><geometry><sphere radius="0.1"/>'
+@pytest.mark.parametrize(("izz", "refused"), [(2.0, False), (2.019, False), (2.03, True)])
+def test_triangle_inequality_allows_one_percent_for_rounding(tmp_path, izz, refused) -> None:
+    body = (f'<inertial><mass value="1"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" '
+            f'izz="{izz}"/></inertial>')  # a thin disc has izz = ixx + iyy exactly
+    path = write_one_wheel_robot(tmp_path, body)
+    if refused:
+        with pytest.raises(ModelError, match="non-physical inertia"):
+            load_model(path)
+    else:
+        assert load_model(path).defects == ()
+
+
+I_SPHERE = 0.4 * 0.1**2  # solid sphere, 1 kg, r = 0.1 m
+
+
+@pytest.mark.parametrize("moments", [(9, 9, 9), (1 / 9, 1 / 9, 1 / 9), (5, 5, 9)])
+def test_plausible_inertia_within_ten_times_is_not_flagged(tmp_path: Path, moments) -> None:
+    # (9, 1/9, 1) used to be here: within 10x, but 1/9 + 1 < 9 is no body's inertia (an error now)
+    ixx, iyy, izz = (m * I_SPHERE for m in moments)
+    body = (f'<inertial><mass value="1"/><inertia ixx="{ixx}" ixy="0" ixz="0" iyy="{iyy}" '
+            f'iyz="0" izz="{izz}"/></inertial><collision><geometry><sphere radius="0.1"/>'
             '</geometry></collision>')
     model, messages = load(write_one_wheel_robot(tmp_path, body))
     assert model.defects == () and messages == []
@@ -256,3 +357,21 @@ def test_shape_inertia(geometry: Geometry, mass: float, diag) -> None:
 
 def test_mesh_has_no_computed_inertia() -> None:
     assert shape_inertia(1.0, Geometry("mesh", (1, 1, 1), "wheel.stl")) is None
+
+
+def test_the_env_refuses_a_non_physical_model(shipped_model, tmp_path: Path) -> None:
+    """It used to warn and simulate: the car was 94 m away after 3 s of standing still."""
+    import gymnasium as gym
+
+    import smartcar_gym  # noqa: F401  (registers SmartCar-v0)
+
+    text = shipped_model.urdf
+    head = text.index('<link name="head"')
+    mass = text.index('<mass value="', head)
+    path = tmp_path / "negative_head.urdf"
+    path.write_text(text[:mass] + '<mass value="-1' + text[text.index('"', mass + 13):])
+    line = path.read_text()[:head].count("\n") + 1
+    with pytest.raises(ModelError) as info:
+        gym.make("SmartCar-v0", model=str(path))
+    assert str(info.value).startswith(f"{path}:{line}: non-physical model, cannot be simulated")
+    assert str(info.value).endswith("link 'head': non-positive mass: mass -1 kg; expected > 0")

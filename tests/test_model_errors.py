@@ -356,3 +356,32 @@ def test_a_file_that_defines_macros_but_never_calls_them() -> None:
     gazebo = SEED_PKG / "urdf" / "gazebo.urdf.xacro"
     with pytest.raises(ModelError, match="defines macro smartcar_sim but never calls it"):
         load_model(gazebo)
+
+
+@pytest.mark.parametrize("chain", [["a.xacro"], ["a.xacro", "b.xacro"], ["a.xacro", "b.xacro",
+                                                                         "c.xacro"]])
+def test_include_cycle_names_the_files_in_it(tmp_path: Path, chain: list[str]) -> None:
+    for i, name in enumerate(chain):
+        nxt = chain[(i + 1) % len(chain)]
+        link = '  <link name="base"/>\n' if i == 0 else ""
+        (tmp_path / name).write_text(f'<?xml version="1.0"?>\n<robot name="r" {XACRO_NS}>\n'
+                                     f'  <xacro:include filename="{nxt}"/>\n{link}</robot>\n')
+    with pytest.raises(ModelError) as info:  # was a RecursionError, no file named
+        load_model(tmp_path / "a.xacro")
+    files = " -> ".join(str(tmp_path / n) for n in [*chain, chain[0]])
+    assert str(info.value) == (
+        f"{tmp_path / chain[-1]}:3: xacro include cycle: {files} (each file includes the next), "
+        "so the expansion never ends; expected no file to include itself, directly or through "
+        "others")
+    assert info.value.__cause__ is None and info.value.__suppress_context__
+
+
+def test_macro_recursion_names_the_macros(tmp_path: Path) -> None:
+    path = urdf(tmp_path, '  <xacro:macro name="foo"><xacro:bar/></xacro:macro>\n'
+                          '  <xacro:macro name="bar"><xacro:foo/></xacro:macro>\n'
+                          '  <xacro:foo/>\n', "loop.urdf.xacro")
+    with pytest.raises(ModelError) as info:  # was a 1500-character "foo -> bar -> foo ..."
+        load_model(path)
+    assert str(info.value) == (f"{path}:5: xacro macro recursion: foo -> bar -> foo calls "
+                               "itself without end; expected the recursion to stop (a "
+                               "<xacro:if> around the inner call)")

@@ -4,6 +4,11 @@ The layout is the ArbotiX ROS driver's: driver-level keys at the top, one ``diff
 under ``controllers``, with upstream's defaults and required keys. The plant, which upstream
 leaves open, is configured in our own top-level ``smartcar_gym:`` section (``motor``,
 ``encoder``, ``board``); the real driver ignores that key.
+
+Stricter than upstream where upstream fails silently: a key given twice in one mapping is an
+error (YAML keeps the last), an unknown top-level key is warned about like an unknown
+controller key, and a ``ticks_meter`` whose targets overflow the board's 16-bit ints is refused
+(see ``config_values``).
 """
 
 from __future__ import annotations
@@ -12,120 +17,66 @@ import difflib
 import math
 import os
 import warnings
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from importlib import resources
 from typing import Any
 
-import yaml
+from smartcar_gym.controller import config_values as v
+from smartcar_gym.controller.config_values import (
+    FRAMES_PER_S,
+    INT16_MAX,
+    PWM_ZERO_MODES,
+    Checker,
+    ControllerConfigError,
+    close_hint,
+    is_number,
+)
+from smartcar_gym.controller.config_yaml import (
+    DEFAULT_CONFIG,
+    default_config_path,
+    parse_yaml,
+    read_config_file,
+)
+
+__all__ = [
+    "DEFAULT_CONFIG",
+    "PWM_ZERO_MODES",
+    "SUPPORTED_TYPE",
+    "ArbotixConfig",
+    "ControllerConfigError",
+    "MotorConfig",
+    "default_config_path",
+    "load_controller_config",
+    "parse_controller_config",
+]
 
 SUPPORTED_TYPE = "diff_controller"
 # Other controller types the ArbotiX driver knows; ignored here (with a warning).
 UPSTREAM_OTHER_TYPES = ("follow_controller", "omni_controller", "linear_controller")
-PWM_ZERO_MODES = ("coast", "brake")
-DEFAULT_CONFIG = "smartcar_arbotix.yaml"
 
 _REQUIRED = object()
 
 
-class ControllerConfigError(ValueError):
-    """An ArbotiX controller configuration that upstream would reject or we cannot emulate."""
-
-
-# -- value checkers: (value, where) -> normalised value, or ControllerConfigError --------------
-def _number(value: Any, where: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-        hint = ""
-        if isinstance(value, str) and _is_number(value):
-            hint = (
-                " (a string: YAML 1.1 reads a number such as 1e-3 without a '.' as text; "
-                "write 1.0e-3)"
-            )
-        raise ControllerConfigError(f"{where}: expected a finite number, got {value!r}{hint}")
-    return float(value)
-
-
-def _float_cast(value: Any, where: str) -> float:
-    """A required key that upstream casts with ``float(...)``: numeric strings count."""
-    if isinstance(value, str) and _is_number(value):
-        value = float(value)
-    return _positive(value, where)
-
-
-def _positive(value: Any, where: str) -> float:
-    number = _number(value, where)
-    if number <= 0:
-        raise ControllerConfigError(f"{where}: must be > 0, got {value!r}")
-    return number
-
-
-def _non_negative(value: Any, where: str) -> float:
-    number = _number(value, where)
-    if number < 0:
-        raise ControllerConfigError(f"{where}: must be >= 0, got {value!r}")
-    return number
-
-
-def _integer(value: Any, where: str, low: int, high: int, why: str) -> int:
-    if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
-        raise ControllerConfigError(
-            f"{where}: expected an integer in {low}..{high} ({why}), got {value!r}"
-        )
-    return value
-
-
-def _gain(value: Any, where: str) -> int:
-    return _integer(value, where, 0, 255, "the driver sends each gain as one byte")
-
-
-def _ko(value: Any, where: str) -> int:
-    return _integer(value, where, 1, 255, "one byte, and the firmware divides by it")
-
-
-def _frame_ms(value: Any, where: str) -> int:
-    return _integer(value, where, 1, 1000, "the firmware's FRAME_RATE in ms")
-
-
-def _text(value: Any, where: str) -> str:
-    if not isinstance(value, str) or not value.strip():
-        raise ControllerConfigError(f"{where}: expected a non-empty string, got {value!r}")
-    return value
-
-
-def _flag(value: Any, where: str) -> bool:
-    if not isinstance(value, bool):
-        raise ControllerConfigError(f"{where}: expected true or false, got {value!r}")
-    return value
-
-
-def _pwm_zero(value: Any, where: str) -> str:
-    if value not in PWM_ZERO_MODES:
-        raise ControllerConfigError(f"{where}: expected one of {PWM_ZERO_MODES}, got {value!r}")
-    return value
-
-
-Checker = Callable[[Any, str], Any]
-
 # YAML key -> (dataclass field, checker, default). Defaults are upstream's.
 _DRIVER_KEYS: dict[str, tuple[str, Checker, Any]] = {
-    "rate": ("driver_rate_hz", _positive, 100.0),
-    "read_rate": ("read_rate_hz", _positive, 10.0),
-    "write_rate": ("write_rate_hz", _positive, 10.0),
-    "sim": ("sim", _flag, False),
+    "rate": ("driver_rate_hz", v.positive, 100.0),
+    "read_rate": ("read_rate_hz", v.positive, 10.0),
+    "write_rate": ("write_rate_hz", v.positive, 10.0),
+    "sim": ("sim", v.flag, False),
 }
 _CONTROLLER_KEYS: dict[str, tuple[str, Checker, Any]] = {
-    "rate": ("rate_hz", _positive, 10.0),
-    "timeout": ("timeout_s", _non_negative, 1.0),
+    "rate": ("rate_hz", v.positive, 10.0),
+    "timeout": ("timeout_s", v.non_negative, 1.0),
     # upstream: float(rospy.get_param(...)), so "4100" is accepted as well
-    "ticks_meter": ("ticks_meter", _float_cast, _REQUIRED),
-    "base_width": ("base_width_m", _float_cast, _REQUIRED),
-    "base_frame_id": ("base_frame_id", _text, "base_link"),
-    "odom_frame_id": ("odom_frame_id", _text, "odom"),
-    "Kp": ("kp", _gain, 5),
-    "Kd": ("kd", _gain, 1),
-    "Ki": ("ki", _gain, 0),
-    "Ko": ("ko", _ko, 50),
-    "accel_limit": ("accel_limit", _non_negative, 0.1),
+    "ticks_meter": ("ticks_meter", v.ticks_meter, _REQUIRED),
+    "base_width": ("base_width_m", v.float_cast, _REQUIRED),
+    "base_frame_id": ("base_frame_id", v.text, "base_link"),
+    "odom_frame_id": ("odom_frame_id", v.text, "odom"),
+    "Kp": ("kp", v.gain, 5),
+    "Kd": ("kd", v.gain, 1),
+    "Ki": ("ki", v.gain, 0),
+    "Ko": ("ko", v.ko, 50),
+    "accel_limit": ("accel_limit", v.non_negative, 0.1),
 }
 _REQUIRED_HELP = {
     "ticks_meter": "encoder ticks per metre of wheel travel",
@@ -134,14 +85,22 @@ _REQUIRED_HELP = {
 # Our section: subsection -> YAML key -> (dataclass field, checker).
 _OWN_KEYS: dict[str, dict[str, tuple[str, Checker]]] = {
     "motor": {
-        "stall_torque": ("stall_torque_nm", _positive),
-        "no_load_speed": ("no_load_speed_rad_s", _positive),
-        "reflected_inertia": ("reflected_inertia_kg_m2", _non_negative),
-        "friction_torque": ("friction_torque_nm", _non_negative),
+        "stall_torque": ("stall_torque_nm", v.positive),
+        "no_load_speed": ("no_load_speed_rad_s", v.positive),
+        "reflected_inertia": ("reflected_inertia_kg_m2", v.non_negative),
+        "friction_torque": ("friction_torque_nm", v.non_negative),
     },
-    "encoder": {"left": ("encoder_left", _text), "right": ("encoder_right", _text)},
-    "board": {"frame_ms": ("frame_ms", _frame_ms), "pwm_zero": ("pwm_zero", _pwm_zero)},
+    "encoder": {"left": ("encoder_left", v.text), "right": ("encoder_right", v.text)},
+    "board": {"frame_ms": ("frame_ms", v.frame_ms), "pwm_zero": ("pwm_zero", v.pwm_zero)},
 }
+# The other top-level keys arbotix_python's driver (arbotix_driver and the publishers and servo
+# controller it starts) reads as private parameters; tolerated, unused. `dynamixels` and `servos`
+# are the names older releases gave `joints`. Any other top-level key is warned about.
+_DRIVER_OTHER_KEYS = (
+    "port", "baud", "timeout", "sync_read", "sync_write", "diagnostic_rate", "controllers",
+    "joints", "dynamixels", "servos", "digital_servos", "digital_sensors", "analog_sensors",
+    "smartcar_gym",
+)
 
 
 @dataclass(frozen=True)
@@ -161,11 +120,11 @@ class MotorConfig:
     friction_torque_nm: float = 0.03
 
     def __post_init__(self) -> None:
-        _positive(self.stall_torque_nm, "MotorConfig.stall_torque_nm")
-        _non_negative(self.reflected_inertia_kg_m2, "MotorConfig.reflected_inertia_kg_m2")
-        _non_negative(self.friction_torque_nm, "MotorConfig.friction_torque_nm")
-        _positive(self.no_load_speed_rad_s, "MotorConfig.no_load_speed_rad_s")
-        _pwm_zero(self.pwm_zero, "MotorConfig.pwm_zero")
+        v.positive(self.stall_torque_nm, "MotorConfig.stall_torque_nm")
+        v.non_negative(self.reflected_inertia_kg_m2, "MotorConfig.reflected_inertia_kg_m2")
+        v.non_negative(self.friction_torque_nm, "MotorConfig.friction_torque_nm")
+        v.positive(self.no_load_speed_rad_s, "MotorConfig.no_load_speed_rad_s")
+        v.pwm_zero(self.pwm_zero, "MotorConfig.pwm_zero")
 
 
 @dataclass(frozen=True)
@@ -205,16 +164,32 @@ class ArbotixConfig:
         for key, (attr, check, _) in _DRIVER_KEYS.items():
             object.__setattr__(self, attr, check(getattr(self, attr), f"{self.source}: {key}"))
         own = f"{self.source}: smartcar_gym"
-        _text(self.encoder_left, f"{own}.encoder.left")
-        _text(self.encoder_right, f"{own}.encoder.right")
-        _frame_ms(self.frame_ms, f"{own}.board.frame_ms")
+        v.text(self.encoder_left, f"{own}.encoder.left")
+        v.text(self.encoder_right, f"{own}.encoder.right")
+        v.frame_ms(self.frame_ms, f"{own}.board.frame_ms")
         if not isinstance(self.motor, MotorConfig):
             raise ControllerConfigError(f"{own}.motor: expected a MotorConfig, got {self.motor!r}")
+        if not math.isfinite(self.accel_limit * self.ticks_meter / self.rate_hz):
+            raise ControllerConfigError(
+                f"{where}.accel_limit: {self.accel_limit!r} makes the ramp step "
+                "int(accel_limit*ticks_meter/rate) infinite; expected a finite step"
+            )
 
     @property
     def max_accel(self) -> int:
         """Upstream's ramp step in ticks/frame per update: ``int(accel_limit*ticks_meter/rate)``."""
         return int(self.accel_limit * self.ticks_meter / self.rate_hz)
+
+    @property
+    def max_target_speed_m_s(self) -> float:
+        """The fastest wheel-surface speed (m/s) the board can be told: ``32767*30/ticks_meter``.
+
+        Upstream sends a wheel's target as ``int(speed*ticks_meter/30)`` ticks per frame in a
+        16-bit int (at most 32767); a faster one wraps on the board, e.g. to full reverse. A
+        twist (v, omega) fits if ``|v| + |omega|*base_width_m/2`` is at most this. 239.8 m/s
+        for the tutorial's 4100 ticks/m.
+        """
+        return INT16_MAX * FRAMES_PER_S / self.ticks_meter
 
     @property
     def pwm_zero(self) -> str:
@@ -228,36 +203,13 @@ class ArbotixConfig:
 
 
 # -- loading -----------------------------------------------------------------------------------
-def default_config_path() -> str:
-    """Path of the shipped ``smartcar_gym/config/smartcar_arbotix.yaml``."""
-    return str(resources.files("smartcar_gym") / "config" / DEFAULT_CONFIG)
-
-
 def load_controller_config(path: str | os.PathLike[str] | None = None) -> ArbotixConfig:
-    """Read an ArbotiX driver YAML (``None``: the shipped one) into an ``ArbotixConfig``."""
-    if path is None:
-        source = default_config_path()
-        text = (resources.files("smartcar_gym") / "config" / DEFAULT_CONFIG).read_text("utf-8")
-    else:
-        source = os.fspath(path)
-        try:
-            with open(source, encoding="utf-8") as stream:
-                text = stream.read()
-        except FileNotFoundError:
-            raise ControllerConfigError(f"{source}: controller config file not found") from None
-        except UnicodeDecodeError as err:
-            raise ControllerConfigError(
-                f"{source}: not UTF-8 text (byte {err.start}): expected an ArbotiX driver YAML"
-            ) from None
-        except OSError as err:
-            raise ControllerConfigError(f"{source}: cannot read: {err.strerror}") from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as err:
-        mark = getattr(err, "problem_mark", None)
-        where = f"{source}:{mark.line + 1}:{mark.column + 1}" if mark else source
-        problem = getattr(err, "problem", None) or str(err)
-        raise ControllerConfigError(f"{where}: YAML syntax error: {problem}") from None
+    """Read an ArbotiX driver YAML (``None``: the shipped one) into an ``ArbotixConfig``.
+
+    A key given twice in one mapping is an error naming both lines (YAML would keep the last).
+    """
+    text, source = read_config_file(path)
+    data = parse_yaml(text, source)
     if data is None:
         raise ControllerConfigError(f"{source}: the file is empty")
     return parse_controller_config(data, source)
@@ -274,6 +226,7 @@ def parse_controller_config(data: dict, source: str) -> ArbotixConfig:
         kwargs[attr] = check(data.get(key, default), f"{source}: {key}")
     name, controller = _pick_diff_controller(data.get("controllers"), source)
     kwargs["name"] = name
+    _warn_unknown_top_level(data, source, name)
     kwargs.update(_parse_controller(controller, f"{source}: controllers.{name}"))
     kwargs.update(_parse_own_section(data.get("smartcar_gym", {}), source))
     motor_keys = (
@@ -289,6 +242,17 @@ def parse_controller_config(data: dict, source: str) -> ArbotixConfig:
             stacklevel=2,
         )
     return config
+
+
+def _warn_unknown_top_level(data: Mapping, source: str, name: str) -> None:
+    known = set(_DRIVER_KEYS) | set(_DRIVER_OTHER_KEYS)
+    for key in data:
+        if key in known:
+            continue
+        hint = close_hint(str(key), known)
+        if key in _CONTROLLER_KEYS:
+            hint = f" (a {SUPPORTED_TYPE} key: it belongs under controllers.{name})"
+        warnings.warn(f"{source}: unknown top-level key {key!r} ignored{hint}", stacklevel=3)
 
 
 def _pick_diff_controller(controllers: Any, source: str) -> tuple[str, Mapping]:
@@ -336,7 +300,7 @@ def _parse_controller(params: Mapping, where: str) -> dict[str, Any]:
                 f"{where}.{key}: has no value (roslaunch cannot upload a null parameter)"
             )
         if key not in known:
-            hint = _close(str(key), known)
+            hint = close_hint(str(key), known)
             warnings.warn(f"{where}: unknown key {key!r} ignored{hint}", stacklevel=3)
     out = {}
     for key, (attr, check, default) in _CONTROLLER_KEYS.items():
@@ -355,7 +319,7 @@ def _missing_message(required: str, params: Mapping, where: str) -> str:
         return message
     key, value = suspect
     words = str(key).split()
-    guess = words[-1] if len(words) > 1 and _is_number(words[-1]) else value
+    guess = words[-1] if len(words) > 1 and is_number(words[-1]) else value
     suggestion = f"{required}: {guess if guess is not None else '<value>'}"
     message += (
         f". The key {key!r} (value {value!r}) looks like a mangled {required!r}: did you mean "
@@ -406,7 +370,7 @@ def _parse_own_section(section: Any, source: str) -> dict[str, Any]:
     for name, sub in section.items():
         if name not in _OWN_KEYS:
             raise ControllerConfigError(
-                f"{where}: unknown key {name!r}{_close(str(name), _OWN_KEYS)}; "
+                f"{where}: unknown key {name!r}{close_hint(str(name), _OWN_KEYS)}; "
                 f"expected some of {sorted(_OWN_KEYS)}"
             )
         keys = _OWN_KEYS[name]
@@ -417,22 +381,9 @@ def _parse_own_section(section: Any, source: str) -> dict[str, Any]:
         for key, value in sub.items():
             if key not in keys:
                 raise ControllerConfigError(
-                    f"{where}.{name}: unknown key {key!r}{_close(str(key), keys)}; "
+                    f"{where}.{name}: unknown key {key!r}{close_hint(str(key), keys)}; "
                     f"expected some of {sorted(keys)}"
                 )
             attr, check = keys[key]
             out[attr] = check(value, f"{where}.{name}.{key}")
     return out
-
-
-def _close(word: str, choices: Any) -> str:
-    match = difflib.get_close_matches(word, [str(c) for c in choices], n=1, cutoff=0.6)
-    return f" (did you mean {match[0]!r}?)" if match else ""
-
-
-def _is_number(text: str) -> bool:
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return True

@@ -8,7 +8,9 @@ PATH defaults to the shipped smartcar.
 
 exit status (every command):
   0  OK
-  1  check: the model loaded, but has errors (with --strict: any defect)
+  1  check: the model loaded, but has errors that were not repaired, which make it
+     non-physical (mass <= 0, impossible inertia) and which load_model and the env refuse
+     (with --strict: any defect)
   2  the model could not be loaded or the command could not run (usage error, missing file,
      invalid description, pybullet failure); the reason is printed as one line on stderr
 """
@@ -23,7 +25,7 @@ from pathlib import Path
 
 from smartcar_gym.model.defects import fmt
 from smartcar_gym.model.errors import ModelDefectWarning, ModelError
-from smartcar_gym.model.loader import RobotModel, load_model
+from smartcar_gym.model.loader import RobotModel, inspect_model
 from smartcar_gym.model.urdf import Shape
 
 PROG = "smartcar-model"
@@ -69,8 +71,9 @@ def build_parser() -> argparse.ArgumentParser:
 def _load(args: argparse.Namespace) -> tuple[RobotModel, list[warnings.WarningMessage]]:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        model = load_model(args.path, package_path=args.package_path, mappings=dict(args.arg),
-                           repair=not args.no_repair, legacy=not args.no_legacy)
+        model = inspect_model(args.path, package_path=args.package_path,
+                              mappings=dict(args.arg), repair=not args.no_repair,
+                              legacy=not args.no_legacy)
     return model, caught
 
 
@@ -133,11 +136,14 @@ def report(model: RobotModel, caught: list[warnings.WarningMessage]) -> list[str
 def _check(args: argparse.Namespace) -> int:
     model, caught = _load(args)
     lines = report(model, caught)
-    errors = sum(d.severity == "error" for d in model.defects)
+    errors = len(model.errors)  # unrepaired: what load_model (and so the env) refuses
+    fixed = sum(d.severity == "error" for d in model.defects) - errors
     failed = errors > 0 or (args.strict and model.defects)
     verdict = "FAILED" if failed else "OK"
-    lines += ["", f"result: {verdict} ({errors} errors, {len(model.defects) - errors} warnings, "
-                  f"{len(model.repairs)} repairs{', strict' if args.strict else ''})"]
+    lines += ["", f"result: {verdict} ({errors} errors, "
+                  f"{len(model.defects) - errors - fixed} warnings, {len(model.repairs)} repairs"
+                  f"{f', {fixed} errors repaired' if fixed else ''}"
+                  f"{', strict' if args.strict else ''})"]
     print("\n".join(lines))
     return 1 if failed else 0
 

@@ -17,9 +17,15 @@ IMPLAUSIBLE_INERTIA = "implausible inertia"
 GEOMETRY_MISMATCH = "geometry mismatch"
 NON_POSITIVE_MASS = "non-positive mass"
 NOT_POSITIVE_DEFINITE = "non-positive-definite inertia"
+NON_PHYSICAL_INERTIA = "non-physical inertia"
+# Defects no body can have: a model with one of them left unrepaired is refused by load_model.
+ERROR_KINDS = (NON_POSITIVE_MASS, NOT_POSITIVE_DEFINITE, NON_PHYSICAL_INERTIA)
 
 ORIGIN_TOLERANCE_M = 1e-6
 INERTIA_FACTOR = 10.0  # a principal moment this many times off the computed one is implausible
+# Every body's principal moments obey a + b >= c; this much below c is still taken as rounding
+# (a thin plate or disc sits exactly on a + b = c, and files round their numbers).
+TRIANGLE_TOLERANCE = 0.01
 
 
 @dataclass(frozen=True)
@@ -82,6 +88,12 @@ def inertia_problem(link: Link) -> tuple[str, str, np.ndarray | None] | None:
     if moments[0] <= 0:
         return NOT_POSITIVE_DEFINITE, f"inertia principal moments {fmt(moments)} kg m^2; " \
             "expected all > 0", expected
+    a, b, c = moments
+    if a + b < c * (1 - TRIANGLE_TOLERANCE):
+        return NON_PHYSICAL_INERTIA, (
+            f"inertia principal moments {fmt(moments)} kg m^2: {a:.6g} + {b:.6g} < {c:.6g}, "
+            "which no mass distribution has; expected each moment at most the sum of the "
+            "other two"), expected
     if expected is None:
         return None
     reference = principal_moments(expected)
@@ -119,7 +131,7 @@ def find_defects(robot: UrdfRobot) -> list[Defect]:
         problem = inertia_problem(link)
         if problem is not None:
             kind, message, _ = problem
-            severity = "error" if kind == NOT_POSITIVE_DEFINITE else "warning"
+            severity = "error" if kind in ERROR_KINDS else "warning"
             defects.append(Defect(kind, f"{link.name}/inertia", message, severity))
         mismatch = geometry_mismatch(link)
         if mismatch is not None:

@@ -18,7 +18,7 @@ from __future__ import annotations
 import os
 import xml.etree.ElementTree as ET
 from collections import deque
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
 
 from smartcar_gym.model.errors import ModelError
@@ -28,6 +28,26 @@ MAX_DEPTH = 5
 _IGNORE_MARKERS = ("CATKIN_IGNORE", "COLCON_IGNORE", "AMENT_IGNORE")
 
 PackagePath = Iterable[str | os.PathLike] | str | os.PathLike | None
+
+
+def check_package_path(package_path: object) -> list[str | os.PathLike] | None:
+    """``package_path`` as a list of folders (one folder or None accepted as well).
+
+    ModelError naming the argument and what was expected if it is anything else.
+    """
+    if package_path is None:
+        return None
+    if isinstance(package_path, str | os.PathLike):
+        return [package_path]
+    expected = "expected a list of folders (str or os.PathLike), one folder, or None"
+    if isinstance(package_path, bytes | Mapping) or not isinstance(package_path, Iterable):
+        raise ModelError(f"package_path={package_path!r}: {expected}")
+    folders = list(package_path)
+    for i, folder in enumerate(folders):
+        if not isinstance(folder, str | os.PathLike):
+            raise ModelError(f"package_path[{i}]={folder!r}: expected a folder (str or "
+                             f"os.PathLike); package_path: {expected}")
+    return folders
 
 
 def _path_roots(package_path: PackagePath) -> list[Path]:

@@ -2,8 +2,8 @@
 
 1. A collision/inertial/visual origin that repeats the joint origin is moved to the link
    origin (its rpy too, when it repeats the joint rpy).
-2. An implausible or non-positive-definite inertia is replaced by the one computed from the
-   link's mass and collision primitive.
+2. An implausible, non-positive-definite or non-physical inertia is replaced by the one computed
+   from the link's mass and collision primitive.
 """
 
 from __future__ import annotations

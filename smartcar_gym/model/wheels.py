@@ -68,12 +68,37 @@ def _assess(robot: UrdfRobot, joint: Joint, frames: dict[str, np.ndarray],
                  1 if axis[1] > 0 else -1)
 
 
-def _from_overrides(robot: UrdfRobot, overrides: Mapping[str, Sequence[str]],
+OVERRIDES = "{'left': [joint, ...], 'right': [joint, ...]}"
+
+
+def check_wheel_overrides(wheels: object, *, source: str | None = None,
+                          ) -> dict[str, tuple[str, ...]] | None:
+    """The ``wheels`` argument as ``{"left": (...), "right": (...)}`` (None stays None).
+
+    ModelError naming the argument and the expected shape if it is anything else.
+    """
+    if wheels is None:
+        return None
+    if not isinstance(wheels, Mapping):
+        raise ModelError(f"wheels={wheels!r}: expected a dict {OVERRIDES} naming the drive "
+                         "wheel joints of each side, or None to find them", file=source)
+    if set(wheels) - {"left", "right"} or not wheels.get("left") or not wheels.get("right"):
+        raise ModelError(f"wheels={dict(wheels)!r}: expected {OVERRIDES} with at least one "
+                         "joint per side", file=source)
+    checked = {}
+    for side in ("left", "right"):
+        joints = wheels[side]
+        if (isinstance(joints, str) or not isinstance(joints, Sequence)
+                or not all(isinstance(j, str) for j in joints)):
+            raise ModelError(f"wheels[{side!r}]={joints!r}: expected a list of joint names, "
+                             f"as in {OVERRIDES}", file=source)
+        checked[side] = tuple(joints)
+    return checked
+
+
+def _from_overrides(robot: UrdfRobot, wheels: Mapping[str, Sequence[str]],
                     frames: dict[str, np.ndarray], source: str | None) -> tuple[Wheel, ...]:
-    unknown_sides = set(overrides) - {"left", "right"}
-    if unknown_sides or not overrides.get("left") or not overrides.get("right"):
-        raise ModelError(f"wheels={dict(overrides)!r}: expected {{'left': [joint, ...], "
-                         "'right': [joint, ...]} with at least one joint per side", file=source)
+    overrides = check_wheel_overrides(wheels, source=source)
     names = [n for side in ("left", "right") for n in overrides[side]]
     unknown = [n for n in names if n not in robot.joints]
     if unknown:

@@ -268,6 +268,42 @@ def _to_model_error(exc: Exception, session: _Session) -> ModelError:
     return ModelError(message, file=where, line=line)
 
 
+def _cycle(chain: list[str]) -> list[str] | None:
+    """The first loop in ``chain``: ``[a, b, a]`` for ``[top, a, b, a, b, ...]``; else None."""
+    first: dict[str, int] = {}
+    for index, item in enumerate(chain):
+        if item in first:
+            return chain[first[item]:index + 1]
+        first[item] = index
+    return None
+
+
+def _recursion_error(exc: Exception) -> ModelError | None:
+    """For a RecursionError inside xacro: the include cycle or macro recursion behind it.
+
+    xacro pops its include stack only after an include succeeded, so it still holds the chain.
+    """
+    if not isinstance(_innermost(exc), RecursionError):
+        return None
+    files = [os.path.realpath(os.path.join(xacro.root_dir, f)) for f in xacro.filestack or []
+             if f]
+    cycle = _cycle(files)
+    if cycle:
+        return ModelError(
+            f"xacro include cycle: {' -> '.join(cycle)} (each file includes the next), so the "
+            "expansion never ends; expected no file to include itself, directly or through "
+            "others", file=cycle[-2], line=locate_line(cycle[-2], Path(cycle[-1]).name))
+    macros = [m.body.getAttribute("name") for m in xacro.macrostack or [] if m.body is not None]
+    cycle = _cycle(macros)
+    if cycle:
+        where = current_file()
+        line = locate_line(where, f"<xacro:{cycle[-1]}") if where else None
+        return ModelError(
+            f"xacro macro recursion: {' -> '.join(cycle)} calls itself without end; expected "
+            "the recursion to stop (a <xacro:if> around the inner call)", file=where, line=line)
+    return None
+
+
 def expand_xacro(
     path: str | os.PathLike,
     *,
@@ -287,6 +323,9 @@ def expand_xacro(
         except ModelError:
             raise
         except Exception as exc:  # xacro raises XacroException, RuntimeError, NameError...
+            recursion = _recursion_error(exc)
+            if recursion is not None:
+                raise recursion from None  # not a traceback 1000 frames deep
             raise _to_model_error(exc, session) from exc
         finally:
             session.report.warn()

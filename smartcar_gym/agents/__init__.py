@@ -1,8 +1,12 @@
 """SB3 agents for the smartcar envs: ``smartcar-train`` and ``smartcar-eval``.
 
+They need the ``train`` extra (``pip install "smartcar-gym[train]"``: Stable-Baselines3, torch,
+TensorBoard, pandas, matplotlib, imageio-ffmpeg, tqdm, rich); the env does not.
+
 Modules (imported on demand; this package imports nothing heavy):
 
 * ``hyperparams``: zoo-format YAML (``smartcar_gym/config/<algo>.yaml``), key=value overrides.
+* ``zoo_keys``: the zoo keys that shape a run (env_wrapper, frame_stack, callback, ...).
 * ``env_factory``: Monitor-wrapped vector envs (SubprocVecEnv) and VecNormalize.
 * ``callbacks``: atomic checkpoints, evaluation by success rate, progress bar, Ctrl-C.
 * ``run_folder``: a new run's config and folder, or the run to resume (``config.yaml``).
@@ -15,3 +19,36 @@ Modules (imported on demand; this package imports nothing heavy):
 * ``plots``: learning curve and top-down trajectory figures.
 * ``export``: package a run as the shipped policy with ``provenance.json``.
 """
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+
+TRAIN_EXTRA = 'pip install "smartcar-gym[train]"'
+# Import names of what the commands import themselves (SB3 brings torch, pandas, matplotlib).
+TRAIN_MODULES = ("stable_baselines3", "torch", "tensorboard", "pandas", "matplotlib", "tqdm",
+                 "rich")
+EVAL_MODULES = ("stable_baselines3", "torch", "matplotlib", "tqdm", "rich")
+
+
+def missing_modules(modules: tuple[str, ...]) -> list[str]:
+    """The names in ``modules`` that cannot be imported (found without importing them)."""
+    missing = []
+    for name in modules:
+        try:
+            found = importlib.util.find_spec(name) is not None
+        except (ImportError, ValueError):
+            found = False
+        if not found:
+            missing.append(name)
+    return missing
+
+
+def require_train_extra(prog: str, modules: tuple[str, ...] = TRAIN_MODULES) -> None:
+    """Exit with code 2 and one line on stderr if the ``train`` extra is not installed."""
+    missing = missing_modules(modules)
+    if missing:
+        print(f"{prog}: error: {', '.join(missing)} not installed; {prog} needs the train "
+              f"extra: {TRAIN_EXTRA}", file=sys.stderr)
+        raise SystemExit(2)

@@ -25,15 +25,41 @@ class EnvSetupError(ValueError):
     """The env cannot be made with the given id and keyword arguments."""
 
 
-def check_env(env_id: str, env_kwargs: dict[str, Any] | None = None) -> None:
+def check_env(env_id: str, env_kwargs: dict[str, Any] | None = None,
+              env_wrapper: Any = None, monitor_kwargs: dict[str, Any] | None = None) -> None:
     """Make and close one env in this process: bad ``env_kwargs`` then fail here, with the env's
-    own message naming the argument, instead of inside a worker process."""
+    own message naming the argument, instead of inside a worker process.
+
+    With ``env_wrapper`` (zoo's ``env_wrapper``) or ``monitor_kwargs``, the env is also wrapped
+    as training wraps it, reset and stepped once, and its ``info`` must hold every Monitor
+    ``info_keywords`` key (``HyperparamsError`` otherwise)."""
     try:
         env = gym.make(env_id, **(env_kwargs or {}))
     except (gym.error.Error, TypeError, ValueError) as err:
         given = ", ".join(f"{k}={v!r}" for k, v in (env_kwargs or {}).items()) or "no env kwargs"
         raise EnvSetupError(f"cannot make {env_id} with {given}: {err}") from err
-    env.close()
+    if env_wrapper is None and monitor_kwargs is None:
+        env.close()
+        return
+    from smartcar_gym.agents.hyperparams import HyperparamsError
+    from smartcar_gym.agents.zoo_keys import wrap_env
+
+    try:
+        env = wrap_env(env, env_wrapper)
+        env.reset(seed=0)
+        _, _, _, _, info = env.step(env.action_space.sample())
+    except HyperparamsError:
+        raise
+    except Exception as err:  # user code: whatever fails, the wrapper is the cause
+        raise HyperparamsError(f"env_wrapper {env_wrapper!r}: the wrapped env fails to reset "
+                               f"or step: {type(err).__name__}: {err}") from err
+    finally:
+        env.close()
+    keywords = (monitor_kwargs or {}).get("info_keywords", INFO_KEYWORDS)
+    missing = [key for key in keywords if key not in info]
+    if missing:
+        raise HyperparamsError(f"monitor_kwargs: info_keywords {', '.join(missing)} not in the "
+                               f"info of {env_id} (it has {', '.join(sorted(info))})")
 
 
 def make_env(
@@ -43,8 +69,11 @@ def make_env(
     monitor: bool = False,
     override_existing: bool = True,
     ignore_sigterm: bool = False,
+    env_wrapper: Any = None,
+    monitor_kwargs: dict[str, Any] | None = None,
 ) -> gym.Env:
-    """``gym.make(env_id, **env_kwargs)``, optionally in an SB3 ``Monitor`` logging is_success.
+    """``gym.make(env_id, **env_kwargs)``, optionally in an SB3 ``Monitor`` logging is_success
+    (and ``monitor_kwargs``), then in zoo's ``env_wrapper`` classes (outside the Monitor).
 
     In a worker process, SIGINT (and SIGTERM if ``ignore_sigterm``: training workers, which the
     main process closes itself) is ignored so that a Ctrl-C or a ``kill`` sent to the whole
@@ -58,10 +87,12 @@ def make_env(
     if monitor or monitor_file is not None:
         from stable_baselines3.common.monitor import Monitor
 
-        env = Monitor(
-            env, filename=monitor_file, info_keywords=INFO_KEYWORDS,
-            override_existing=override_existing,
-        )
+        kwargs = {"info_keywords": INFO_KEYWORDS, **(monitor_kwargs or {})}
+        env = Monitor(env, filename=monitor_file, override_existing=override_existing, **kwargs)
+    if env_wrapper is not None:
+        from smartcar_gym.agents.zoo_keys import wrap_env
+
+        env = wrap_env(env, env_wrapper)
     return env
 
 
@@ -72,6 +103,8 @@ def env_fns(
     monitor_dir: str | os.PathLike | None = None,
     monitor_prefix: str = "",
     monitor: bool = True,
+    env_wrapper: Any = None,
+    monitor_kwargs: dict[str, Any] | None = None,
 ) -> list[Callable[[], gym.Env]]:
     """Picklable constructors of ``n_envs`` envs; env i logs to ``<monitor_dir>/<prefix><i>``."""
     fns = []
@@ -81,7 +114,7 @@ def env_fns(
         )
         fns.append(functools.partial(
             make_env, env_id, dict(env_kwargs or {}), monitor_file=monitor_file, monitor=monitor,
-            ignore_sigterm=True,
+            ignore_sigterm=True, env_wrapper=env_wrapper, monitor_kwargs=monitor_kwargs,
         ))
     return fns
 
@@ -93,10 +126,13 @@ def make_vec_env(
     env_kwargs: dict[str, Any] | None = None,
     monitor_dir: str | os.PathLike | None = None,
     monitor_prefix: str = "",
+    env_wrapper: Any = None,
+    monitor_kwargs: dict[str, Any] | None = None,
 ):
     """An SB3 VecEnv of Monitor-wrapped envs: ``SubprocVecEnv`` if ``n_envs > 1``.
 
-    With a ``seed``, env i is reset with ``seed + i`` the first time.
+    With a ``seed``, env i is reset with ``seed + i`` the first time. ``env_wrapper`` and
+    ``monitor_kwargs`` are zoo's (see ``make_env``).
     """
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
@@ -104,7 +140,8 @@ def make_vec_env(
         raise ValueError(f"n_envs must be >= 1, got {n_envs}")
     if monitor_dir is not None:
         os.makedirs(monitor_dir, exist_ok=True)
-    fns = env_fns(env_id, n_envs, env_kwargs, monitor_dir, monitor_prefix)
+    fns = env_fns(env_id, n_envs, env_kwargs, monitor_dir, monitor_prefix,
+                  env_wrapper=env_wrapper, monitor_kwargs=monitor_kwargs)
     venv = SubprocVecEnv(fns) if n_envs > 1 else DummyVecEnv(fns)
     if seed is not None:
         venv.seed(seed)

@@ -22,6 +22,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from smartcar_gym.agents import EVAL_MODULES, require_train_extra
 from smartcar_gym.agents.env_factory import EnvSetupError, check_env
 from smartcar_gym.agents.hyperparams import (
     ALGOS,
@@ -97,6 +98,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """``smartcar-eval``: returns the exit code (2 for bad arguments, models or env kwargs)."""
     parser = build_parser()
     args = parser.parse_args(argv)
+    require_train_extra("smartcar-eval", EVAL_MODULES)
     check_outputs(parser, args)
     with contextlib.ExitStack() as stack:
         model_path = _model_path(parser, args, stack)

@@ -1,16 +1,21 @@
 """Hyperparameters in rl-baselines3-zoo's format: load, override from the command line, build.
 
-A file ``smartcar_gym/config/<algo>.yaml`` maps env ids to hyperparameters::
+A file ``smartcar_gym/config/<algo>.yaml`` maps env ids (or ``default``, for any env the file
+does not name) to hyperparameters::
 
     SmartCar-v0:
       n_timesteps: 300000        # not passed to the algorithm (see RUN_KEYS)
-      policy: MlpPolicy
-      normalize: true            # VecNormalize; or "{'norm_obs': True, 'norm_reward': False}"
+      n_envs: 8
+      policy: MlpPolicy          # or an import path of a policy class
+      normalize: true            # VecNormalize; or "dict(norm_obs=True, norm_reward=False)"
       learning_rate: 3.0e-4      # or "lin_3e-4" for a linear decay to 0
       policy_kwargs: "dict(net_arch=[64, 64], activation_fn=nn.Tanh)"
+      monitor_kwargs: "dict(info_keywords=('is_success',))"
 
-Everything else is a keyword argument of the SB3 algorithm's constructor, plus zoo's
-``noise_type`` / ``noise_std`` for an action noise (TD3, SAC).
+``env_wrapper``, ``vec_env_wrapper``, ``frame_stack``, ``callback``, ``monitor_kwargs`` and
+``env_kwargs`` shape the run (``zoo_keys``). Everything else is a keyword argument of the SB3
+algorithm's constructor, plus zoo's ``noise_type`` / ``noise_std`` for an action noise (TD3,
+SAC). Strings of Python (``dict(...)``) are read as literals, never evaluated.
 """
 
 from __future__ import annotations
@@ -28,7 +33,9 @@ import yaml
 
 ALGOS = ("ppo", "sac", "td3")
 # Keys of a zoo entry that configure the run, not the algorithm's constructor.
-RUN_KEYS = ("n_envs", "n_timesteps", "policy", "normalize")
+RUN_KEYS = ("n_envs", "n_timesteps", "policy", "normalize", "env_wrapper", "vec_env_wrapper",
+            "frame_stack", "callback", "monitor_kwargs", "env_kwargs")
+DEFAULT_ENTRY = "default"  # zoo: the entry for env ids the file does not name
 NOISE_KEYS = ("noise_type", "noise_std")
 SCHEDULE_KEYS = ("learning_rate", "clip_range", "clip_range_vf")
 # Constructor arguments that smartcar-train sets itself: what to use instead.
@@ -38,7 +45,13 @@ RESERVED_KEYS = {
     "verbose": "smartcar-train shows a progress bar and a summary instead",
     "tensorboard_log": "TensorBoard logs always go to <run-dir>/tb",
     "_init_setup_model": "it is internal to Stable-Baselines3",
+    "normalize_kwargs": "it is not a key of the zoo format; VecNormalize's arguments go in "
+                        "normalize itself, e.g. normalize: \"dict(norm_obs=True, "
+                        "norm_reward=False)\"",
 }
+# VecNormalize arguments that normalize may set (training is set by smartcar-train).
+NORMALIZE_KEYS = ("norm_obs", "norm_reward", "clip_obs", "clip_reward", "gamma", "epsilon",
+                  "norm_obs_keys")
 
 
 class HyperparamsError(ValueError):
@@ -63,7 +76,8 @@ def default_hyperparams_file(algo: str) -> Path:
 
 
 def load_hyperparams(algo: str, env_id: str, path: str | Path | None = None) -> dict[str, Any]:
-    """The hyperparameters for ``env_id`` from ``path`` (default: the shipped ``<algo>.yaml``)."""
+    """The hyperparameters for ``env_id`` from ``path`` (default: the shipped ``<algo>.yaml``);
+    its ``default`` entry if it has none for ``env_id``, as in rl-baselines3-zoo."""
     path = Path(path) if path is not None else default_hyperparams_file(algo)
     try:
         data = yaml.safe_load(path.read_text())
@@ -71,13 +85,15 @@ def load_hyperparams(algo: str, env_id: str, path: str | Path | None = None) -> 
         raise HyperparamsError(f"{path}: not valid YAML: {err}") from err
     if not isinstance(data, dict):
         raise HyperparamsError(f"{path}: expected a mapping of env id -> hyperparameters")
-    if env_id not in data:
+    key = env_id if env_id in data else DEFAULT_ENTRY
+    if key not in data:
         raise HyperparamsError(
-            f"{path}: no hyperparameters for env {env_id!r}; it has {', '.join(map(str, data))}"
+            f"{path}: no hyperparameters for env {env_id!r} and no {DEFAULT_ENTRY!r} entry; it "
+            f"has {', '.join(map(str, data))}"
         )
-    entry = data[env_id]
+    entry = data[key]
     if not isinstance(entry, dict):
-        raise HyperparamsError(f"{path}: entry {env_id!r} must be a mapping, got {entry!r}")
+        raise HyperparamsError(f"{path}: entry {key!r} must be a mapping, got {entry!r}")
     return copy.deepcopy(entry)
 
 
@@ -154,23 +170,41 @@ def _torch_class(text: str) -> Any:
     return _literal(ast.parse(text, mode="eval").body, text)
 
 
-def parse_policy_kwargs(value: str | dict[str, Any] | None) -> dict[str, Any]:
-    """``policy_kwargs`` from a dict or a zoo string like ``"dict(net_arch=[64, 64])"``."""
+def parse_kwargs(value: str | dict[str, Any] | None, key: str) -> dict[str, Any]:
+    """Keyword arguments from a dict or a zoo string like ``"dict(net_arch=[64, 64])"``
+    (``key`` names the setting in errors)."""
     if value is None:
         return {}
     if isinstance(value, dict):
         # A YAML mapping may name torch classes as strings: {activation_fn: nn.Tanh}.
         return {k: _torch_class(v) if isinstance(v, str) else v for k, v in value.items()}
     if not isinstance(value, str):
-        raise HyperparamsError(f"policy_kwargs must be a dict or a string, got {value!r}")
+        raise HyperparamsError(f"{key} must be a dict or a string, got {value!r}")
     try:
         tree = ast.parse(value, mode="eval")
     except SyntaxError as err:
-        raise HyperparamsError(f"policy_kwargs {value!r} is not a Python expression") from err
+        raise HyperparamsError(f"{key} {value!r} is not a Python expression") from err
     result = _literal(tree.body, value)
     if not isinstance(result, dict):
-        raise HyperparamsError(f"policy_kwargs {value!r} must be a dict, got {result!r}")
+        raise HyperparamsError(f"{key} {value!r} must be a dict, got {result!r}")
     return result
+
+
+def parse_policy_kwargs(value: str | dict[str, Any] | None) -> dict[str, Any]:
+    """``policy_kwargs`` from a dict or a zoo string like ``"dict(net_arch=[64, 64])"``."""
+    return parse_kwargs(value, "policy_kwargs")
+
+
+def policy_class(hyperparams: dict[str, Any]) -> Any:
+    """``policy``: a name SB3 knows (``MlpPolicy``) or, with a dot, the class at that path."""
+    policy = hyperparams.get("policy", "MlpPolicy")
+    if isinstance(policy, str) and "." in policy:
+        from smartcar_gym.agents.zoo_keys import import_object
+
+        return import_object(policy, "policy")
+    if not isinstance(policy, str):
+        raise HyperparamsError(f"policy must be a policy name or an import path, got {policy!r}")
+    return policy
 
 
 def normalize_kwargs(value: Any) -> dict[str, Any] | None:
@@ -181,16 +215,33 @@ def normalize_kwargs(value: Any) -> dict[str, Any] | None:
         return {"norm_obs": True, "norm_reward": True}
     if isinstance(value, str):
         try:
-            value = ast.literal_eval(value)
-        except (ValueError, SyntaxError) as err:
+            value = parse_kwargs(value, "normalize")
+        except HyperparamsError as err:
             raise HyperparamsError(
                 f"normalize must be true, false or a dict such as "
-                f"\"{{'norm_obs': True, 'norm_reward': False}}\", got {value!r}"
+                f"\"dict(norm_obs=True, norm_reward=False)\", got {value!r}"
             ) from err
         return normalize_kwargs(value)
     if isinstance(value, dict):
+        unknown = sorted(set(value) - set(NORMALIZE_KEYS))
+        if unknown:
+            raise HyperparamsError(f"normalize: unknown VecNormalize argument(s) "
+                                   f"{', '.join(map(str, unknown))}; accepted: "
+                                   f"{', '.join(NORMALIZE_KEYS)}")
         return {"norm_obs": True, "norm_reward": True, **value}
     raise HyperparamsError(f"normalize must be a bool or a dict, got {value!r}")
+
+
+def vecnormalize_settings(hyperparams: dict[str, Any]) -> tuple[dict[str, Any] | None, float]:
+    """VecNormalize's arguments (without ``gamma``) and its discount: the entry's ``gamma`` if
+    it sets one (as the zoo does), else ``normalize``'s own, else 0.99."""
+    normalize = normalize_kwargs(hyperparams.get("normalize"))
+    if normalize is None:
+        return None, discount(hyperparams)
+    own = normalize.pop("gamma", None)
+    if "gamma" in hyperparams or own is None:
+        return normalize, discount(hyperparams)
+    return normalize, discount({"gamma": own})
 
 
 def discount(hyperparams: dict[str, Any]) -> float:
@@ -248,8 +299,11 @@ def build_algo_kwargs(algo: str, hyperparams: dict[str, Any], n_actions: int) ->
     for key in SCHEDULE_KEYS:
         if key in kwargs:
             kwargs[key] = _schedule(key, kwargs[key])
-    if "policy_kwargs" in kwargs:
-        kwargs["policy_kwargs"] = parse_policy_kwargs(kwargs["policy_kwargs"])
+    for key in ("policy_kwargs", "replay_buffer_kwargs"):
+        if key in kwargs:
+            kwargs[key] = parse_kwargs(kwargs[key], key)
+    if isinstance(kwargs.get("replay_buffer_class"), str):
+        kwargs["replay_buffer_class"] = _buffer_class(kwargs["replay_buffer_class"])
     if isinstance(kwargs.get("train_freq"), list):
         kwargs["train_freq"] = tuple(kwargs["train_freq"])
     noise_type = hyperparams.get("noise_type")
@@ -267,6 +321,22 @@ def build_algo_kwargs(algo: str, hyperparams: dict[str, Any], n_actions: int) ->
             mean=np.zeros(n_actions), sigma=std * np.ones(n_actions)
         )
     return kwargs
+
+
+def _buffer_class(name: str) -> type:
+    """``replay_buffer_class``: an SB3 buffer name (``HerReplayBuffer``) or an import path."""
+    from smartcar_gym.agents.zoo_keys import import_object
+
+    if "." not in name:
+        import stable_baselines3
+        from stable_baselines3.common import buffers
+
+        found = getattr(stable_baselines3, name, None) or getattr(buffers, name, None)
+        if not isinstance(found, type):
+            raise HyperparamsError(f"replay_buffer_class: Stable-Baselines3 has no buffer "
+                                   f"{name!r}; give an import path such as module.Name")
+        return found
+    return import_object(name, "replay_buffer_class")
 
 
 # -- argparse value types shared by smartcar-train and smartcar-eval ----------------------------

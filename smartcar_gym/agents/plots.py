@@ -20,6 +20,7 @@ import yaml
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Circle
+from matplotlib.ticker import FuncFormatter, MaxNLocator
 
 if TYPE_CHECKING:
     from smartcar_gym.agents.rollouts import EpisodeRecord
@@ -29,6 +30,23 @@ MONITOR_RE = re.compile(r"^seg(\d+)_(\d+)\.monitor\.csv$")
 PANEL_IN = 3.0
 MIN_WIDTH_IN = 6.5
 TITLE_CHARS_PER_IN = 11
+# Step-count ticks per axis: "250k" labels fit side by side in a 5-inch panel.
+STEP_TICKS = 6
+
+
+def format_steps(value: float, _pos: int | None = None) -> str:
+    """A step count as a short tick label: 0, 500, 2.5k, 75k, 100k, 1.2M."""
+    for scale, suffix in ((1e6, "M"), (1e3, "k")):
+        if abs(value) >= scale:
+            return f"{value / scale:.4g}{suffix}"
+    return f"{value:.4g}"
+
+
+def steps_axis(axis: Any) -> None:
+    """Label a matplotlib axis of environment steps with ``format_steps`` (no offset text),
+    at most ``STEP_TICKS`` round ticks."""
+    axis.set_major_locator(MaxNLocator(nbins=STEP_TICKS, steps=[1, 2, 2.5, 5, 10]))
+    axis.set_major_formatter(FuncFormatter(format_steps))
 
 
 def load_training_episodes(run_dir: str | os.PathLike) -> pd.DataFrame:
@@ -90,6 +108,15 @@ def plot_learning_curve(
     """
     run_dir = Path(run_dir)
     out_path = Path(out_path) if out_path is not None else run_dir / "learning_curve.png"
+    fig = learning_curve_figure(run_dir, window)
+    out_path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out_path, dpi=100)
+    return out_path
+
+
+def learning_curve_figure(run_dir: str | os.PathLike, window: int = 100) -> Figure:
+    """The figure of ``plot_learning_curve`` (two panels: return, success rate)."""
+    run_dir = Path(run_dir)
     episodes = load_training_episodes(run_dir)
     evals = load_evaluations(run_dir / "eval" / "evaluations.npz")
 
@@ -116,13 +143,12 @@ def plot_learning_curve(
     ax_s.set(xlabel="environment steps", ylabel="success rate", title="Success rate",
              ylim=(-0.03, 1.03))
     for ax in (ax_r, ax_s):
+        steps_axis(ax.xaxis)
         ax.grid(alpha=0.3)
         if ax.get_legend_handles_labels()[0]:
             ax.legend(loc="lower right", fontsize=8)
     fig.suptitle(f"Learning curve: {run_dir.name}")
-    out_path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out_path, dpi=100)
-    return out_path
+    return fig
 
 
 def plot_trajectories(

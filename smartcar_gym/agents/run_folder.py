@@ -18,6 +18,7 @@ from typing import Any
 
 import yaml
 
+from smartcar_gym.agents import zoo_keys
 from smartcar_gym.agents.hyperparams import (
     ALGOS,
     HyperparamsError,
@@ -26,6 +27,7 @@ from smartcar_gym.agents.hyperparams import (
     load_hyperparams,
     normalize_kwargs,
     output_path_error,
+    policy_class,
     run_int,
 )
 
@@ -79,11 +81,15 @@ def new_config(args: argparse.Namespace, command: str) -> dict[str, Any]:
     normalize_kwargs(hyperparams.get("normalize"))  # validate early
     discount(hyperparams)
     build_algo_kwargs(algo, hyperparams, n_actions=1)  # validate early
+    policy_class(hyperparams)
+    zoo_keys.check(hyperparams)
+    env_kwargs = {**zoo_keys.env_kwargs(hyperparams.get("env_kwargs")),
+                  **dict(args.env_kwargs or [])}  # the command line wins, key by key
     seed = 0 if args.seed is None else args.seed
     return {
         "algo": algo,
         "env": env_id,
-        "env_kwargs": dict(args.env_kwargs or []),
+        "env_kwargs": env_kwargs,
         "seed": seed,
         "n_envs": int(n_envs),
         "n_timesteps": int(timesteps),

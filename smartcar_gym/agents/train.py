@@ -21,6 +21,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from smartcar_gym.agents import require_train_extra
 from smartcar_gym.agents.hyperparams import (
     ALGOS,
     HyperparamsError,
@@ -93,6 +94,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     made)."""
     parser = build_parser()
     args = parser.parse_args(argv)
+    require_train_extra("smartcar-train")
     command = shlex.join(["smartcar-train", *(sys.argv[1:] if argv is None else argv)])
     if args.resume is not None:
         config, run_dir, checkpoint = resume_config(parser, args)

@@ -21,7 +21,12 @@ from typing import Any
 
 import yaml
 
-from smartcar_gym.agents.hyperparams import build_algo_kwargs, discount, normalize_kwargs
+from smartcar_gym.agents import zoo_keys
+from smartcar_gym.agents.hyperparams import (
+    build_algo_kwargs,
+    policy_class,
+    vecnormalize_settings,
+)
 from smartcar_gym.agents.run_folder import utc_timestamp
 
 
@@ -119,6 +124,7 @@ def train(
     bar = ProgressBarCallback(target, evaluation) if progress else None
     if bar is not None:
         callbacks.append(bar)
+    callbacks.extend(zoo_keys.make_callbacks(config["hyperparams"].get("callback")))
     callbacks.extend(extra_callbacks)
 
     aborted = False  # a KeyboardInterrupt went through (second Ctrl-C, or raised by a callback)
@@ -196,7 +202,10 @@ def _undo_on_failure(run_dir: Path, monitor_prefix: str) -> Iterator[None]:
 def _make_envs(config: dict[str, Any], run_dir: Path, seed: int, segment: int,
                checkpoint: str | os.PathLike | None) -> tuple[Any, Any]:
     """The training VecEnv (Monitor files ``seg<segment>_<i>``) and the eval VecEnv (or None),
-    wrapped in VecNormalize as the hyperparameters say (statistics from ``checkpoint``)."""
+    wrapped as the hyperparameters say: zoo's env_wrapper and vec_env_wrapper, VecNormalize
+    (statistics from ``checkpoint``), VecFrameStack."""
+    from stable_baselines3.common.vec_env import VecFrameStack
+
     from smartcar_gym.agents.callbacks import close_vec_env, vecnormalize_path_for
     from smartcar_gym.agents.env_factory import (
         EnvSetupError,
@@ -207,21 +216,32 @@ def _make_envs(config: dict[str, Any], run_dir: Path, seed: int, segment: int,
 
     env_id, hp = config["env"], config["hyperparams"]
     n_envs, env_kwargs = int(config["n_envs"]), dict(config.get("env_kwargs") or {})
-    normalize, gamma = normalize_kwargs(hp.get("normalize")), discount(hp)
+    normalize, gamma = vecnormalize_settings(hp)
+    wrapper, n_stack = hp.get("env_wrapper"), zoo_keys.frame_stack(hp.get("frame_stack"))
+    monitor_kwargs = zoo_keys.monitor_kwargs(hp.get("monitor_kwargs"))
     try:
-        check_env(env_id, env_kwargs)  # here, not in a worker: a clear error
+        # here, not in a worker: a clear error
+        check_env(env_id, env_kwargs, env_wrapper=wrapper, monitor_kwargs=monitor_kwargs)
     except EnvSetupError as err:
         raise RunSetupError(str(err)) from err
     stats = None if checkpoint is None or normalize is None else vecnormalize_path_for(checkpoint)
+
+    def wrap(env: Any, **normalize_args: Any) -> Any:
+        env = zoo_keys.wrap_vec_env(env, hp.get("vec_env_wrapper"))
+        env = wrap_normalize(env, normalize, gamma, **normalize_args)
+        return env if n_stack is None else VecFrameStack(env, n_stack)
+
     venv = make_vec_env(env_id, n_envs, seed=seed, env_kwargs=env_kwargs,
-                        monitor_dir=run_dir / "monitor", monitor_prefix=f"seg{segment}_")
+                        monitor_dir=run_dir / "monitor", monitor_prefix=f"seg{segment}_",
+                        env_wrapper=wrapper, monitor_kwargs=monitor_kwargs)
     eval_env = None
     try:
-        venv = wrap_normalize(venv, normalize, gamma, load_path=stats)
+        venv = wrap(venv, load_path=stats)
         if config["eval_freq"] > 0:
             n_eval_envs = min(n_envs, int(config["eval_episodes"]), os.cpu_count() or 1)
-            eval_env = make_vec_env(env_id, n_eval_envs, env_kwargs=env_kwargs)
-            eval_env = wrap_normalize(eval_env, normalize, gamma, training=False)
+            eval_env = make_vec_env(env_id, n_eval_envs, env_kwargs=env_kwargs,
+                                    env_wrapper=wrapper, monitor_kwargs=monitor_kwargs)
+            eval_env = wrap(eval_env, training=False)
     except BaseException:
         for env in (venv, eval_env):
             if env is not None:
@@ -247,7 +267,7 @@ def _make_model(config: dict[str, Any], venv: Any, seed: int, tb_dir: Path,
         return model
     kwargs = build_algo_kwargs(algo, hp, n_actions=venv.action_space.shape[0])
     try:
-        return cls(hp.get("policy", "MlpPolicy"), venv, seed=seed, device=device,
+        return cls(policy_class(hp), venv, seed=seed, device=device,
                    tensorboard_log=str(tb_dir), verbose=0, **kwargs)
     except (ValueError, TypeError, AssertionError, RuntimeError) as err:
         given = ", ".join(f"{k}={v}" for k, v in hp.items() if k not in ("n_envs", "n_timesteps"))

@@ -375,3 +375,20 @@ def test_the_env_refuses_a_non_physical_model(shipped_model, tmp_path: Path) -> 
         gym.make("SmartCar-v0", model=str(path))
     assert str(info.value).startswith(f"{path}:{line}: non-physical model, cannot be simulated")
     assert str(info.value).endswith("link 'head': non-positive mass: mass -1 kg; expected > 0")
+
+
+def test_a_non_physical_model_object_is_not_simulated(tmp_path: Path) -> None:
+    """inspect_model() hands a non-physical model out for reports; the robot refuses it."""
+    path = write_one_wheel_robot(
+        tmp_path, '<inertial><mass value="-1"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" '
+                  'izz="1"/></inertial>')
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        model = inspect_model(path)
+    import gymnasium as gym
+
+    import smartcar_gym  # noqa: F401
+
+    with pytest.raises(ModelError, match=r"robot\.urdf: non-physical model, cannot be simulated: "
+                                         r"arm/inertial: non-positive mass: mass -1 kg"):
+        gym.make("SmartCar-v0", model=model)

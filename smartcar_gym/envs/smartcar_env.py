@@ -246,7 +246,7 @@ class SmartCarEnv(gym.Env):
         """Refuse speeds whose wheel targets overflow the board's 16-bit ticks per frame."""
         config = self.controller_config
         wheel_speed = self.max_linear + self.max_angular * config.base_width_m / 2.0
-        limit = 32767 * 30.0 / config.ticks_meter  # upstream: ticks per 1/30 s frame
+        limit = config.max_target_speed_m_s
         if wheel_speed > limit:
             raise ValueError(
                 f"max_linear={self.max_linear} and max_angular={self.max_angular} ask a wheel for "

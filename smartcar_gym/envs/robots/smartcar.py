@@ -27,7 +27,7 @@ from smartcar_gym.controller import (
     MotorOutput,
     Odometry,
 )
-from smartcar_gym.model import RobotModel, Wheel
+from smartcar_gym.model import ModelError, RobotModel, Wheel
 from smartcar_gym.model.contact import WheelContact, simulated_urdf
 from smartcar_gym.sim.body import BASE, Body
 from smartcar_gym.sim.simulator import NS_PER_S, Simulator, seconds_to_ns
@@ -94,6 +94,12 @@ class SmartCarRobot:
     ) -> None:
         if mode not in MODES:
             raise ValueError(f"controller_mode must be one of {MODES}, got {mode!r}")
+        if model.errors:  # a model from inspect_model(): simulated, it would explode
+            raise ModelError(
+                "non-physical model, cannot be simulated: "
+                + "; ".join(f"{d.element}: {d.kind}: {d.message}" for d in model.errors),
+                file=model.source,
+            )
         self._urdf = simulated_urdf(model, wheel_contact)  # ValueError naming a bad choice
         self.wheel_contact = wheel_contact
         self.sim = sim

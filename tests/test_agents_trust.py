@@ -231,7 +231,7 @@ def test_a_folder_that_is_no_run_is_refused(tmp_path, capsys):
     assert f"--model: {tmp_path} is a folder but not a run folder" in err
 
 
-@pytest.mark.parametrize("parser", [evaluate.build_parser])
+@pytest.mark.parametrize("parser", [evaluate.build_parser, train.build_parser])
 def test_help_says_model_and_normaliser_files_are_pickles(parser):
     text = " ".join(parser().format_help().split())
     assert "are pickles" in text and "trust" in text

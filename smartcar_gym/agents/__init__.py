@@ -4,7 +4,8 @@ Modules (imported on demand; this package imports nothing heavy):
 
 * ``hyperparams``: zoo-format YAML (``smartcar_gym/config/<algo>.yaml``), key=value overrides.
 * ``env_factory``: Monitor-wrapped vector envs (SubprocVecEnv) and VecNormalize.
-* ``callbacks``: atomic checkpoints, evaluation by success rate, progress bar, Ctrl-C.
+* ``run_files``: files written atomically, checkpoint names.
+* ``callbacks``: checkpoints, evaluation by success rate, progress bar, Ctrl-C.
 * ``run_folder``: a new run's config and folder, or the run to resume (``config.yaml``).
 * ``training``: ``train()``, training a run with checkpoints and evaluation.
 * ``train``: the ``smartcar-train`` command.

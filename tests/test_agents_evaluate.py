@@ -64,7 +64,9 @@ def test_eval_cli_prints_and_writes_json_gif_and_plot(tiny_run, tmp_path, capsys
     # the run's env kwargs are used, extended by --env-kwargs
     assert data["env_kwargs"] == {"max_episode_steps": 30, "render_width": 64,
                                   "render_height": 48}
-    assert data["vecnormalize"].endswith("vecnormalize.pkl")
+    assert data["normalizer"] == str(tiny_run / "vecnormalize.pkl")
+    assert data["normalizer_source"].endswith(f"(that of the smartcar-train run {tiny_run})")
+    assert data["warnings"] == []
     for key in ("success_rate", "mean_return", "mean_time_to_goal_s", "mean_final_distance_m",
                 "mean_final_odom_error_m"):
         assert key in data

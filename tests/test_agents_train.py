@@ -67,7 +67,10 @@ def _check_run_folder(run_dir: Path, algo: str, steps: int) -> None:
     assert config["eval_start"] == 256  # default: half the run, so evaluations at 256 and 512
 
     names = sorted(p.name for p in (run_dir / "checkpoints").iterdir())
-    assert names[:2] == ["ckpt_256_steps.zip", "ckpt_256_steps_vecnormalize.pkl"]
+    assert names[:3] == ["ckpt_256_steps.json", "ckpt_256_steps.zip",
+                         "ckpt_256_steps_vecnormalize.pkl"]
+    info = json.loads((run_dir / "checkpoints" / "ckpt_256_steps.json").read_text())
+    assert info == {"segment": 0, "monitor_episodes": [256 // 2 // EPISODE] * 2}
     assert f"ckpt_{steps}_steps.zip" in names and not [n for n in names if n.startswith(".")]
 
     for rank in (0, 1):
@@ -83,6 +86,10 @@ def _check_run_folder(run_dir: Path, algo: str, steps: int) -> None:
     assert summary["num_timesteps"] == steps and not summary["interrupted"]
     assert summary["final_eval"]["timesteps"] == steps
     assert algo_class(algo).load(run_dir / "model.zip").num_timesteps == steps
+    umask = os.umask(0)
+    os.umask(umask)
+    modes = {oct(p.stat().st_mode & 0o777) for p in run_dir.rglob("*") if p.is_file()}
+    assert modes == {oct(0o666 & ~umask)}  # checkpoints as monitor files: not 0600
 
 
 @pytest.mark.slow
@@ -135,6 +142,27 @@ def test_resume_continues_steps_normaliser_and_logs(ppo_run, tmp_path):
     # 2 envs x 8 episodes of 32 steps per segment; the second segment starts at step 512
     episodes = load_training_episodes(run_dir)
     assert episodes["steps"].tolist() == list(range(EPISODE, 1024 + 1, EPISODE))
+
+
+@pytest.mark.slow
+def test_resume_after_a_kill_counts_the_repeated_episodes_once(ppo_run, tmp_path):
+    """A run killed between checkpoints went on past its last one: as if killed just before
+    writing ckpt_512, after 512 steps of episodes."""
+    run_dir = tmp_path / "killed"
+    shutil.copytree(ppo_run, run_dir)
+    for path in (run_dir / "checkpoints").glob("ckpt_512_steps*"):
+        path.unlink()
+    assert train.main(["--resume", str(run_dir), "--timesteps", "768", "--no-progress",
+                       "--eval-freq", "0"]) == 0
+    [resume] = yaml.safe_load((run_dir / "config.yaml").read_text())["resumes"]
+    assert resume["from_timesteps"] == 256
+    assert resume["kept_episodes"] == {"segment": 0, "per_env": [4, 4]}
+
+    from smartcar_gym.agents.plots import load_training_episodes
+
+    # 8 episodes of the first run up to step 256 (not its 16), then 16 of the resumed run
+    episodes = load_training_episodes(run_dir)
+    assert episodes["steps"].tolist() == list(range(EPISODE, 768 + 1, EPISODE))
 
 
 class _InterruptAt:

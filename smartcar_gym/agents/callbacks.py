@@ -1,124 +1,48 @@
 """Training callbacks: atomic checkpoints, evaluation by success rate, a progress bar.
 
-Files are written atomically (a temporary file in the same folder, then ``os.replace``), so a
-run killed at any moment leaves either the previous file or the new one, never half a file.
-A model ``<stem>.zip`` keeps its ``VecNormalize`` statistics in ``<stem>_vecnormalize.pkl``
-(``model.zip`` in ``vecnormalize.pkl``).
+The files are written atomically (``run_files``, whose functions can also be imported from
+here).
 """
 
 from __future__ import annotations
 
-import contextlib
 import json
 import os
-import pickle
-import re
 import signal
 import sys
-import tempfile
 import threading
 import time
-from collections.abc import Iterator
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.evaluation import evaluate_policy
 from stable_baselines3.common.vec_env import VecEnv, sync_envs_normalization
 
-CHECKPOINT_RE = re.compile(r"^ckpt_(\d+)_steps\.zip$")
+from smartcar_gym.agents.model_files import vecnormalize_path_for
+from smartcar_gym.agents.run_files import (
+    CHECKPOINT_RE,
+    atomic_path,
+    atomic_write_bytes,
+    atomic_write_text,
+    checkpoint_info_path_for,
+    checkpoint_path,
+    checkpoint_steps,
+    file_mode,
+    find_latest_checkpoint,
+    replay_buffer_path_for,
+    save_model_atomic,
+)
 
-
-@contextlib.contextmanager
-def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
-    """A temporary path next to ``path`` (same suffix) that replaces ``path`` once written.
-
-    If the body raises (or the process dies), ``path`` is left as it was.
-    """
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=path.suffix)
-    os.close(fd)
-    try:
-        yield Path(tmp)
-        with open(tmp, "rb+") as f:
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(tmp)
-        raise
-
-
-def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
-    """Write ``data`` to ``path`` atomically."""
-    with atomic_path(path) as tmp:
-        tmp.write_bytes(data)
-
-
-def atomic_write_text(path: str | os.PathLike, text: str) -> None:
-    """Write ``text`` to ``path`` atomically."""
-    atomic_write_bytes(path, text.encode())
-
-
-def vecnormalize_path_for(model_path: str | os.PathLike) -> Path:
-    """Where a saved model's VecNormalize statistics go (``vecnormalize.pkl`` for model.zip)."""
-    model_path = Path(model_path)
-    stem = model_path.name.removesuffix(".zip")
-    name = "vecnormalize.pkl" if stem == "model" else f"{stem}_vecnormalize.pkl"
-    return model_path.with_name(name)
-
-
-def save_model_atomic(model: BaseAlgorithm, path: str | os.PathLike) -> Path:
-    """Save ``model`` (and its VecNormalize statistics, if any) atomically; returns the zip path.
-
-    Both files are written to temporary files first, then renamed: the statistics, then the
-    zip. So a new zip (a checkpoint) always has its statistics beside it. When an existing pair
-    is replaced (``model.zip``, ``best_model.zip``), a kill in the few milliseconds between the
-    two renames leaves the new statistics beside the old model; nothing is ever half-written.
-    """
-    path = Path(path)
-    vec_normalize = model.get_vec_normalize_env()
-    with contextlib.ExitStack() as stack:  # exits (renames) in reverse order: statistics first
-        tmp_zip = stack.enter_context(atomic_path(path))
-        if vec_normalize is not None:
-            tmp_stats = stack.enter_context(atomic_path(vecnormalize_path_for(path)))
-            tmp_stats.write_bytes(pickle.dumps(vec_normalize))
-        model.save(tmp_zip)
-    return path
-
-
-def checkpoint_path(run_dir: str | os.PathLike, num_timesteps: int) -> Path:
-    """``<run_dir>/checkpoints/ckpt_<steps>_steps.zip``."""
-    return Path(run_dir) / "checkpoints" / f"ckpt_{num_timesteps}_steps.zip"
-
-
-def checkpoint_steps(path: str | os.PathLike) -> int:
-    """The step count of a checkpoint from its name ``ckpt_<steps>_steps.zip``."""
-    match = CHECKPOINT_RE.match(Path(path).name)
-    if match is None:
-        raise ValueError(f"{path} is not named like a checkpoint (ckpt_<steps>_steps.zip)")
-    return int(match.group(1))
-
-
-def replay_buffer_path_for(checkpoint: str | os.PathLike) -> Path:
-    """The replay buffer saved with a checkpoint: ``ckpt_<steps>_steps_replay_buffer.pkl``."""
-    checkpoint = Path(checkpoint)
-    return checkpoint.with_name(checkpoint.name.removesuffix(".zip") + "_replay_buffer.pkl")
-
-
-def find_latest_checkpoint(run_dir: str | os.PathLike, normalize: bool) -> Path | None:
-    """The checkpoint with the most steps (with its VecNormalize file if ``normalize``)."""
-    folder = Path(run_dir) / "checkpoints"
-    found = []
-    for path in folder.glob("ckpt_*_steps.zip") if folder.is_dir() else []:
-        match = CHECKPOINT_RE.match(path.name)
-        if match and (not normalize or vecnormalize_path_for(path).exists()):
-            found.append((int(match.group(1)), path))
-    return max(found)[1] if found else None
+__all__ = [  # with the file functions of run_files, imported from here by earlier code
+    "CHECKPOINT_RE", "CheckpointCallback", "EvalResult", "ProgressBarCallback", "StopOnSigint",
+    "SuccessEvalCallback", "atomic_path", "atomic_write_bytes", "atomic_write_text",
+    "checkpoint_info_path_for", "checkpoint_path", "checkpoint_steps", "close_vec_env",
+    "file_mode", "find_latest_checkpoint", "replay_buffer_path_for", "save_model_atomic",
+    "vecnormalize_path_for",
+]
 
 
 class CheckpointCallback(BaseCallback):
@@ -127,23 +51,35 @@ class CheckpointCallback(BaseCallback):
     ``save_replay_buffer`` keeps the replay buffer of SAC/TD3 with the latest checkpoint only,
     in ``ckpt_<steps>_steps_replay_buffer.pkl`` (large: it holds the whole buffer). It is
     written before the checkpoint's zip, so a checkpoint that exists has its buffer.
+
+    ``ckpt_<steps>_steps.json`` (also written before the zip) records the run ``segment`` and
+    how many episodes each env had finished in it: the rows of ``monitor/seg<segment>_<i>``
+    that came before the checkpoint. A run resumed from the checkpoint repeats the episodes
+    after them, so the learning curve leaves those out.
     """
 
     def __init__(self, run_dir: str | os.PathLike, save_freq: int,
-                 save_replay_buffer: bool = False) -> None:
+                 save_replay_buffer: bool = False, segment: int = 0) -> None:
         super().__init__()
         self.run_dir = Path(run_dir)
         self.save_freq = int(save_freq)
         self.save_replay_buffer = save_replay_buffer
+        self.segment = int(segment)
+        self.episodes: np.ndarray | None = None  # finished episodes per env, this segment
         self._next = 0
         self.last_path: Path | None = None
 
     def _init_callback(self) -> None:
         self.num_timesteps = self.model.num_timesteps  # not yet set by BaseCallback here
+        if self.episodes is None:
+            self.episodes = np.zeros(self.model.n_envs, dtype=np.int64)
         if self.save_freq > 0:
             self._next = (self.num_timesteps // self.save_freq + 1) * self.save_freq
 
     def _on_step(self) -> bool:
+        dones = self.locals.get("dones")
+        if dones is not None and self.episodes is not None:
+            self.episodes += np.asarray(dones, dtype=bool)  # a Monitor row each
         if self.save_freq > 0 and self.num_timesteps >= self._next:
             self.save()
             self._next = (self.num_timesteps // self.save_freq + 1) * self.save_freq
@@ -158,7 +94,16 @@ class CheckpointCallback(BaseCallback):
         if keep_buffer:
             with atomic_path(buffer) as tmp:
                 model.save_replay_buffer(tmp)
-        save_model_atomic(model, path)
+        episodes = [] if self.episodes is None else self.episodes.tolist()
+        info = checkpoint_info_path_for(path)
+        atomic_write_text(info, json.dumps({"segment": self.segment,
+                                            "monitor_episodes": episodes}) + "\n")
+        try:
+            save_model_atomic(model, path)
+        except BaseException:
+            if not path.exists():  # no checkpoint: nothing to describe
+                info.unlink(missing_ok=True)
+            raise
         if keep_buffer:
             for old in path.parent.glob("*replay_buffer.pkl"):
                 if old != buffer:

@@ -4,11 +4,12 @@
 
     smartcar-eval --pretrained --episodes 100 --n-envs 4 --video smartcar.gif --plot paths.png
     smartcar-eval --model runs/ppo_SmartCar-v0_s0/model.zip --json results.json
+    smartcar-eval --model logs/ppo/SmartCar-v0_1      # an rl-baselines3-zoo run folder
 
 The episodes are run by ``rollouts.evaluate_policy_episodes`` (episode ``i`` uses seed
 ``seed + i``; the results do not depend on ``n_envs``); ``model_files`` finds and loads the
-model. ``evaluate_policy_episodes``, ``load_model`` and ``summarize`` can still be imported
-from here.
+model, and says which normaliser (VecNormalize statistics, a pickle) may be loaded with it.
+``evaluate_policy_episodes``, ``load_model`` and ``summarize`` can still be imported from here.
 """
 
 from __future__ import annotations
@@ -32,11 +33,13 @@ from smartcar_gym.agents.hyperparams import (
 )
 from smartcar_gym.agents.model_files import (
     PRETRAINED_MODEL,
-    find_run_config,
-    find_vecnormalize,
+    ModelFiles,
+    ModelFilesError,
     load_model,
+    locate_model,
     pretrained_files,
     saved_algo,
+    shipped_model,
 )
 from smartcar_gym.agents.rollouts import (
     DEFAULT_ENV_ID,
@@ -46,9 +49,13 @@ from smartcar_gym.agents.rollouts import (
     record_video,
     summarize,
 )
+from smartcar_gym.agents.zoo_folder import ZooRunError
 
 __all__ = ["build_parser", "check_outputs", "evaluate_policy_episodes", "load_model", "main",
            "summarize"]
+
+TRUST_NOTE = ("SB3 model zips and VecNormalize files are pickles: loading one runs the code it "
+              "holds, so use only files from a source you trust.")
 
 
 # -- command line -----------------------------------------------------------------------------
@@ -59,10 +66,17 @@ def build_parser() -> argparse.ArgumentParser:
         description="Evaluate a trained smartcar policy on seeded episodes (episode i uses "
                     "seed SEED+i); prints success rate, return, time to goal, final distance "
                     "and odometry error.",
+        epilog=f"{TRUST_NOTE} A normaliser is loaded only from --vecnormalize or from the "
+               "model's own place: a smartcar-train run folder (model.zip with "
+               "vecnormalize.pkl, <name>.zip with <name>_vecnormalize.pkl), an exported "
+               "policy's folder, or an rl-baselines3-zoo run folder (<env>/vecnormalize.pkl "
+               "when <env>/config.yml says normalize). Which one was loaded, or that none was, "
+               "is printed and written to --json.",
     )
     source = parser.add_mutually_exclusive_group(required=True)
-    source.add_argument("--model", type=Path, help="a model .zip (its run's config.yaml and "
-                        "vecnormalize.pkl are found next to it)")
+    source.add_argument("--model", type=Path, help="a model .zip, or a run folder (its final "
+                        "model) of smartcar-train or rl-baselines3-zoo; the run's config and "
+                        "normaliser are found from the folder's layout")
     source.add_argument("--pretrained", action="store_true", help="the policy shipped with the "
                         "package")
     source.add_argument("--random", action="store_true", help="uniform random actions, seeded "
@@ -74,8 +88,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--env-kwargs", nargs="+", default=[], metavar="KEY=VALUE",
                         type=key_value_arg, help="gym.make keyword arguments (YAML values); "
                         "added to the run's own env kwargs")
-    parser.add_argument("--vecnormalize", type=Path, help="VecNormalize statistics (default: "
-                        "found next to the model)")
+    parser.add_argument("--vecnormalize", type=Path, metavar="FILE", help="VecNormalize "
+                        "statistics to load (a pickle: only from a trusted source; default: the "
+                        "ones the model's run folder assigns to it)")
     parser.add_argument("--episodes", type=positive_int_arg, default=100)
     parser.add_argument("--n-envs", type=positive_int_arg, default=1,
                         help="envs run in parallel (worker processes when > 1)")
@@ -101,12 +116,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     require_train_extra("smartcar-eval", EVAL_MODULES)
     check_outputs(parser, args)
     with contextlib.ExitStack() as stack:
-        model_path = _model_path(parser, args, stack)
-        run = {} if args.random else find_run_config(model_path) or {}
+        files = _model_files(parser, args, stack)
+        model_path = Path("random-policy") if files is None else files.model
+        run = {} if files is None else files.run
         algo = "random" if args.random else args.algo or run.get("algo")
         if algo is None:
-            parser.error(f"cannot tell the algorithm of {model_path}: no config.yaml in its run "
-                         "folder; pass --algo")
+            parser.error(f"cannot tell the algorithm of {model_path}: it is not in a run folder "
+                         "that says (smartcar-train's config.yaml, rl-baselines3-zoo's "
+                         "<env>/args.yml); pass --algo")
         if algo not in (*ALGOS, "random"):
             parser.error(f"unknown algorithm {algo!r} in the run's config; pass --algo")
         env_id = args.env_id or run.get("env") or DEFAULT_ENV_ID
@@ -115,12 +132,17 @@ def main(argv: Sequence[str] | None = None) -> int:
             check_env(env_id, env_kwargs)  # here, not in a worker: a clear error
         except EnvSetupError as err:
             parser.error(str(err))
-        if args.random:
-            vecnormalize, model = None, RandomPolicy(args.seed)
+        warnings: list[str] = []
+        if files is None:
+            vecnormalize, source, model = None, "none (random actions)", RandomPolicy(args.seed)
         else:
             if args.vecnormalize is not None and not args.vecnormalize.is_file():
                 parser.error(f"--vecnormalize: no such file: {args.vecnormalize}")
-            vecnormalize = args.vecnormalize or find_vecnormalize(model_path)
+            vecnormalize, source, warning = choose_normalizer(files, args.vecnormalize)
+            print(f"smartcar-eval: normaliser: {source}", file=sys.stderr)
+            if warning:
+                warnings.append(warning)
+                print(f"smartcar-eval: warning: {warning}", file=sys.stderr)
             model = _load_for_cli(parser, model_path, algo, args.device)
         common = dict(env_id=env_id, seed=args.seed, env_kwargs=env_kwargs,
                       deterministic=not args.stochastic, vecnormalize_path=vecnormalize)
@@ -132,20 +154,21 @@ def main(argv: Sequence[str] | None = None) -> int:
         except ObservationShapeError as err:
             parser.error(str(err))
         summary = summarize(records)
-        files = {}
+        outputs: dict[str, Any] = {} if files is None else {"normaliser": vecnormalize or source}
         if args.json is not None:
             payload = {
                 "model": str(model_path if not args.pretrained else "pretrained:" +
                              PRETRAINED_MODEL),
                 "algo": algo, "env": env_id, "env_kwargs": env_kwargs, "seed": args.seed,
                 "n_envs": args.n_envs, "deterministic": not args.stochastic,
-                "vecnormalize": None if vecnormalize is None else str(vecnormalize),
+                "normalizer": None if vecnormalize is None else str(vecnormalize),
+                "normalizer_source": source, "warnings": warnings,
                 **summary,
                 "episode_records": [r.to_dict() for r in records],
             }
             args.json.parent.mkdir(parents=True, exist_ok=True)
             args.json.write_text(json.dumps(payload, indent=2) + "\n")
-            files["json"] = args.json
+            outputs["json"] = args.json
         if args.plot is not None:
             from smartcar_gym.agents.plots import plot_trajectories
 
@@ -155,11 +178,13 @@ def main(argv: Sequence[str] | None = None) -> int:
                               title=f"{model_path.name} on {env_id}: "
                                     f"{summary['success_rate']:.0%} success over "
                                     f"{len(records)} episodes{shown}")
-            files["plot"] = args.plot
+            outputs["plot"] = args.plot
         if args.video is not None:
             n_frames = record_video(model, args.video, n_episodes=args.video_episodes, **common)
-            files[f"video ({n_frames} frames)"] = args.video
-    _print_summary(summary, model_path, env_id, args, files)
+            outputs[f"video ({n_frames} frames)"] = args.video
+    _print_summary(summary, model_path, env_id, args, outputs)
+    for warning in warnings:  # again after the table, where the numbers are read
+        print(f"smartcar-eval: warning: {warning}", file=sys.stderr)
     return 0
 
 
@@ -180,21 +205,52 @@ def check_outputs(parser: argparse.ArgumentParser, args: argparse.Namespace) -> 
             parser.error(f"{option}: {problem}")
 
 
-def _model_path(parser: argparse.ArgumentParser, args: argparse.Namespace,
-                stack: contextlib.ExitStack) -> Path:
-    """The model file of ``--model`` / ``--pretrained`` (a placeholder for ``--random``)."""
+def _model_files(parser: argparse.ArgumentParser, args: argparse.Namespace,
+                 stack: contextlib.ExitStack) -> ModelFiles | None:
+    """The model of ``--model`` / ``--pretrained`` and its place (None for ``--random``)."""
     if args.random:
-        return Path("random-policy")
+        return None
     if args.pretrained:
         try:
-            return stack.enter_context(pretrained_files()) / PRETRAINED_MODEL
+            return shipped_model(stack.enter_context(pretrained_files()))
         except FileNotFoundError as err:
             parser.error(str(err))
-    if not args.model.is_file():
+    if not args.model.exists():
         parser.error(f"--model: no such file: {args.model}")
-    if not zipfile.is_zipfile(args.model):
-        parser.error(f"--model: {args.model} is not a model (SB3 models are .zip files)")
-    return args.model
+    try:
+        files = locate_model(args.model)
+    except (ModelFilesError, ZooRunError) as err:
+        parser.error(str(err))
+    if not zipfile.is_zipfile(files.model):
+        parser.error(f"--model: {files.model} is not a model (SB3 models are .zip files)")
+    return files
+
+
+def choose_normalizer(files: ModelFiles, named: Path | None) -> tuple[Path | None, str,
+                                                                       str | None]:
+    """The normaliser to load with a model: ``named`` (``--vecnormalize``), else the one its
+    place assigns to it. Returns the path (or None), where it comes from, and a warning when
+    none is loaded although the model may need one."""
+    if named is not None:
+        return named, f"{named} (named with --vecnormalize)", None
+    where = f"the {files.place} {files.folder}" if files.place else None
+    if files.normalizer is not None:
+        return files.normalizer, f"{files.normalizer} (that of {where})", None
+    if files.trained_with_normalizer is False:
+        return None, f"none ({where} trained without VecNormalize)", None
+    cost = ("a policy trained on normalised observations mostly fails on raw ones, so its "
+            "score would be meaningless")
+    if where is not None:
+        return None, "none (see the warning)", (
+            f"no normaliser loaded: {where} trained with VecNormalize but "
+            f"{files.expected_normalizer} does not exist; {cost}; pass --vecnormalize FILE")
+    strays = ", ".join(map(str, files.stray_normalizers))
+    return None, "none (see the warning)", (
+        f"no normaliser loaded: {files.model} is not in a smartcar-train run folder, an exported "
+        f"policy's folder or an rl-baselines3-zoo run folder, so none is looked for; {cost}. If "
+        "it was trained with VecNormalize (the shipped hyperparameters use it), pass "
+        "--vecnormalize FILE" + (f" ({strays} lies near the model but is not loaded unnamed: it "
+                                 "is a pickle)" if strays else ""))
 
 
 def _load_for_cli(parser: argparse.ArgumentParser, path: Path, algo: str, device: str) -> Any:
@@ -211,7 +267,7 @@ def _load_for_cli(parser: argparse.ArgumentParser, path: Path, algo: str, device
 
 
 def _print_summary(summary: dict[str, Any], model_path: Path, env_id: str,
-                   args: argparse.Namespace, files: dict[str, Path]) -> None:
+                   args: argparse.Namespace, files: dict[str, Any]) -> None:
     from rich.console import Console
     from rich.table import Table
 
@@ -222,7 +278,7 @@ def _print_summary(summary: dict[str, Any], model_path: Path, env_id: str,
                         f"seeds {args.seed}..{args.seed + summary['episodes'] - 1}, "
                         f"{'stochastic' if args.stochastic else 'deterministic'}")
     table.add_column("metric")
-    table.add_column("value", justify="right")
+    table.add_column("value", justify="right", overflow="fold")  # paths in full
     table.add_row("success rate", fmt(summary["success_rate"], ".1%"))
     table.add_row("mean return", f"{summary['mean_return']:.2f} ± {summary['std_return']:.2f}")
     table.add_row("mean time to goal (s, successes)", fmt(summary["mean_time_to_goal_s"], ".2f"))

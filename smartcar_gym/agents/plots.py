@@ -55,13 +55,21 @@ def load_training_episodes(run_dir: str | os.PathLike) -> pd.DataFrame:
     Columns: ``steps`` (environment steps when the episode ended, all envs counted), ``r``
     (return), ``l`` (length), ``t`` (wall time, s), ``is_success``. Each training segment (the
     first run and every ``--resume``) starts at the step count recorded in ``config.yaml``.
+
+    Episodes that a resume repeats are left out (the files keep them): a run killed after its
+    last checkpoint went on past it, and the resumed run plays those steps again. A resume
+    records how many episodes per env came before its checkpoint (``kept_episodes``); for
+    resumes of versions that did not, the earlier segments are cut at the checkpoint's step
+    count.
     """
     run_dir = Path(run_dir)
-    starts = [0]
+    config: dict[str, Any] = {}
     config_path = run_dir / "config.yaml"
     if config_path.exists():
         config = yaml.safe_load(config_path.read_text()) or {}
-        starts += [int(r.get("from_timesteps", 0)) for r in config.get("resumes", [])]
+    resumes = config.get("resumes") or []
+    starts = [0] + [int(r.get("from_timesteps", 0)) for r in resumes]
+    row_limits, step_limits = _repeated_episodes(resumes)
     frames = []
     for path in sorted((run_dir / "monitor").glob("seg*_*.monitor.csv")):
         match = MONITOR_RE.match(path.name)
@@ -70,11 +78,16 @@ def load_training_episodes(run_dir: str | os.PathLike) -> pd.DataFrame:
         with open(path) as f:
             header = f.readline()
             frame = pd.read_csv(f)
+        segment, rank = int(match.group(1)), int(match.group(2))
+        if segment in row_limits:
+            limit = row_limits[segment]
+            frame = frame.iloc[: limit[rank] if rank < len(limit) else 0]
         t_start = float(json.loads(header.lstrip("#")).get("t_start", 0.0))
         frame["t"] = frame["t"] + t_start
-        frame["segment"] = int(match.group(1))
+        frame["segment"] = segment
         frames.append(frame)
     columns = ["steps", "r", "l", "t", "is_success"]
+    frames = [f for f in frames if len(f)]
     if not frames:
         return pd.DataFrame(columns=columns)
     df = pd.concat(frames, ignore_index=True).sort_values(["segment", "t"], kind="stable")
@@ -83,11 +96,35 @@ def load_training_episodes(run_dir: str | os.PathLike) -> pd.DataFrame:
         start = starts[segment] if segment < len(starts) else 0
         steps.append(start + group["l"].cumsum())
     df["steps"] = pd.concat(steps)
+    limit = df["segment"].map(lambda s: step_limits.get(s, np.inf))
+    df = df[df["steps"] <= limit]
     if "is_success" not in df:
         df["is_success"] = np.nan
     df["is_success"] = df["is_success"].astype(float)
     df["t"] = df["t"] - df["t"].min()
     return df[columns].reset_index(drop=True)
+
+
+def _repeated_episodes(resumes: Sequence[dict[str, Any]],
+                       ) -> tuple[dict[int, list[int]], dict[int, float]]:
+    """What each resume makes stale: Monitor rows to keep per segment and env, and (resumes
+    without ``kept_episodes``) the step count up to which a segment's episodes are kept."""
+    rows: dict[int, list[int]] = {}
+    steps: dict[int, float] = {}
+    for i, resume in enumerate(resumes):
+        new_segment = i + 1  # resume i started segment i + 1
+        kept = resume.get("kept_episodes")
+        if isinstance(kept, dict):
+            segment, per_env = int(kept["segment"]), [int(n) for n in kept["per_env"]]
+            for later in range(segment + 1, new_segment):  # ran past the checkpoint: all stale
+                rows[later] = []
+            before = rows.get(segment)
+            rows[segment] = per_env if before is None else [
+                min(a, b) for a, b in zip(before, per_env, strict=False)]
+        else:
+            for segment in range(new_segment):
+                steps[segment] = min(steps.get(segment, np.inf), int(resume["from_timesteps"]))
+    return rows, steps
 
 
 def load_evaluations(path: str | os.PathLike) -> dict[str, np.ndarray] | None:

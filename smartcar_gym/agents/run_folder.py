@@ -41,7 +41,7 @@ REQUIRED_KEYS = ("algo", "env", "seed", "n_envs", "n_timesteps", "hyperparams", 
 # What smartcar-train writes in a run folder (removed when a run that never saved a checkpoint
 # or a model is started again).
 RUN_FOLDERS = ("monitor", "tb", "eval", "checkpoints")
-RUN_FILES = ("config.yaml", "summary.json", "learning_curve.png", "vecnormalize.pkl",
+RUN_FILES = ("config.yaml", "summary.json", "learning_curve.png", "vecnormalize.pkl", "error.log",
              "best_model.json", "best_model_vecnormalize.pkl", *RUN_FOLDERS)
 
 
@@ -200,12 +200,32 @@ def resume_config(parser: argparse.ArgumentParser, args: argparse.Namespace,
         normalize = normalize_kwargs(config["hyperparams"].get("normalize")) is not None
     except HyperparamsError as err:
         parser.error(f"--resume: {config_path}: {err}")
-    from smartcar_gym.agents.callbacks import find_latest_checkpoint
+    from smartcar_gym.agents.run_files import find_latest_checkpoint
 
     checkpoint = find_latest_checkpoint(run_dir, normalize)
     if checkpoint is None:
         parser.error(f"--resume: no complete checkpoint in {run_dir / 'checkpoints'}: the run "
                      "stopped before saving one; start it again with the command that started "
                      "it (it reuses the folder)")
+    from smartcar_gym.agents.model_files import saved_algo
+
+    saved = saved_algo(checkpoint)
+    if saved is not None and saved != config["algo"]:
+        parser.error(f"--resume: {config_path} says algo: {config['algo']} but {checkpoint} "
+                     f"holds a {saved.upper()} model (the config was edited, or the checkpoints "
+                     "come from another run)")
+    problem = unwritable_folder(run_dir)
+    if problem:
+        parser.error(f"--resume: {problem}: the run cannot continue there (make it writable, or "
+                     "copy the run folder somewhere writable and resume the copy)")
     config["device"] = args.device
     return config, run_dir, checkpoint
+
+
+def unwritable_folder(run_dir: Path) -> str | None:
+    """Why training cannot write into an existing run folder (None if it can): the folder or
+    one of its subfolders is not writable."""
+    for folder in (run_dir, *(run_dir / name for name in RUN_FOLDERS)):
+        if folder.is_dir() and not os.access(folder, os.W_OK | os.X_OK):
+            return f"{folder} is not writable"
+    return None

@@ -32,6 +32,7 @@ from smartcar_gym.agents.hyperparams import (
 from smartcar_gym.agents.run_folder import DEFAULT_ENV_ID, new_run, resume_config
 from smartcar_gym.agents.training import RunSetupError, TrainResult, train
 
+FAILED_EXIT_CODE = 1  # the run stopped on an error (a full disk...)
 INTERRUPTED_EXIT_CODE = 130  # 128 + SIGINT
 TERMINATED_EXIT_CODE = 143  # 128 + SIGTERM
 
@@ -44,6 +45,11 @@ def build_parser() -> argparse.ArgumentParser:
         description="Train an SB3 agent on the smartcar goal-reaching task. Hyperparameters "
                     "come from smartcar_gym/config/<algo>.yaml (rl-baselines3-zoo format) and "
                     "--hyperparams.",
+        epilog="Checkpoints (.zip) and normaliser and replay-buffer files (.pkl) are pickles: "
+               "loading one runs the code it holds. --resume loads those of the run folder it "
+               "names, so resume only runs that you trust. Exit codes: 2 for bad input, 1 when "
+               "the run stops on an error (one line; the last checkpoint is kept), 130/143 "
+               "after Ctrl-C/SIGTERM (a checkpoint is saved).",
     )
     parser.add_argument("--algo", choices=ALGOS, default=None, help="default: ppo")
     parser.add_argument("--env", dest="env_id", default=None, help=f"default: {DEFAULT_ENV_ID}")
@@ -91,7 +97,8 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """``smartcar-train``: returns the exit code (130 after Ctrl-C, 143 after SIGTERM, with a
     checkpoint saved; 2 for bad arguments, a bad config or an env or model that cannot be
-    made)."""
+    made; 1 when the run stops on another error, with a one-line message and the traceback in
+    ``<run>/error.log``)."""
     parser = build_parser()
     args = parser.parse_args(argv)
     require_train_extra("smartcar-train")
@@ -111,6 +118,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                        progress=not args.no_progress, save_replay_buffer=save_buffer)
     except (RunSetupError, HyperparamsError) as err:
         parser.error(str(err))
+    except Exception as err:  # whatever stopped the run: one line, not a traceback
+        print(f"smartcar-train: error: {failure_message(err, config, run_dir)}", file=sys.stderr)
+        return FAILED_EXIT_CODE
     print_summary(result, config)
     if result.interrupted:
         print(f"Interrupted ({result.stop_signal}): checkpoint saved. Continue with: "
@@ -119,6 +129,37 @@ def main(argv: Sequence[str] | None = None) -> int:
             return TERMINATED_EXIT_CODE
         return INTERRUPTED_EXIT_CODE
     return 0
+
+
+def failure_message(err: BaseException, config: dict[str, Any], run_dir: Path) -> str:
+    """One line on a run that stopped on ``err``: what failed, the last checkpoint kept, how to
+    continue. The traceback goes to ``<run_dir>/error.log`` if it can be written."""
+    import traceback
+
+    from smartcar_gym.agents.hyperparams import normalize_kwargs
+    from smartcar_gym.agents.run_files import checkpoint_steps, find_latest_checkpoint
+
+    what = str(err) or type(err).__name__
+    if isinstance(err, OSError) and err.filename:
+        what = f"{err.strerror or err}: {err.filename}"
+    message = f"the run stopped: {type(err).__name__}: {what}"
+    try:
+        normalize = normalize_kwargs(config["hyperparams"].get("normalize")) is not None
+    except (HyperparamsError, KeyError, AttributeError):
+        normalize = True
+    checkpoint = find_latest_checkpoint(run_dir, normalize)
+    if checkpoint is not None:
+        message += (f"; the last checkpoint, {checkpoint} ({checkpoint_steps(checkpoint):,} "
+                    f"steps), is intact: continue with smartcar-train --resume {run_dir}")
+    else:
+        message += "; no checkpoint was saved"
+    log = run_dir / "error.log"
+    try:
+        log.write_text("".join(traceback.format_exception(err)))
+        message += f" (traceback in {log})"
+    except OSError:
+        pass
+    return message
 
 
 def print_summary(result: TrainResult, config: dict[str, Any]) -> None:

@@ -68,7 +68,9 @@ def train(
     ``save_replay_buffer`` (SAC/TD3; default: ``config["save_replay_buffer"]``) keeps the
     replay buffer with the checkpoints; the choice is stored in ``config.yaml``. Raises
     ``RunSetupError`` (or ``HyperparamsError``) if the envs or the model cannot be made; the
-    failed start then leaves nothing behind (``config.yaml`` is written once both exist).
+    failed start then leaves nothing behind (``config.yaml`` is written once both exist). Any
+    other error (a full disk when saving a checkpoint...) closes the env workers and is raised;
+    the checkpoints saved before it are left intact.
     """
     from stable_baselines3.common.callbacks import CallbackList
 
@@ -101,6 +103,7 @@ def train(
                     "from_checkpoint": str(Path(checkpoint).relative_to(run_dir)),
                     "from_timesteps": start, "n_timesteps": int(config["n_timesteps"]),
                     "command": command, "started": utc_timestamp(),
+                    **_kept_episodes(Path(checkpoint)),
                 }]
             atomic_write_text(run_dir / "config.yaml", yaml.safe_dump(config, sort_keys=False))
         except BaseException:
@@ -111,7 +114,7 @@ def train(
 
     target = int(config["n_timesteps"])
     checkpoints = CheckpointCallback(run_dir, int(config["checkpoint_freq"]),
-                                     config["save_replay_buffer"])
+                                     config["save_replay_buffer"], segment=segment)
     callbacks: list[Any] = [checkpoints]
     evaluation = None
     if eval_env is not None:
@@ -128,37 +131,44 @@ def train(
     callbacks.extend(extra_callbacks)
 
     aborted = False  # a KeyboardInterrupt went through (second Ctrl-C, or raised by a callback)
+    failed = False  # any other exception: the workers are closed before it goes on
     t0 = time.monotonic()
     with StopOnSigint() as stop:
         try:
-            if model.num_timesteps < target:
-                model.learn(target - model.num_timesteps,
-                            callback=CallbackList([stop, *callbacks]),
-                            reset_num_timesteps=checkpoint is None, tb_log_name=algo.upper())
-        except KeyboardInterrupt:
-            aborted = True
-        finally:
-            if bar is not None:
-                bar.close()
-        wall = time.monotonic() - t0
-        trained = model.num_timesteps - start
-        try:
-            if checkpoints.model is None:  # learn() did not run (already at the target)
-                checkpoints.init_callback(model)
-            checkpoints.save()
-            save_model_atomic(model, run_dir / "model.zip")
-            if evaluation is not None and not (aborted or stop.requested):
-                if evaluation.model is None:
-                    evaluation.init_callback(model)
-                last = evaluation.last_result
-                if last is None or last.timesteps != model.num_timesteps:
-                    evaluation.evaluate()
-        except KeyboardInterrupt:
-            aborted = True
+            try:
+                if model.num_timesteps < target:
+                    model.learn(target - model.num_timesteps,
+                                callback=CallbackList([stop, *callbacks]),
+                                reset_num_timesteps=checkpoint is None, tb_log_name=algo.upper())
+            except KeyboardInterrupt:
+                aborted = True
+            finally:
+                if bar is not None:
+                    bar.close()
+            wall = time.monotonic() - t0
+            trained = model.num_timesteps - start
+            try:
+                if checkpoints.model is None:  # learn() did not run (already at the target)
+                    checkpoints.init_callback(model)
+                checkpoints.save()
+                save_model_atomic(model, run_dir / "model.zip")
+                if evaluation is not None and not (aborted or stop.requested):
+                    if evaluation.model is None:
+                        evaluation.init_callback(model)
+                    last = evaluation.last_result
+                    if last is None or last.timesteps != model.num_timesteps:
+                        evaluation.evaluate()
+            except KeyboardInterrupt:
+                aborted = True
+        except BaseException:
+            # Workers left alive would keep the process from exiting (they ignore SIGTERM, so
+            # multiprocessing's exit handler waits for them forever).
+            failed = True
+            raise
         finally:
             for env in (venv, eval_env):
                 if env is not None:
-                    close_vec_env(env, force=aborted)
+                    close_vec_env(env, force=aborted or failed)
         interrupted = aborted or stop.requested
         stop_signal = signal.Signals(stop.signum or signal.SIGINT).name if interrupted else None
 
@@ -206,13 +216,14 @@ def _make_envs(config: dict[str, Any], run_dir: Path, seed: int, segment: int,
     (statistics from ``checkpoint``), VecFrameStack."""
     from stable_baselines3.common.vec_env import VecFrameStack
 
-    from smartcar_gym.agents.callbacks import close_vec_env, vecnormalize_path_for
+    from smartcar_gym.agents.callbacks import close_vec_env
     from smartcar_gym.agents.env_factory import (
         EnvSetupError,
         check_env,
         make_vec_env,
         wrap_normalize,
     )
+    from smartcar_gym.agents.model_files import vecnormalize_path_for
 
     env_id, hp = config["env"], config["hyperparams"]
     n_envs, env_kwargs = int(config["n_envs"]), dict(config.get("env_kwargs") or {})
@@ -280,7 +291,7 @@ def _make_model(config: dict[str, Any], venv: Any, seed: int, tb_dir: Path,
 
 def _load_replay_buffer(model: Any, checkpoint: Path, config: dict[str, Any]) -> None:
     """Load the replay buffer saved with ``checkpoint`` (SAC/TD3); warn if there is none."""
-    from smartcar_gym.agents.callbacks import replay_buffer_path_for
+    from smartcar_gym.agents.run_files import replay_buffer_path_for
 
     if not hasattr(model, "load_replay_buffer"):
         return
@@ -297,6 +308,20 @@ def _load_replay_buffer(model: Any, checkpoint: Path, config: dict[str, Any]) ->
         why = "the run was started without --save-replay-buffer"
     print(f"smartcar-train: warning: {config['algo'].upper()} resumes with an empty replay "
           f"buffer: {why}", file=sys.stderr)
+
+
+def _kept_episodes(checkpoint: Path) -> dict[str, Any]:
+    """For the resume record: the Monitor rows written before ``checkpoint`` (from its
+    ``.json``; nothing for checkpoints of versions that did not write one)."""
+    from smartcar_gym.agents.run_files import checkpoint_info_path_for
+
+    try:
+        info = json.loads(checkpoint_info_path_for(checkpoint).read_text())
+        kept = {"segment": int(info["segment"]),
+                "per_env": [int(n) for n in info["monitor_episodes"]]}
+    except (OSError, ValueError, KeyError, TypeError):
+        return {}
+    return {"kept_episodes": kept}
 
 
 def _read_json(path: Path) -> dict[str, Any] | None:

@@ -1,0 +1,121 @@
+"""Files of a run, written atomically, and the names of checkpoints and their companions.
+
+Files are written atomically (a temporary file in the same folder, then ``os.replace``), so a
+run killed at any moment leaves either the previous file or the new one, never half a file.
+A model ``<stem>.zip`` keeps its ``VecNormalize`` statistics in ``<stem>_vecnormalize.pkl``
+(``model.zip`` in ``vecnormalize.pkl``); a checkpoint ``ckpt_<steps>_steps.zip`` has its
+``.json`` and, with ``--save-replay-buffer``, its ``_replay_buffer.pkl``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import pickle
+import re
+import tempfile
+from collections.abc import Iterator
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from smartcar_gym.agents.model_files import vecnormalize_path_for
+
+if TYPE_CHECKING:
+    from stable_baselines3.common.base_class import BaseAlgorithm
+
+CHECKPOINT_RE = re.compile(r"^ckpt_(\d+)_steps\.zip$")
+
+
+def file_mode() -> int:
+    """The mode of a new file as ``open()`` makes it: 0666 less the process's umask."""
+    umask = os.umask(0o022)  # reading the umask means setting it; it is put back at once
+    os.umask(umask)
+    return 0o666 & ~umask
+
+
+@contextlib.contextmanager
+def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
+    """A temporary path next to ``path`` (same suffix) that replaces ``path`` once written.
+
+    If the body raises (or the process dies), ``path`` is left as it was. The file gets the
+    mode of any new file (``file_mode``), as the Monitor and TensorBoard files do.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=path.suffix)
+    os.close(fd)
+    try:
+        yield Path(tmp)
+        with open(tmp, "rb+") as f:
+            os.fsync(f.fileno())
+        os.chmod(tmp, file_mode())  # mkstemp makes 0600 files; a run's files are all alike
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(tmp)
+        raise
+
+
+def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
+    """Write ``data`` to ``path`` atomically."""
+    with atomic_path(path) as tmp:
+        tmp.write_bytes(data)
+
+
+def atomic_write_text(path: str | os.PathLike, text: str) -> None:
+    """Write ``text`` to ``path`` atomically."""
+    atomic_write_bytes(path, text.encode())
+
+
+def save_model_atomic(model: BaseAlgorithm, path: str | os.PathLike) -> Path:
+    """Save ``model`` (and its VecNormalize statistics, if any) atomically; returns the zip path.
+
+    Both files are written to temporary files first, then renamed: the statistics, then the
+    zip. So a new zip (a checkpoint) always has its statistics beside it. When an existing pair
+    is replaced (``model.zip``, ``best_model.zip``), a kill in the few milliseconds between the
+    two renames leaves the new statistics beside the old model; nothing is ever half-written.
+    """
+    path = Path(path)
+    vec_normalize = model.get_vec_normalize_env()
+    with contextlib.ExitStack() as stack:  # exits (renames) in reverse order: statistics first
+        tmp_zip = stack.enter_context(atomic_path(path))
+        if vec_normalize is not None:
+            tmp_stats = stack.enter_context(atomic_path(vecnormalize_path_for(path)))
+            tmp_stats.write_bytes(pickle.dumps(vec_normalize))
+        model.save(tmp_zip)
+    return path
+
+
+def checkpoint_path(run_dir: str | os.PathLike, num_timesteps: int) -> Path:
+    """``<run_dir>/checkpoints/ckpt_<steps>_steps.zip``."""
+    return Path(run_dir) / "checkpoints" / f"ckpt_{num_timesteps}_steps.zip"
+
+
+def checkpoint_steps(path: str | os.PathLike) -> int:
+    """The step count of a checkpoint from its name ``ckpt_<steps>_steps.zip``."""
+    match = CHECKPOINT_RE.match(Path(path).name)
+    if match is None:
+        raise ValueError(f"{path} is not named like a checkpoint (ckpt_<steps>_steps.zip)")
+    return int(match.group(1))
+
+
+def replay_buffer_path_for(checkpoint: str | os.PathLike) -> Path:
+    """The replay buffer saved with a checkpoint: ``ckpt_<steps>_steps_replay_buffer.pkl``."""
+    checkpoint = Path(checkpoint)
+    return checkpoint.with_name(checkpoint.name.removesuffix(".zip") + "_replay_buffer.pkl")
+
+
+def checkpoint_info_path_for(checkpoint: str | os.PathLike) -> Path:
+    """What a checkpoint records of its run segment: ``ckpt_<steps>_steps.json``."""
+    return Path(checkpoint).with_suffix(".json")
+
+
+def find_latest_checkpoint(run_dir: str | os.PathLike, normalize: bool) -> Path | None:
+    """The checkpoint with the most steps (with its VecNormalize file if ``normalize``)."""
+    folder = Path(run_dir) / "checkpoints"
+    found = []
+    for path in folder.glob("ckpt_*_steps.zip") if folder.is_dir() else []:
+        match = CHECKPOINT_RE.match(path.name)
+        if match and (not normalize or vecnormalize_path_for(path).exists()):
+            found.append((int(match.group(1)), path))
+    return max(found)[1] if found else None

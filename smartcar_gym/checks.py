@@ -20,20 +20,31 @@ def is_real(value: Any) -> bool:
     return isinstance(value, numbers.Real) and not isinstance(value, bool)
 
 
+def is_finite(value: Any) -> bool:
+    """A finite real number."""
+    return is_real(value) and math.isfinite(value)
+
+
+def is_whole(value: Any) -> bool:
+    """An integer (numpy integers count; bool and integral floats do not)."""
+    return isinstance(value, numbers.Integral) and not isinstance(value, bool)
+
+
 def positive_number(name: str, value: Any, upper: float | None = None,
                     why: str = "", error: Error = ValueError) -> float:
     """``value`` as a float if it is a finite number > 0 (and <= ``upper``, if given)."""
-    if not (is_real(value) and math.isfinite(value) and value > 0):
+    if not (is_finite(value) and value > 0):
         raise error(f"{name} must be a positive number, got {value!r}")
     if upper is not None and value > upper:
-        raise error(f"{name} must be at most {upper:g}{why}, got {value!r}")
+        raise error(f"{name} must be at most {upper:g}{f' ({why})' if why else ''}, "
+                    f"got {value!r}")
     return float(value)
 
 
 def positive_int(name: str, value: Any, upper: int | None = None, why: str = "",
                  error: Error = ValueError) -> int:
     """``value`` as an int if it is a whole number >= 1 (and <= ``upper``, if given)."""
-    if not (isinstance(value, numbers.Integral) and not isinstance(value, bool) and value >= 1):
+    if not (is_whole(value) and value >= 1):
         raise error(f"{name} must be a positive integer, got {value!r}")
     if upper is not None and value > upper:
         raise error(f"{name} must be at most {upper}{f' ({why})' if why else ''}, got {value!r}")
@@ -42,10 +53,9 @@ def positive_int(name: str, value: Any, upper: int | None = None, why: str = "",
 
 def integer_in(name: str, value: Any, low: int, high: int, why: str = "",
                error: Error = ValueError) -> int:
-    """``value`` as an int in ``low..high`` (numpy integers count; bool does not)."""
-    if not (isinstance(value, numbers.Integral) and not isinstance(value, bool)
-            and low <= value <= high):
-        raise error(f"{name}: expected an integer in {low}..{high}{f' ({why})' if why else ''}, "
+    """``value`` as an int in ``low..high``."""
+    if not (is_whole(value) and low <= value <= high):
+        raise error(f"{name} must be an integer in {low}..{high}{f' ({why})' if why else ''}, "
                     f"got {value!r}")
     return int(value)
 
@@ -56,7 +66,7 @@ def number_pair(name: str, value: Any, error: Error = ValueError) -> tuple[float
         low, high = value
     except (TypeError, ValueError):
         raise error(f"{name} must be a (min, max) pair of numbers, got {value!r}") from None
-    if not all(is_real(v) and math.isfinite(v) for v in (low, high)):
+    if not all(is_finite(v) for v in (low, high)):
         raise error(f"{name} must be a (min, max) pair of finite numbers, got {value!r}")
     return float(low), float(high)
 

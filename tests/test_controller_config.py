@@ -68,7 +68,7 @@ def test_shipped_config_is_the_seed_with_base_width_fixed():
     assert (config.rate_hz, config.timeout_s) == (10.0, 1.0)  # not set: upstream defaults
     assert (config.base_frame_id, config.odom_frame_id) == ("base_link", "odom")
     assert (config.driver_rate_hz, config.read_rate_hz, config.write_rate_hz) == (20, 20, 20)
-    assert config.sim is False
+    assert config.kinematic is False  # the YAML's `sim` key
     assert config.name == "base_controller"
     assert config.motor == MotorConfig(0.34, 33.5, "coast", 1.8e-3, 0.03)
     assert (config.encoder_left, config.encoder_right) == ("auto", "auto")
@@ -93,7 +93,7 @@ def test_upstream_defaults():
     assert (config.base_frame_id, config.odom_frame_id) == ("base_link", "odom")
     assert config.max_accel == 41  # int(0.1 * 4100 / 10)
     assert (config.driver_rate_hz, config.read_rate_hz, config.write_rate_hz) == (100, 10, 10)
-    assert config.sim is False
+    assert config.kinematic is False  # the YAML's `sim` key
     assert config.source == "test.yaml"
 
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 from typing import Any
 
+from smartcar_gym import checks
 from smartcar_gym.controller._cint import c_div, wrap_int16, wrap_int32
 
 MAX_OUTPUT = 255  # MAXOUTPUT: PWM limit
@@ -33,9 +34,7 @@ class ArbotixBoard:
     """The board side of the ArbotiX base: setup/write packets in, PWM per side out."""
 
     def __init__(self, frame_ms: int = FRAME_RATE_MS) -> None:
-        if isinstance(frame_ms, bool) or not isinstance(frame_ms, int) or frame_ms < 1:
-            raise ValueError(f"frame_ms must be a positive integer, got {frame_ms!r}")
-        self.frame_ms = frame_ms
+        self.frame_ms = checks.positive_int("frame_ms", frame_ms)
         self.kp, self.kd, self.ki, self.ko = BOOT_GAINS
         self.f_time = 0  # setupPID(): f_time = 0
         self.moving = False
@@ -45,11 +44,9 @@ class ArbotixBoard:
 
     def setup(self, kp: int, kd: int, ki: int, ko: int) -> None:
         """The setup packet ``[10, Kp, Kd, Ki, Ko]``: one byte per gain, ``Ko`` >= 1."""
-        for name, gain in (("Kp", kp), ("Kd", kd), ("Ki", ki), ("Ko", ko)):
-            if isinstance(gain, bool) or not isinstance(gain, int) or not 0 <= gain <= 255:
-                raise ValueError(f"{name} must be an integer in 0..255, got {gain!r}")
-        if ko == 0:
-            raise ValueError("Ko must be >= 1: the firmware divides by it")
+        for name, gain in (("Kp", kp), ("Kd", kd), ("Ki", ki)):
+            checks.integer_in(name, gain, 0, 255, "one byte")
+        checks.integer_in("Ko", ko, 1, 255, "one byte, and the firmware divides by it")
         self.kp, self.kd, self.ki, self.ko = kp, kd, ki, ko
 
     def write(self, left: int, right: int, encoders: tuple[int, int]) -> None:

@@ -62,7 +62,7 @@ _DRIVER_KEYS: dict[str, tuple[str, Checker, Any]] = {
     "rate": ("driver_rate_hz", v.positive, 100.0),
     "read_rate": ("read_rate_hz", v.positive, 10.0),
     "write_rate": ("write_rate_hz", v.positive, 10.0),
-    "sim": ("sim", v.flag, False),
+    "sim": ("kinematic", v.flag, False),  # the driver's fake base, not the simulator
 }
 _CONTROLLER_KEYS: dict[str, tuple[str, Checker, Any]] = {
     "rate": ("rate_hz", v.positive, 10.0),
@@ -150,7 +150,7 @@ class ArbotixConfig:
     driver_rate_hz: float = 100.0
     read_rate_hz: float = 10.0
     write_rate_hz: float = 10.0
-    sim: bool = False
+    kinematic: bool = False  # the driver's `sim: true`: the base follows cmd_vel, no PID
     motor: MotorConfig = field(default_factory=MotorConfig)
     encoder_left: str = "auto"
     encoder_right: str = "auto"

@@ -7,9 +7,10 @@ Each checker takes ``(value, where)`` and returns the normalised value, or raise
 from __future__ import annotations
 
 import difflib
-import math
 from collections.abc import Callable
 from typing import Any
+
+from smartcar_gym import checks
 
 
 class ControllerConfigError(ValueError):
@@ -53,7 +54,7 @@ def close_hint(word: str, choices: Any) -> str:
 
 def number(value: Any, where: str) -> float:
     """A finite int or float (bools and numeric text refused, the latter with a YAML hint)."""
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+    if not checks.is_finite(value):
         hint = ""
         if isinstance(value, str) and is_number(value):
             hint = (
@@ -104,7 +105,7 @@ def ticks_meter(value: Any, where: str) -> float:
 
 def integer(value: Any, where: str, low: int, high: int, why: str) -> int:
     """An int (not a bool, not a float) in ``low..high``; ``why`` says where the range is from."""
-    if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
+    if not (checks.is_whole(value) and low <= value <= high):
         raise ControllerConfigError(
             f"{where}: expected an integer in {low}..{high} ({why}), got {value!r}"
         )

@@ -16,7 +16,13 @@ from gymnasium import spaces
 from gymnasium.error import ResetNeeded
 
 from smartcar_gym import checks
-from smartcar_gym.controller import MODES, ArbotixConfig, load_controller_config
+from smartcar_gym.controller import (
+    HARDWARE,
+    KINEMATIC,
+    MODES,
+    ArbotixConfig,
+    load_controller_config,
+)
 from smartcar_gym.envs.observation import Entry, Observation, Readings
 from smartcar_gym.envs.robots.entries import robot_entries
 from smartcar_gym.envs.robots.smartcar import Pose2D, SmartCarRobot
@@ -198,7 +204,7 @@ class SmartCarEnv(gym.Env):
         )
         self._check_tick_targets()
         if controller_mode is None:  # as the driver: its `sim` parameter picks the mode
-            controller_mode = "sim" if self.controller_config.sim else "hardware"
+            controller_mode = KINEMATIC if self.controller_config.kinematic else HARDWARE
         self.controller_mode = controller_mode
         self.metadata = {**self.metadata, "render_fps": self.controller_config.rate_hz}
 

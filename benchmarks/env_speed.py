@@ -3,7 +3,8 @@
     python benchmarks/env_speed.py [--steps 1500] [--rounds 3] [--baseline-ref 1103dff]
 
 Each round measures every variant once, in turn, each in a fresh subprocess (random actions,
-seeded, timed after a warm-up, resets excluded); a ratio is taken within a round, and the table
+seeded, timed after a warm-up, episode resets included: what a rollout costs); a ratio is taken
+within a round, and the table
 shows the median over rounds. This machine's speed drifts by up to a half within minutes, so
 only ratios measured side by side mean anything. Variants, for each wheel contact model:
 
@@ -53,15 +54,14 @@ def worker_env(steps: int, contact: str) -> float:
 
     env = gym.make("SmartCar-v0", wheel_contact=contact)
     env.reset(seed=0)
-    actions = _random_actions(steps + WARMUP)
-    elapsed = 0.0
-    for i, action in enumerate(actions):
-        start = time.perf_counter()
+    start = 0.0
+    for i, action in enumerate(_random_actions(steps + WARMUP)):
+        if i == WARMUP:
+            start = time.perf_counter()
         _, _, terminated, truncated, _ = env.step(action)
-        if i >= WARMUP:
-            elapsed += time.perf_counter() - start
         if terminated or truncated:
             env.reset()
+    elapsed = time.perf_counter() - start
     env.close()
     return steps / elapsed
 
@@ -144,15 +144,14 @@ def worker_racecar(steps: int, contact: str) -> float:
         env = RacecarGymEnv(actionRepeat=10, renders=False)
     env.seed(0)
     env.reset()
-    elapsed = 0.0
+    start = 0.0
     for i, action in enumerate(_random_actions(steps + WARMUP)):
-        start = time.perf_counter()
+        if i == WARMUP:
+            start = time.perf_counter()
         _, _, done, _ = env.step(action)
-        if i >= WARMUP:
-            elapsed += time.perf_counter() - start
-        if done:
+        if done:  # every 100 actions (its 1000 physics steps)
             env.reset()
-    return steps / elapsed
+    return steps / (time.perf_counter() - start)
 
 
 WORKERS = {"env": worker_env, "raw": worker_raw, "racecar": worker_racecar}

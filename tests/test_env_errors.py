@@ -255,3 +255,22 @@ def test_yaml_sim_true_picks_the_sim_mode_unless_told_otherwise(tmp_path):
     env = gym.make("SmartCar-v0")  # the shipped YAML has no `sim`: hardware
     assert env.unwrapped.robot.mode == "hardware"
     env.close()
+
+
+@pytest.mark.parametrize(("kwargs", "error", "match"), [
+    ({"model": ""}, ValueError, r"model is an empty path: pass a file path, or None"),
+    ({"controller_config": ""}, ValueError, r"controller_config is an empty path"),
+    ({"wheels": "x"}, Exception, r"wheels='x': expected a dict \{'left'"),
+    ({"wheels": 5}, Exception, r"wheels=5: expected a dict"),
+    ({"package_path": 123}, Exception, r"package_path=123: expected a list of folders"),
+])
+def test_unclear_arguments_are_named_through_gym_make(kwargs, error, match):
+    with pytest.raises(error, match=match):
+        gym.make("SmartCar-v0", **kwargs)
+
+
+def test_reset_options_must_be_a_dict(env):
+    with pytest.raises(TypeError, match=r"reset options must be a dict such as \{'goal': "
+                                        r"\(x, y\)\}, got str: 'notadict'"):
+        env.reset(options="notadict")
+    env.reset(seed=0)  # still usable

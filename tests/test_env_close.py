@@ -81,3 +81,17 @@ def test_make_step_close_cycles_leak_no_client_and_little_memory():
     assert {i for i in range(64) if _connected(i)} == before
     print(f"RSS growth over {CYCLES} make/reset/2 steps/close cycles: {growth:.2f} MB")
     assert growth < MAX_GROWTH_MB, f"RSS grew by {growth:.1f} MB over {CYCLES} cycles"
+
+
+def test_resets_do_not_grow_memory():
+    """pybullet's file cache kept every spawned URDF (a new temporary path each reset)."""
+    env = gym.make("SmartCar-v0")
+    env.reset(seed=0)
+    for _ in range(100):
+        env.reset()
+    before = _rss_mb()
+    for _ in range(600):
+        env.reset()
+    grown = _rss_mb() - before
+    env.close()
+    assert grown < 1.5, f"{grown:.1f} MB more after 600 resets (3.5 MB with the file cache)"

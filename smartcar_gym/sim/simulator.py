@@ -137,9 +137,12 @@ class Simulator:
         if self.gui:
             c.configureDebugVisualizer(pybullet.COV_ENABLE_GUI, 0)
         self._dt = self.max_substep_s
+        # enableFileCaching=0: pybullet keeps every URDF it has read, keyed by its path, for the
+        # life of the client; each spawn writes the robot to a new temporary path, so the cache
+        # grew by the file (6 kB) at every reset (11.7 MB over 2000 resets; 0.8 MB without it)
         c.setPhysicsEngineParameter(
             fixedTimeStep=self._dt, deterministicOverlappingPairs=1,
-            numSolverIterations=self.solver_iterations,
+            numSolverIterations=self.solver_iterations, enableFileCaching=0,
         )
         c.setGravity(0.0, 0.0, -self.gravity_m_s2)
         self._bodies = {}

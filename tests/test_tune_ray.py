@@ -113,6 +113,7 @@ def test_two_node_cluster(tmp_path, hard_timeout, capsys):
         assert code == 2
         assert "needs 2 CPUs on one node, but the largest node of the Ray cluster has 1" in (
             capsys.readouterr().err)
+        assert not (tmp_path / "no").exists()  # refused before the folder became a sweep
         out = tmp_path / "sweep"
         code = tune_cli.main(["--space", str(space), "--address", cluster.address,
                               "--out", str(out)])

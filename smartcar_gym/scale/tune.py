@@ -133,7 +133,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def new_sweep(args: argparse.Namespace) -> tuple[Sweep, Path]:
-    """The checked sweep and its folder from the command line; writes ``<out>/sweep.yaml``."""
+    """The checked sweep and its folder from the command line (nothing is written yet)."""
     out = _folder(args.out)
     if (out / "sweep.yaml").exists():
         raise SweepSetupError(f"{out} already holds a sweep; continue it with {PROG} --resume "
@@ -149,11 +149,6 @@ def new_sweep(args: argparse.Namespace) -> tuple[Sweep, Path]:
     if isinstance(n_envs, int) and n_envs > sweep.cpus_per_trial:
         print(f"{PROG}: note: each trial runs n_envs={n_envs} env processes on "
               f"cpus_per_trial={sweep.cpus_per_trial} reserved CPU(s)", file=sys.stderr)
-    out.mkdir(parents=True, exist_ok=True)
-    from smartcar_gym.agents.callbacks import atomic_write_text
-
-    atomic_write_text(out / "sweep.yaml", "# smartcar-tune sweep (checked search space)\n"
-                      + yaml.safe_dump(sweep.to_yaml(), sort_keys=False))
     return sweep, out
 
 
@@ -191,7 +186,11 @@ def run_sweep(sweep: Sweep, out: Path, resume: bool) -> list[results_mod.TrialRo
     if resume:
         tuner = tune.Tuner.restore(path, trainable, resume_unfinished=True,
                                    resume_errored=True)
-    else:
+    else:  # Ray is up and the trials fit: now the folder becomes a sweep
+        from smartcar_gym.agents.callbacks import atomic_write_text
+
+        atomic_write_text(out / "sweep.yaml", "# smartcar-tune sweep (checked search space)\n"
+                          + yaml.safe_dump(sweep.to_yaml(), sort_keys=False))
         asha = sweep.early_stopping
         scheduler = FIFOScheduler() if asha is None else ASHAScheduler(
             time_attr="timesteps", max_t=sweep.timesteps, grace_period=asha["grace_period"],
@@ -210,33 +209,41 @@ def run_sweep(sweep: Sweep, out: Path, resume: bool) -> list[results_mod.TrialRo
 
 
 def trial_rows(grid: Any, sweep: Sweep, out: Path) -> list[results_mod.TrialRow]:
-    """A row per trial of a Tune ``ResultGrid``, in trial order."""
+    """A row per trial of the sweep, in trial order, from Tune's ``ResultGrid`` (metrics,
+    errors) and its experiment's trials (status, config: also of trials that never ran)."""
+    import logging
+
     from ray import tune
 
-    from smartcar_gym.scale.trial import plain, trial_folder
+    from smartcar_gym.scale.trial import plain
 
-    statuses = {t.trial_id: t.status
-                for t in tune.ExperimentAnalysis(grid.experiment_path).trials}
+    # Tune warns about each trial without results (not started before an interrupt)
+    quiet = logging.getLogger("ray.tune.analysis.experiment_analysis")
+    level, quiet.level = quiet.level, logging.ERROR
+    try:
+        trials = {Path(t.path).name: t for t in
+                  tune.ExperimentAnalysis(grid.experiment_path).trials}
+        results = {Path(r.path).name: r for r in grid}
+    finally:
+        quiet.setLevel(level)
     rows = []
-    for result in grid:
-        metrics = result.metrics or {}
-        values = plain((result.config or {}).get(TRIAL_KEY, {}))
+    for name, trial in sorted(trials.items()):
+        result = results.get(name)
+        metrics = (result.metrics if result is not None else None) or {}
+        values = plain((trial.config or {}).get(TRIAL_KEY, {}))
         config = sweep.trial_config(values)
-        trial_id = metrics.get("trial_id") or Path(result.path).name
-        name = trial_folder(trial_id) if "_" in trial_id else trial_id
         timesteps = metrics.get("timesteps")
-        error = None if result.error is None else _first_line(result.error)
-        row = results_mod.TrialRow(
+        error = None if result is None or result.error is None else _first_line(result.error)
+        rows.append(results_mod.TrialRow(
             trial=name, values={n: values.get(n) for n in sweep.dimensions()},
-            status=results_mod.trial_status(statuses.get(trial_id, ""), timesteps,
-                                            sweep.timesteps, error is not None),
+            status=results_mod.trial_status(trial.status, timesteps, sweep.timesteps,
+                                            error is not None),
             success_rate=metrics.get("success_rate"), mean_reward=metrics.get("mean_reward"),
             timesteps=timesteps, wall_time_s=metrics.get("wall_time_s"),
             node_id=metrics.get("node_id"), error=error, run_dir=str(out / name),
-            hyperparams={**(config.get("hyperparams") or {}), "n_timesteps": sweep.timesteps},
-            env_kwargs=config.get("env_kwargs") or {}, seed=config.get("seed"))
-        rows.append(row)
-    return sorted(rows, key=lambda r: r.trial)
+            hyperparams={**config["hyperparams"], "n_timesteps": sweep.timesteps},
+            env_kwargs=config["env_kwargs"], seed=config["seed"]))
+    return rows
 
 
 def _trial_dirname(trial: Any) -> str:

@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import os
 import signal
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -67,8 +68,12 @@ def test_train_save_restore(ray_head, hard_timeout, tmp_path):
     from ray.rllib.core import DEFAULT_MODULE_ID
     from ray.rllib.core.rl_module.rl_module import RLModule
 
+    ray_results = Path("~/ray_results").expanduser()
+    before = set(ray_results.iterdir()) if ray_results.is_dir() else set()
     config = rllib.ppo_config(num_env_runners=2, env_kwargs=EASY, **TINY)
     rows = rllib.run(config, iterations=1, out=tmp_path / "run")
+    # nothing left in the user's ~/ray_results (Ray's default place for an algorithm's logs)
+    assert (set(ray_results.iterdir()) if ray_results.is_dir() else set()) == before
     assert len(rows) == 1 and rows[0]["iteration"] == 1
     assert rows[0]["env_steps"] >= 100
     # is_success reaches the results, in training (EnvRunners) and evaluation (driver)

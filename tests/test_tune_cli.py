@@ -110,3 +110,10 @@ def test_a_uri_is_not_a_run_folder(tmp_path, capsys, monkeypatch):
             tune_cli.main([option, "s3://bucket/sweep"])
         assert exit_.value.code == 2 and "not a URI" in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []
+
+
+@needs_tune
+def test_an_out_folder_that_cannot_be_written(tmp_path, capsys):
+    (tmp_path / "file").write_text("")
+    code, err = run(["--out", tmp_path / "file" / "sweep"], capsys)
+    assert code == 2 and "--out: cannot create" in err and "is not a folder" in err

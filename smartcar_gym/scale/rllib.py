@@ -23,6 +23,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import functools
+import inspect
 import json
 import os
 import sys
@@ -110,11 +111,19 @@ def check_resources(config: Any) -> None:
                    "num_env_runners (--env-runners)")
 
 
-def build(config: Any) -> Any:
-    """Register the env, check the CPUs and build the algorithm."""
+def build(config: Any, log_dir: str | Path | None = None) -> Any:
+    """Register the env, check the CPUs and build the algorithm. Ray 2.50 logs an algorithm's
+    results (JSON, CSV, TensorBoard) to ``~/ray_results``: to ``log_dir`` when given. (Ray 2.60
+    logs nothing there, and ``build_algo`` takes no logger.)"""
     register()
     check_resources(config)
-    return config.build_algo()
+    if log_dir is None or "logger_creator" not in inspect.signature(config.build_algo).parameters:
+        return config.build_algo()
+    from ray.tune.logger import UnifiedLogger
+
+    Path(log_dir).mkdir(parents=True, exist_ok=True)
+    return config.build_algo(logger_creator=lambda algo_config: UnifiedLogger(
+        algo_config, str(log_dir), loggers=None))
 
 
 def summarize(result: dict[str, Any]) -> dict[str, Any]:
@@ -139,7 +148,7 @@ def run(config: Any, iterations: int, out: str | Path, checkpoint_every: int = 1
     ``<out>/progress.jsonl`` (one ``summarize`` line per iteration)."""
     out = Path(out).absolute()
     out.mkdir(parents=True, exist_ok=True)
-    algo = build(config)
+    algo = build(config, out / "logs")
     rows = []
     try:
         if restore is not None:
@@ -153,7 +162,7 @@ def run(config: Any, iterations: int, out: str | Path, checkpoint_every: int = 1
                 algo.save_to_path(str(out / f"checkpoint_{row['iteration']:06d}"))
     finally:
         algo.stop()
-        with contextlib.suppress(OSError):  # the empty folder build_algo makes in ~/ray_results
+        with contextlib.suppress(OSError):  # the empty folder Ray 2.6x makes in ~/ray_results
             os.rmdir(algo.logdir)
     return rows
 

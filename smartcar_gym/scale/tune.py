@@ -23,7 +23,7 @@ from typing import Any
 
 import yaml
 
-from smartcar_gym.agents.hyperparams import key_value_arg, positive_int_arg
+from smartcar_gym.agents.hyperparams import key_value_arg, output_path_error, positive_int_arg
 from smartcar_gym.scale import results as results_mod
 from smartcar_gym.scale.ray_session import (
     RayUnavailableError,
@@ -135,6 +135,9 @@ def main(argv: Sequence[str] | None = None) -> int:
 def new_sweep(args: argparse.Namespace) -> tuple[Sweep, Path]:
     """The checked sweep and its folder from the command line (nothing is written yet)."""
     out = _folder(args.out)
+    problem = output_path_error(out / "sweep.yaml")
+    if problem:
+        raise SweepSetupError(f"--out: {problem}")
     if (out / "sweep.yaml").exists():
         raise SweepSetupError(f"{out} already holds a sweep; continue it with {PROG} --resume "
                               f"{out}, or choose another --out")

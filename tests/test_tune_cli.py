@@ -4,6 +4,7 @@ trial starts (most before Ray starts)."""
 from __future__ import annotations
 
 import sys
+import time
 
 import pytest
 import yaml
@@ -117,3 +118,20 @@ def test_an_out_folder_that_cannot_be_written(tmp_path, capsys):
     (tmp_path / "file").write_text("")
     code, err = run(["--out", tmp_path / "file" / "sweep"], capsys)
     assert code == 2 and "--out: cannot create" in err and "is not a folder" in err
+
+
+@needs_tune
+def test_an_address_nothing_listens_on_fails_at_once(tmp_path, capsys, monkeypatch):
+    import socket
+
+    from smartcar_gym.scale import ray_session
+
+    monkeypatch.setattr(tune_cli, "ray_session", ray_session.ray_session)  # the real one
+    with socket.socket() as free:  # a port nothing listens on
+        free.bind(("127.0.0.1", 0))
+        port = free.getsockname()[1]
+    start = time.monotonic()
+    code, err = run(["--address", f"127.0.0.1:{port}", "--out", tmp_path / "s"], capsys)
+    assert code == 2 and f"cannot connect to the Ray cluster at 127.0.0.1:{port}" in err
+    assert err.count("\n") == 1 and time.monotonic() - start < 30  # Ray alone: minutes
+    assert not (tmp_path / "s").exists()

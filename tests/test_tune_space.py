@@ -201,3 +201,17 @@ def test_sweep_yaml_round_trip(tmp_path):
     assert again.trial_values() == sweep.trial_values()
     assert again.early_stopping is None and again.timesteps == 4096
     assert env_kwargs_samples(again) == [{"goal_tolerance": 0.1}, {"goal_tolerance": 0.2}]
+
+
+def test_numbers_without_a_dot_are_numbers_in_dimensions():
+    # PyYAML reads 1e-4 as a string; smartcar-train's --hyperparams reads it as a number
+    from smartcar_gym.agents.hyperparams import parse_value
+
+    value = parse_value("{loguniform: [1e-4, 1e-3]}")
+    assert value == {"loguniform": ["1e-4", "1e-3"]}
+    sweep = sweep_of(hyperparams={"learning_rate": value,
+                                  "policy_kwargs": {"choice": ["dict(net_arch=[64])"]}},
+                     env_kwargs={"wheel_contact": {"grid": ["sphere", "urdf"]}})
+    assert sweep.hyperparams["learning_rate"] == Dimension("loguniform", (1e-4, 1e-3))
+    assert sweep.env_kwargs["wheel_contact"] == Dimension("grid", ("sphere", "urdf"))
+    assert sweep.hyperparams["policy_kwargs"].values == ("dict(net_arch=[64])",)

@@ -59,6 +59,7 @@ def ray_session(address: str | None = None, num_cpus: int | None = None,
         init_kwargs.setdefault("include_dashboard", False)
         ray.init(address="local", num_cpus=num_cpus, **init_kwargs)
     else:
+        probe(address)
         try:
             ray.init(address=address, **init_kwargs)
         except (ConnectionError, RuntimeError, ValueError) as err:
@@ -71,6 +72,23 @@ def ray_session(address: str | None = None, num_cpus: int | None = None,
         yield ray
     finally:
         ray.shutdown()
+
+
+def probe(address: str, timeout_s: float = 10.0) -> None:
+    """Refuse an explicit ``HOST:PORT`` (or ``ray://HOST:PORT``) nothing listens on: Ray itself
+    retries such an address for minutes before it fails. Other forms (``auto``) are Ray's."""
+    import socket
+
+    host, sep, port = address.removeprefix("ray://").rpartition(":")
+    if not sep or not host or not port.isdigit():
+        return
+    try:
+        socket.create_connection((host.strip("[]"), int(port)), timeout=timeout_s).close()
+    except OSError as err:
+        raise RayUnavailableError(
+            f"cannot connect to the Ray cluster at {address}: {err.strerror or err} (is `ray "
+            "start --head` running there, and is the port open?)"
+        ) from err
 
 
 def node_cpus() -> list[float]:

@@ -38,6 +38,7 @@ from smartcar_gym.agents.hyperparams import (
     discount,
     load_hyperparams,
     normalize_kwargs,
+    parse_value,
     run_int,
 )
 
@@ -176,6 +177,8 @@ def parse_dimension(value: Any, where: str) -> Any:
     if not (isinstance(value, dict) and len(value) == 1 and next(iter(value)) in DIMENSIONS):
         return value
     kind, values = next(iter(value.items()))
+    if isinstance(values, list):  # YAML 1.1 reads 1e-4 (no dot) as a string: a number is meant
+        values = [parse_value(v) if isinstance(v, str) else v for v in values]
     expected = f"{where}: {{{kind}: ...}} takes {DIMENSIONS[kind]}, got {values!r}"
     if not isinstance(values, list) or not values:
         raise SpaceError(expected)

@@ -1,0 +1,137 @@
+"""smartcar-tune's command line: one-line errors and exit code 2 for bad input, before any
+trial starts (most before Ray starts)."""
+
+from __future__ import annotations
+
+import sys
+import time
+
+import pytest
+import yaml
+
+from smartcar_gym.scale import tune as tune_cli
+
+
+@pytest.fixture(autouse=True)
+def no_sweep(monkeypatch):
+    """Every input here is bad: reaching the sweep (and Ray) is a failure, not a long run."""
+    def refuse(*args, **kwargs):
+        raise AssertionError("the bad input was not refused: a sweep started")
+
+    monkeypatch.setattr(tune_cli, "ray_session", refuse)
+    monkeypatch.setattr(tune_cli, "run_sweep", refuse)
+
+
+def run(argv, capsys):
+    code = tune_cli.main([str(a) for a in argv])
+    return code, capsys.readouterr().err
+
+
+def test_without_ray_one_line_names_the_extra(monkeypatch, capsys, tmp_path):
+    monkeypatch.setitem(sys.modules, "ray", None)  # import ray -> ImportError
+    code, err = run(["--out", tmp_path / "s"], capsys)
+    assert code == 2
+    assert err.count("\n") == 1 and err.startswith("smartcar-tune: error: ray is not installed")
+    assert 'pip install "smartcar-gym[ray]"' in err
+    assert not (tmp_path / "s").exists()
+
+
+def test_out_or_resume_is_required(capsys):
+    with pytest.raises(SystemExit) as exit_:
+        tune_cli.main([])
+    assert exit_.value.code == 2
+    assert "one of the arguments --out --resume is required" in capsys.readouterr().err
+
+
+def test_num_cpus_is_for_a_local_instance(capsys, tmp_path):
+    with pytest.raises(SystemExit) as exit_:
+        tune_cli.main(["--address", "auto", "--num-cpus", "2", "--out", str(tmp_path)])
+    assert exit_.value.code == 2
+    assert "give one or the other" in capsys.readouterr().err
+
+
+try:
+    import ray.tune  # noqa: F401
+    HAS_TUNE = True
+except ImportError:
+    HAS_TUNE = False
+needs_tune = pytest.mark.skipif(not HAS_TUNE, reason='Ray Tune is not installed: pip install '
+                                                     '"smartcar-gym[ray]"')
+
+
+@needs_tune
+@pytest.mark.parametrize(("space", "args", "message"), [
+    ({"hyperparams": {"learning_rate": {"grid": []}}}, [],
+     "hyperparams.learning_rate: {grid: ...} takes a non-empty list"),
+    ({"hyperparams": {"learnin_rate": 1e-4}}, [], "unknown hyperparameter(s) for ppo"),
+    ({"env_kwargs": {"goal_tolerance": {"grid": [0.1, -1.0]}}}, [],
+     "env_kwargs: cannot make SmartCar-v0 with goal_tolerance=-1.0"),
+    ({}, ["--timesteps", "1000"], "grace_period (30720) must be below the steps per trial"),
+    ({}, ["--hyperparams", "gamma={uniform: [0.9, 1.5]}"], "gamma must be a number in [0, 1]"),
+])
+def test_bad_spaces_exit_2_with_one_line(tmp_path, capsys, space, args, message):
+    from smartcar_gym.scale.space import load_space
+
+    data, _ = load_space()  # the shipped space, with one thing wrong
+    for key, value in space.items():
+        data[key] = {**data.get(key, {}), **value} if isinstance(value, dict) else value
+    path = tmp_path / "space.yaml"
+    path.write_text(yaml.safe_dump(data))
+    code, err = run(["--space", path, *args, "--out", tmp_path / "s"], capsys)
+    assert code == 2 and err.count("\n") == 1 and message in err, err
+    assert not (tmp_path / "s").exists()  # nothing started
+
+
+@needs_tune
+def test_missing_space_file(tmp_path, capsys):
+    code, err = run(["--space", tmp_path / "nope.yaml", "--out", tmp_path / "s"], capsys)
+    assert code == 2 and "cannot read the search space" in err and "nope.yaml" in err
+
+
+@needs_tune
+def test_an_existing_sweep_is_not_overwritten_and_resume_needs_one(tmp_path, capsys):
+    out = tmp_path / "s"
+    out.mkdir()
+    (out / "sweep.yaml").write_text("algo: ppo\n")
+    code, err = run(["--out", out], capsys)
+    assert code == 2 and f"{out} already holds a sweep; continue it with smartcar-tune " \
+                          f"--resume {out}" in err
+    code, err = run(["--resume", tmp_path / "other"], capsys)
+    assert code == 2 and "sweep.yaml not found" in err
+    code, err = run(["--resume", out], capsys)
+    assert code == 2 and "holds no Ray Tune state" in err
+    code, err = run(["--resume", out, "--timesteps", "100"], capsys)
+    assert code == 2 and "--timesteps cannot be changed" in err
+
+
+def test_a_uri_is_not_a_run_folder(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    for option in ("--out", "--resume"):
+        with pytest.raises(SystemExit) as exit_:
+            tune_cli.main([option, "s3://bucket/sweep"])
+        assert exit_.value.code == 2 and "not a URI" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
+
+
+@needs_tune
+def test_an_out_folder_that_cannot_be_written(tmp_path, capsys):
+    (tmp_path / "file").write_text("")
+    code, err = run(["--out", tmp_path / "file" / "sweep"], capsys)
+    assert code == 2 and "--out: cannot create" in err and "is not a folder" in err
+
+
+@needs_tune
+def test_an_address_nothing_listens_on_fails_at_once(tmp_path, capsys, monkeypatch):
+    import socket
+
+    from smartcar_gym.scale import ray_session
+
+    monkeypatch.setattr(tune_cli, "ray_session", ray_session.ray_session)  # the real one
+    with socket.socket() as free:  # a port nothing listens on
+        free.bind(("127.0.0.1", 0))
+        port = free.getsockname()[1]
+    start = time.monotonic()
+    code, err = run(["--address", f"127.0.0.1:{port}", "--out", tmp_path / "s"], capsys)
+    assert code == 2 and f"cannot connect to the Ray cluster at 127.0.0.1:{port}" in err
+    assert err.count("\n") == 1 and time.monotonic() - start < 30  # Ray alone: minutes
+    assert not (tmp_path / "s").exists()

@@ -1,0 +1,164 @@
+"""smartcar-tune on Ray: a local 2-CPU head, a two-node cluster on this machine
+(``ray.cluster_utils.Cluster``), and a sweep killed mid-run then resumed. Tiny budgets
+(a few hundred steps) and hard timeouts; nothing here says anything about speed.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import yaml
+
+pytest.importorskip("ray.tune", reason='Ray Tune is not installed: pip install "smartcar-gym[ray]"')
+
+from smartcar_gym.agents.callbacks import find_latest_checkpoint  # noqa: E402
+from smartcar_gym.agents.hyperparams import load_hyperparams  # noqa: E402
+from smartcar_gym.scale import tune as tune_cli  # noqa: E402
+
+TINY = {"n_envs": 1, "n_steps": 128, "batch_size": 64, "n_epochs": 1}
+# goals 0.5-0.6 m away: a 0.7 m tolerance succeeds at the first step, 0.05 m never here
+EASY, HARD = 0.7, 0.05
+
+
+@pytest.fixture(autouse=True)
+def no_auth_token(monkeypatch):
+    monkeypatch.setenv("RAY_AUTH_MODE", "disabled")  # throwaway heads: no token under $HOME
+
+
+@pytest.fixture
+def hard_timeout():
+    """Fail (instead of hanging) if the test runs longer than the given seconds."""
+    def arm(seconds: int) -> None:
+        def fire(signum, frame):
+            raise TimeoutError(f"still running after {seconds} s: Ray is waiting for something")
+
+        signal.signal(signal.SIGALRM, fire)
+        signal.alarm(seconds)
+
+    yield arm
+    signal.alarm(0)
+    signal.signal(signal.SIGALRM, signal.SIG_DFL)
+
+
+def write_space(path: Path, **space) -> Path:
+    path.write_text(yaml.safe_dump({"hyperparams": TINY, "eval_episodes": 1, **space}))
+    return path
+
+
+def results(out: Path) -> list[dict]:
+    with open(out / "results.csv") as f:
+        return list(csv.DictReader(f))
+
+
+def test_local_head_sweep_with_asha(tmp_path, hard_timeout, capsys):
+    hard_timeout(150)
+    space = write_space(
+        tmp_path / "space.yaml", timesteps=256, eval_freq=128, cpus_per_trial=2,
+        env_kwargs={"goal_range": [0.5, 0.6], "goal_tolerance": {"grid": [EASY, HARD]}},
+        early_stopping={"grace_period": 128, "reduction_factor": 2})
+    out = tmp_path / "sweep"
+    # 2 CPUs, 2 per trial: the trials run one after the other, in order, so ASHA has the
+    # first (100 % success at 128 steps) when the second reports 0 % there, and stops it
+    code = tune_cli.main(["--space", str(space), "--num-cpus", "2", "--out", str(out)])
+    assert code == 0
+    rows = results(out)
+    assert [(r["trial"], r["env_kwargs.goal_tolerance"]) for r in rows] == [
+        ("trial_00000", str(EASY)), ("trial_00001", str(HARD))]
+    easy, hard = rows
+    assert (easy["status"], easy["timesteps"], easy["success_rate"]) == ("completed", "256", "1.0")
+    assert (hard["status"], hard["timesteps"], hard["success_rate"]) == (
+        "stopped early", "128", "0.0")
+    # the completed trial is a whole smartcar-train run
+    run = out / "trial_00000"
+    for name in ("config.yaml", "hyperparams.yaml", "model.zip", "best_model.zip",
+                 "summary.json", "eval/evaluations.npz", "checkpoints/ckpt_256_steps.zip"):
+        assert (run / name).exists(), name
+    summary = json.loads((run / "summary.json").read_text())
+    assert summary["num_timesteps"] == 256 and summary["final_eval"]["success_rate"] == 1.0
+    # the stopped one has everything up to its last evaluation: it can be continued
+    assert find_latest_checkpoint(out / "trial_00001", normalize=True) == (
+        out / "trial_00001" / "checkpoints" / "ckpt_128_steps.zip")
+    # the best configuration, as a file smartcar-train reads
+    best = load_hyperparams("ppo", "SmartCar-v0", out / "best_hyperparams.yaml")
+    assert best == {**yaml.safe_load((run / "hyperparams.yaml").read_text())["SmartCar-v0"]}
+    assert "goal_tolerance=0.7" in (out / "best_hyperparams.yaml").read_text()
+    summary = json.loads((out / "results.json").read_text())
+    assert summary["best"]["trials"] == ["trial_00000"]
+    printed = capsys.readouterr().out
+    assert "trial_00001" in printed and "stopped early" in printed
+
+
+def test_two_node_cluster(tmp_path, hard_timeout, capsys):
+    hard_timeout(150)
+    from ray.cluster_utils import Cluster
+
+    cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 1,
+                                                            "include_dashboard": False})
+    try:
+        worker = cluster.add_node(num_cpus=1)
+        nodes = {cluster.head_node.node_id, worker.node_id}
+        space = write_space(tmp_path / "space.yaml", timesteps=256, eval_freq=256,
+                            seed={"grid": [0, 1]})
+        # a trial of 2 CPUs fits no node: refused at once (Ray would wait forever)
+        code = tune_cli.main(["--space", str(space), "--cpus-per-trial", "2",
+                              "--address", cluster.address, "--out", str(tmp_path / "no")])
+        assert code == 2
+        assert "needs 2 CPUs on one node, but the largest node of the Ray cluster has 1" in (
+            capsys.readouterr().err)
+        assert not (tmp_path / "no").exists()  # refused before the folder became a sweep
+        out = tmp_path / "sweep"
+        code = tune_cli.main(["--space", str(space), "--address", cluster.address,
+                              "--out", str(out)])
+        assert code == 0
+    finally:
+        cluster.shutdown()
+    rows = results(out)
+    assert [(r["seed"], r["status"], r["timesteps"]) for r in rows] == [
+        ("0", "completed", "256"), ("1", "completed", "256")]
+    # one CPU per node and per trial: the two trials ran at once, one on each node
+    assert {r["node_id"] for r in rows} == nodes
+
+
+def test_a_killed_sweep_resumes_from_its_checkpoints(tmp_path, hard_timeout):
+    hard_timeout(170)
+    space = write_space(tmp_path / "space.yaml", timesteps=384, eval_freq=128)
+    out = tmp_path / "sweep"
+    run = out / "trial_00000"
+    # the whole sweep (driver and local Ray) dies at once, as in a crash of the machine.
+    # (384 steps: each segment of the run ends an episode of 200 steps; smartcar-train's
+    # learning-curve plot fails on a segment that ends none.)
+    sweep = subprocess.Popen(
+        [sys.executable, "-m", "smartcar_gym.scale.tune", "--space", str(space),
+         "--num-cpus", "2", "--out", str(out)],
+        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 100
+        while not (list((run / "checkpoints").glob("ckpt_*_steps.zip"))
+                   and list((out / "tune").glob("experiment_state-*.json"))):
+            assert sweep.poll() is None, "the sweep ended before it could be killed"
+            assert time.monotonic() < deadline, "no checkpoint within 100 s"
+            time.sleep(0.1)
+    finally:
+        os.killpg(sweep.pid, signal.SIGKILL)
+        sweep.wait()
+    assert not (run / "summary.json").exists()  # killed in the middle of the run
+    done = sorted(int(p.name.split("_")[1]) for p in (run / "checkpoints").glob("ckpt_*.zip"))
+
+    assert tune_cli.main(["--resume", str(out), "--num-cpus", "2"]) == 0
+    config = yaml.safe_load((run / "config.yaml").read_text())
+    # continued from the checkpoint on disk, not started again
+    assert [r["from_timesteps"] for r in config["resumes"]] == [done[-1]]
+    assert config["resumes"][0]["command"] == f"smartcar-train --resume {run} --no-progress"
+    assert json.loads((run / "summary.json").read_text())["num_timesteps"] == 384
+    assert sorted(p.name for p in (run / "monitor").glob("*.csv")) == [
+        "seg0_0.monitor.csv", "seg1_0.monitor.csv"]
+    [row] = results(out)
+    assert (row["status"], row["timesteps"]) == ("completed", "384")

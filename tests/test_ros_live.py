@@ -8,6 +8,7 @@ loopback port, and ends them (SIGINT, then SIGKILL) however it ends. Without Deb
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import math
 import os
@@ -170,7 +171,8 @@ class Node:
 
     @property
     def output(self) -> str:
-        self._log.flush()
+        if not self._log.closed:
+            self._log.flush()
         return self.log_path.read_text()
 
 
@@ -343,3 +345,40 @@ def test_launch_file_runs_the_tutorials_graph(ros, tmp_path):
     assert ("base_link", "left_front_wheel") in frames, (frames, output)
     assert len(data["topics"]["/odom"]) >= 10
     assert params["controllers"]["base_controller"]["ticks_meter"] == 4100  # rosparam load
+
+
+def test_bringup_refuses_a_bad_configuration_in_one_line(ros, tmp_path):
+    with nodes(ros, tmp_path, ["bringup", "--controller-config",
+                               str(tmp_path / "missing.yaml")]) as (bringup,):
+        assert bringup.proc.wait(60) == 2
+    lines = [line for line in bringup.output.splitlines() if line.strip()]
+    assert len(lines) == 1 and "[FATAL]" in lines[0], lines
+    assert lines[0].endswith(f"{tmp_path / 'missing.yaml'}: controller config file not found")
+
+
+@pytest.mark.skipif(importlib.util.find_spec("rosbags") is None,
+                    reason='rosbags not installed: pip install "smartcar-gym[ros]"')
+def test_rosbag_play_publishes_a_written_bag(ros, tmp_path):
+    from smartcar_gym.agents.model_files import load_model, pretrained_files, shipped_model
+    from smartcar_gym.ros.bag import write_bag
+
+    with pretrained_files() as folder:
+        files = shipped_model(folder)
+        model = load_model(files.model, "ppo")
+        bag = tmp_path / "episode.bag"
+        count = write_bag(model, bag, "SmartCar-v0", n_episodes=1, seed=2,
+                          vecnormalize_path=files.normalizer)
+    record = subprocess.Popen(
+        [sys.executable, str(PROBE), json.dumps({
+            "record": {"/odom": "nav_msgs/Odometry", "/joint_states": "sensor_msgs/JointState"},
+            "wait_for": ["/odom"], "duration": 2.5})],
+        env=ros.env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    play = subprocess.run(["rosbag", "play", "-q", "-d", "1.5", "-r", "20", str(bag)],
+                          env=ros.env, capture_output=True, text=True, timeout=60)
+    out, err = record.communicate(timeout=60)
+    assert play.returncode == 0, play.stderr
+    data = json.loads(out.strip().splitlines()[-1])
+    odom = data["topics"]["/odom"]
+    assert len(odom) == len(data["topics"]["/joint_states"]) > 20
+    assert 5 * len(odom) == count  # a goal, 4 topics per state, a cmd_vel per step
+    assert odom[0]["stamp"] == 1.0 and odom[0]["f"][:2] == ["odom", "base_link"]

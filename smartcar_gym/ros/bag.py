@@ -43,7 +43,14 @@ def missing_library() -> str | None:
     """What is missing to write bags (None if nothing is): one line naming the extra."""
     import importlib.util
 
-    missing = [name for name in ("rosbags", "mcap") if importlib.util.find_spec(name) is None]
+    missing = []
+    for name in ("rosbags", "mcap"):
+        try:
+            found = importlib.util.find_spec(name) is not None
+        except (ImportError, ValueError):
+            found = False
+        if not found:
+            missing.append(name)
     if missing:
         return f"{', '.join(missing)} not installed; --bag needs the ros extra: {ROS_EXTRA}"
     return None

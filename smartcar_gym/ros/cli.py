@@ -194,10 +194,6 @@ def _policy(parser: argparse.ArgumentParser, args: argparse.Namespace,
     from smartcar_gym.ros.policy import PolicyNode
     from smartcar_gym.ros.settings import policy_settings
 
-    try:
-        ros = _ros_or_fail()
-    except RosUnavailable as err:
-        return _fail(str(err))
     args.random = False  # what smartcar-eval's helpers ask of its arguments
     with contextlib.ExitStack() as stack:
         files = _model_files(parser, args, stack)  # the rules of smartcar-eval, its errors
@@ -215,8 +211,16 @@ def _policy(parser: argparse.ArgumentParser, args: argparse.Namespace,
         if args.vecnormalize is not None and not args.vecnormalize.is_file():
             parser.error(f"--vecnormalize: no such file: {args.vecnormalize}")
         vecnormalize, normaliser, warning = choose_normalizer(files, args.vecnormalize)
+        try:
+            ros = _ros_or_fail()  # before the slow part
+        except RosUnavailable as err:
+            return _fail(str(err))
         model = _load_for_cli(parser, files.model, algo, args.device)
-        normalizer = ObsNormalizer(vecnormalize) if vecnormalize is not None else None
+        try:
+            normalizer = ObsNormalizer(vecnormalize) if vecnormalize is not None else None
+        except Exception as err:  # a pickle from anywhere: whatever fails, the file is the cause
+            parser.error(f"cannot load the normaliser {vecnormalize}: {type(err).__name__}: "
+                         f"{err}")
     expected = tuple(getattr(model.observation_space, "shape", ()))
     observed = settings.observation.space.shape
     if expected != observed:

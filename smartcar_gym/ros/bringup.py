@@ -25,6 +25,7 @@ from smartcar_gym.sim.simulator import NS_PER_S, Simulator
 
 CLOCK_RATE_HZ = 100.0  # /clock, and how often received commands are handed to the controller
 LAG_REPORT_S = 5.0  # at most one "behind real time" line per this many wall seconds
+LOG_EVERY_S = 2.0  # at most one line per bad cmd_vel kind per this many seconds
 
 
 def twist_problem(linear_x: float, angular_z: float, config: ArbotixConfig) -> str | None:
@@ -95,18 +96,19 @@ class Bringup:
         try:
             linear_x, angular_z = m.read_twist(msg)
         except m.MessageError as err:
-            self.rospy.logerr(f"{err}: stopping the base")
+            self.rospy.logerr_throttle(LOG_EVERY_S, f"{err}: stopping the base")
             self.inbox.put(0.0, 0.0)
             return
         problem = twist_problem(linear_x, angular_z, self.config)
         if problem:
-            self.rospy.logerr(f"{problem}: stopping the base")
+            self.rospy.logerr_throttle(LOG_EVERY_S, f"{problem}: stopping the base")
             linear_x = angular_z = 0.0
         self.inbox.put(linear_x, angular_z)
 
     # -- the simulation loop -------------------------------------------------------------------
-    def run(self) -> None:
-        """Run until ROS shuts down: step to each instant, wait for it, publish what is due."""
+    def run(self, stop: threading.Event) -> None:
+        """Until ``stop`` is set or ROS shuts down: step to each instant, wait for it, publish
+        what is due."""
         rospy, sim = self.rospy, self.sim
         pacer = Pacer(self.options.speed)
         ros0_ns = 0 if self.options.sim_time else rospy.Time.now().to_nsec()
@@ -115,7 +117,7 @@ class Bringup:
         pacer.start(sim.now_ns)
         last_report = -LAG_REPORT_S
         reported_falls = 0
-        while not rospy.is_shutdown():
+        while not (stop.is_set() or rospy.is_shutdown()):
             now_ns = self.schedule.next_ns()
             sim.run_until(now_ns, physics=not self.robot.kinematic)
             lag = pacer.wait(now_ns)

@@ -16,7 +16,9 @@ from __future__ import annotations
 import argparse
 import contextlib
 import math
+import signal
 import sys
+import threading
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
@@ -113,9 +115,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.command == "package":
         print(package_folder())
         return 0
-    if args.command == "policy":
-        return _policy(parser, args, ros_args)
-    return _bringup(args, ros_args)
+    try:
+        if args.command == "policy":
+            return _policy(parser, args, ros_args)
+        return _bringup(args, ros_args)
+    except KeyboardInterrupt:  # Ctrl-C while starting, before the node's own handling
+        return 130
 
 
 def _fail(message: str) -> int:
@@ -133,22 +138,45 @@ def _ros_or_fail() -> Any:
     return ros
 
 
-def _init_node(ros: Any, name: str, ros_args: list[str]) -> None:
-    ros.rospy.init_node(name, argv=[PROG, *ros_args])
+def _init_node(ros: Any, name: str, ros_args: list[str]) -> threading.Event:
+    """``rospy.init_node`` with our own SIGINT/SIGTERM handling; the event is set on a signal.
+
+    rospy's own handler shuts the node down inside the signal handler, which deadlocks when
+    the signal arrives while the main thread holds one of rospy's locks (publishing, as the
+    bringup loop nearly always is at high ``--speed``): the loops stop on this event instead
+    and shut rospy down from the main thread.
+    """
+    ros.rospy.init_node(name, argv=[PROG, *ros_args], disable_signals=True)
+    stop = threading.Event()
+
+    def on_signal(signum: int, frame: Any) -> None:
+        stop.set()
+
+    signal.signal(signal.SIGINT, on_signal)
+    signal.signal(signal.SIGTERM, on_signal)
+    return stop
 
 
 def _bringup(args: argparse.Namespace, ros_args: list[str]) -> int:
-    from smartcar_gym.controller.config_values import ControllerConfigError
-    from smartcar_gym.model import ModelError, load_model
-    from smartcar_gym.ros.bringup import Bringup, BringupOptions, start_robot
-    from smartcar_gym.ros.params import controller_config, describe
-
     try:
         ros = _ros_or_fail()
     except RosUnavailable as err:
         return _fail(str(err))
     rospy = ros.rospy
-    _init_node(ros, "arbotix", ros_args)
+    stop = _init_node(ros, "arbotix", ros_args)
+    try:
+        return _run_bringup(ros, args, stop)
+    finally:
+        rospy.signal_shutdown("smartcar-ros bringup ended")
+
+
+def _run_bringup(ros: Any, args: argparse.Namespace, stop: threading.Event) -> int:
+    from smartcar_gym.controller.config_values import ControllerConfigError
+    from smartcar_gym.model import ModelError, load_model
+    from smartcar_gym.ros.bringup import Bringup, BringupOptions, start_robot
+    from smartcar_gym.ros.params import controller_config, describe
+
+    rospy = ros.rospy
     name = rospy.get_name()
     try:
         with warnings.catch_warnings(record=True) as caught:
@@ -175,7 +203,7 @@ def _bringup(args: argparse.Namespace, ros_args: list[str]) -> int:
                   f"{source}); speed {args.speed:g}, "
                   f"{'/use_sim_time: publishing /clock' if sim_time else 'wall-clock time'}")
     try:
-        Bringup(ros, robot, BringupOptions(args.speed, sim_time)).run()
+        Bringup(ros, robot, BringupOptions(args.speed, sim_time)).run(stop)
     finally:
         robot.sim.close()
     return 0
@@ -226,7 +254,7 @@ def _policy(parser: argparse.ArgumentParser, args: argparse.Namespace,
     if expected != observed:
         parser.error(f"{files.model} expects observations of shape {expected} but {env_id} "
                      f"gives {observed}: the env changed since the model was trained")
-    _init_node(ros, "smartcar_policy", ros_args)
+    stop = _init_node(ros, "smartcar_policy", ros_args)
     rospy = ros.rospy
     rospy.loginfo(f"policy {files.model} ({algo.upper()}, {env_id}); normaliser: {normaliser}")
     if warning:
@@ -236,7 +264,10 @@ def _policy(parser: argparse.ArgumentParser, args: argparse.Namespace,
         return _predict(model, obs, normalizer, deterministic=True)
 
     driver = GoalDriver(settings, act, args.stale_after, args.stop_on)
-    PolicyNode(ros, driver).spin()
+    try:
+        PolicyNode(ros, driver).spin(stop)
+    finally:
+        rospy.signal_shutdown("smartcar-ros policy ended")
     return 0
 
 

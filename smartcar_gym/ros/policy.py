@@ -4,8 +4,8 @@ Subscribes ``odom``, ``joint_states`` and ``/move_base_simple/goal`` (and, to st
 simulator's ground truth, ``base_pose_ground_truth``) and publishes ``cmd_vel``.
 A decision is made when odometry arrives (at the controller's rate, as the env steps), with
 the joint states of the same instant when they come within ``JOINT_WAIT_S``; between
-odometry messages a watchdog at the controller's rate stops the car when odometry goes
-stale. The decisions themselves are ``driving.GoalDriver``'s.
+odometry messages a watchdog (at the controller's rate of wall-clock time) stops the car when
+odometry goes stale. The decisions themselves are ``driving.GoalDriver``'s.
 """
 
 from __future__ import annotations
@@ -71,16 +71,10 @@ class PolicyNode:
                                     timeout=JOINT_WAIT_S)
             self._send(self.driver.step(self._now_ns()))
 
-    def spin(self) -> None:
-        """The watchdog, at the controller's rate (in ROS time), until shutdown."""
-        rospy = self.rospy
-        rate = rospy.Rate(self.driver.settings.rate_hz)
-        while not rospy.is_shutdown():
+    def spin(self, stop: threading.Event) -> None:
+        """The watchdog, at the controller's rate of wall-clock time (so that it runs when ROS
+        time stands still), until ``stop`` is set or ROS shuts down."""
+        period = 1.0 / self.driver.settings.rate_hz
+        while not (stop.wait(period) or self.rospy.is_shutdown()):
             with self._lock:
                 self._send(self.driver.watchdog(self._now_ns()))
-            try:
-                rate.sleep()
-            except rospy.ROSTimeMovedBackwardsException:
-                rospy.logwarn("ROS time moved backwards (the simulation restarted?)")
-            except rospy.ROSInterruptException:
-                break

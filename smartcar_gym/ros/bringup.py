@@ -127,7 +127,8 @@ class Bringup:
                     f"the wall clock so far (latest lag {lag:.2f} s at speed "
                     f"{self.options.speed:g}); this machine cannot simulate that fast")
                 last_report, reported_falls = time.monotonic(), pacer.falls
-            # speed is 1 without /use_sim_time: stamps follow the wall clock, less the time lost
+            # without /use_sim_time (speed 1) stamps follow the wall clock: start + simulated
+            # time + the time lost to falling behind
             stamp = (now_ns if self.options.sim_time
                      else ros0_ns + now_ns + round(pacer.behind_s * NS_PER_S))
             self._publish(self.schedule.due(now_ns), now_ns, stamp)

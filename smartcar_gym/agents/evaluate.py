@@ -105,6 +105,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--video-episodes", type=positive_int_arg, default=3)
     parser.add_argument("--plot", type=Path, metavar="FILE.png",
                         help="top-down trajectories of up to 16 episodes")
+    parser.add_argument("--bag", type=Path, metavar="FILE.bag|FILE.mcap",
+                        help="write the episodes as a ROS 1 bag or MCAP file (odom, tf, "
+                             "joint_states, cmd_vel, goal, ground truth; simulated time; "
+                             "needs the ros extra, not ROS)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     return parser
 
@@ -182,6 +186,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.video is not None:
             n_frames = record_video(model, args.video, n_episodes=args.video_episodes, **common)
             outputs[f"video ({n_frames} frames)"] = args.video
+        if args.bag is not None:
+            from smartcar_gym.ros.bag import write_bag
+
+            n_messages = write_bag(model, args.bag, n_episodes=args.episodes, **common)
+            outputs[f"bag ({n_messages} messages)"] = args.bag
     _print_summary(summary, model_path, env_id, args, outputs)
     for warning in warnings:  # again after the table, where the numbers are read
         print(f"smartcar-eval: warning: {warning}", file=sys.stderr)
@@ -199,7 +208,15 @@ def check_outputs(parser: argparse.ArgumentParser, args: argparse.Namespace) -> 
         if args.plot.suffix[1:].lower() not in formats:
             parser.error(f"--plot: cannot write {args.plot.suffix} images; use .png, .svg or "
                          ".pdf")
-    for option, path in (("--json", args.json), ("--plot", args.plot), ("--video", args.video)):
+    if args.bag is not None:
+        from smartcar_gym.ros.bag import SUFFIXES, missing_library
+
+        if args.bag.suffix not in SUFFIXES:
+            parser.error(f"--bag: the file must end in .bag or .mcap, got {str(args.bag)!r}")
+        if missing_library():
+            parser.error(f"--bag: {missing_library()}")
+    for option, path in (("--json", args.json), ("--plot", args.plot), ("--video", args.video),
+                         ("--bag", args.bag)):
         problem = None if path is None else output_path_error(path)
         if problem:
             parser.error(f"{option}: {problem}")

@@ -6,7 +6,7 @@ import math
 import os
 import threading
 import warnings
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from typing import Any
 
@@ -56,6 +56,24 @@ def previous_action_entry() -> Entry:
     """The action of the previous step (zeros after reset), as the agent sent it."""
     return Entry("previous_action", ("prev_linear", "prev_angular"), -1.0, 1.0, "",
                  "previous action", lambda r: r.previous_action)
+
+
+def observed_wheels(model: RobotModel) -> list[str]:
+    """The wheel joints in observation order: left then right, each as the model lists them."""
+    return [w.joint for w in model.left_wheels + model.right_wheels]
+
+
+def declare_observation(wheel_joints: Sequence[str], task: GoalReachingTask) -> Observation:
+    """SmartCar-v0's observation: robot, task and action entries in ``OBSERVATION_ORDER``.
+
+    It needs no simulator, so the ROS policy node declares the env's very observation.
+    """
+    return Observation.compose(
+        OBSERVATION_ORDER,
+        robot_entries(wheel_joints, 2 * task.arena_half_size_m),
+        task.observation_entries(),
+        [previous_action_entry()],
+    )
 
 
 class SmartCarEnv(gym.Env):
@@ -221,13 +239,7 @@ class SmartCarEnv(gym.Env):
 
     def _declare_observation(self) -> Observation:
         """Robot, task and action entries in ``OBSERVATION_ORDER``."""
-        wheels = [w.joint for w in self.robot_model.left_wheels + self.robot_model.right_wheels]
-        return Observation.compose(
-            OBSERVATION_ORDER,
-            robot_entries(wheels, 2 * self.task.arena_half_size_m),
-            self.task.observation_entries(),
-            [previous_action_entry()],
-        )
+        return declare_observation(observed_wheels(self.robot_model), self.task)
 
     @staticmethod
     def _substep(max_substep_s: float | None, physics_hz: float | None) -> float:
@@ -438,11 +450,7 @@ class SmartCarEnv(gym.Env):
 
 def _doc_table() -> str:
     """SmartCar-v0's observation table as its docstring shows it (the shipped four wheels)."""
-    task = GoalReachingTask()
-    observation = Observation.compose(
-        OBSERVATION_ORDER, robot_entries(["lf", "lb", "rf", "rb"], 2 * task.arena_half_size_m),
-        task.observation_entries(), [previous_action_entry()],
-    )
+    observation = declare_observation(["lf", "lb", "rf", "rb"], GoalReachingTask())
     return observation.table().replace("\n", "\n    ")
 
 

@@ -1,0 +1,275 @@
+"""``smartcar-ros``: the simulated smartcar and trained policies as ROS 1 nodes.
+
+::
+
+    smartcar-ros bringup [--model URDF|XACRO] [--controller-config YAML] [--speed N]
+    smartcar-ros policy (--pretrained | --model ZIP) [--vecnormalize FILE]
+    smartcar-ros package        # the ROS package folder, for ROS_PACKAGE_PATH
+
+Arguments with ``:=`` are ROS's (``__name:=``, remappings, ``_param:=value``) and go to rospy,
+so the commands run as nodes under ``roslaunch`` (see the ``smartcar_gym_ros`` package).
+Bad arguments, a missing rospy or no ROS master: one line on stderr and exit code 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import math
+import signal
+import sys
+import threading
+import warnings
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from smartcar_gym.ros.debian import RosUnavailable, import_ros
+from smartcar_gym.ros.driving import STOP_ON
+from smartcar_gym.ros.package import package_folder
+
+PROG = "smartcar-ros"
+STALE_AFTER_S = 0.5  # five controller periods of the shipped config
+POLICY_MODULES = ("stable_baselines3", "torch")
+
+
+def _positive(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
+    return value
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``smartcar-ros`` argument parser."""
+    from smartcar_gym.agents.hyperparams import key_value_arg
+
+    parser = argparse.ArgumentParser(
+        prog=PROG, description="The simulated smartcar and trained policies as ROS 1 nodes "
+        "(rospy from Debian: apt-get install ros-core python3-rospy ...; see docs/ros.md).",
+        epilog="Arguments containing ':=' (__name:=, remappings, _param:=value) are passed "
+               "to rospy.")
+    sub = parser.add_subparsers(dest="command", required=True)
+    bringup = sub.add_parser(
+        "bringup", help="the simulated robot in place of arbotix_driver (node name arbotix)",
+        description="Run the pybullet smartcar with the emulated ArbotiX controller as a ROS "
+                    "node: subscribes cmd_vel; publishes odom, /tf (odom -> base_link), "
+                    "joint_states and, with /use_sim_time, /clock. The controller's parameters "
+                    "are read from the node's private namespace (as arbotix_driver does) when "
+                    "~controllers is set, else from --controller-config.")
+    bringup.add_argument("--model", type=Path, help="robot description, .urdf or .xacro "
+                         "(default: the shipped smartcar)")
+    bringup.add_argument("--package-path", type=Path, action="append", metavar="DIR",
+                         help="folder searched for $(find pkg) and package:// (repeatable)")
+    bringup.add_argument("--controller-config", type=Path, metavar="YAML",
+                         help="ArbotiX driver YAML used when the parameter server has no "
+                              "~controllers (default: the shipped smartcar_arbotix.yaml)")
+    bringup.add_argument("--mode", choices=("hardware", "sim"),
+                         help="hardware (PID, encoders, motors) or sim (kinematic, the "
+                              "driver's sim: true); default: the config's sim parameter")
+    bringup.add_argument("--speed", type=_positive, default=1.0, metavar="N",
+                         help="simulated seconds per wall-clock second (default 1); other "
+                              "than 1 needs /use_sim_time true")
+    policy = sub.add_parser(
+        "policy", help="a trained policy driving to the goals of rviz's 2D Nav Goal",
+        description="Subscribe odom, joint_states and /move_base_simple/goal; publish cmd_vel "
+                    "at the controller's rate until odometry says the goal is reached.",
+        epilog="SB3 model zips and VecNormalize files are pickles: loading one runs the code "
+               "it holds. A normaliser is loaded only from --vecnormalize or from the model's "
+               "own place, as smartcar-eval does.")
+    source = policy.add_mutually_exclusive_group(required=True)
+    source.add_argument("--model", type=Path, help="a model .zip, or a run folder of "
+                        "smartcar-train or rl-baselines3-zoo")
+    source.add_argument("--pretrained", action="store_true", help="the shipped policy")
+    policy.add_argument("--algo", help="algorithm of --model (default: from its run)")
+    policy.add_argument("--env", dest="env_id", help="the env the policy was trained in "
+                        "(default: the run's, else SmartCar-v0)")
+    policy.add_argument("--env-kwargs", nargs="+", default=[], metavar="KEY=VALUE",
+                        type=key_value_arg, help="added to the run's env kwargs")
+    policy.add_argument("--vecnormalize", type=Path, metavar="FILE",
+                        help="VecNormalize statistics (a pickle: only from a trusted source)")
+    policy.add_argument("--stale-after", type=_positive, default=STALE_AFTER_S, metavar="S",
+                        help=f"odometry or joint states older than S seconds stop the car "
+                             f"(default {STALE_AFTER_S})")
+    policy.add_argument("--stop-on", choices=STOP_ON, default="odometry",
+                        help="what says the goal is reached: odometry (default; all a real "
+                             "robot has) or, with smartcar-ros bringup, the simulator's "
+                             "base_pose_ground_truth (the env's own success test; see "
+                             "docs/ros.md for why the shipped policy needs it)")
+    policy.add_argument("--device", default="cpu")
+    sub.add_parser("package", help="print the folder to add to ROS_PACKAGE_PATH",
+                   description="Print the folder holding the smartcar_gym_ros and "
+                               "smartcar_description ROS packages.")
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run ``smartcar-ros``; returns the exit code."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    ros_args = [a for a in argv if ":=" in a]
+    parser = build_parser()
+    args = parser.parse_args([a for a in argv if ":=" not in a])
+    if args.command == "package":
+        print(package_folder())
+        return 0
+    try:
+        if args.command == "policy":
+            return _policy(parser, args, ros_args)
+        return _bringup(args, ros_args)
+    except KeyboardInterrupt:  # Ctrl-C while starting, before the node's own handling
+        return 130
+
+
+def _fail(message: str) -> int:
+    print(f"{PROG}: error: {' '.join(message.split())}", file=sys.stderr)
+    return 2
+
+
+def _ros_or_fail() -> Any:
+    ros = import_ros()  # RosUnavailable: one line, said by the caller
+    import rosgraph
+
+    if not rosgraph.is_master_online():
+        raise RosUnavailable(f"no ROS master at {rosgraph.get_master_uri()}: start roscore (or "
+                             "roslaunch) first, or set ROS_MASTER_URI")
+    return ros
+
+
+def _init_node(ros: Any, name: str, ros_args: list[str]) -> threading.Event:
+    """``rospy.init_node`` with our own SIGINT/SIGTERM handling; the event is set on a signal.
+
+    rospy's own handler shuts the node down inside the signal handler, which deadlocks when
+    the signal arrives while the main thread holds one of rospy's locks (publishing, as the
+    bringup loop nearly always is at high ``--speed``): the loops stop on this event instead
+    and shut rospy down from the main thread.
+    """
+    ros.rospy.init_node(name, argv=[PROG, *ros_args], disable_signals=True)
+    stop = threading.Event()
+
+    def on_signal(signum: int, frame: Any) -> None:
+        stop.set()
+
+    signal.signal(signal.SIGINT, on_signal)
+    signal.signal(signal.SIGTERM, on_signal)
+    return stop
+
+
+def _bringup(args: argparse.Namespace, ros_args: list[str]) -> int:
+    try:
+        ros = _ros_or_fail()
+    except RosUnavailable as err:
+        return _fail(str(err))
+    rospy = ros.rospy
+    stop = _init_node(ros, "arbotix", ros_args)
+    try:
+        return _run_bringup(ros, args, stop)
+    finally:
+        rospy.signal_shutdown("smartcar-ros bringup ended")
+
+
+def _run_bringup(ros: Any, args: argparse.Namespace, stop: threading.Event) -> int:
+    from smartcar_gym.controller.config_values import ControllerConfigError
+    from smartcar_gym.model import ModelError, load_model
+    from smartcar_gym.ros.bringup import Bringup, BringupOptions, start_robot
+    from smartcar_gym.ros.params import controller_config, describe
+
+    rospy = ros.rospy
+    name = rospy.get_name()
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            params = rospy.get_param("~") if rospy.has_param("~") else {}
+            config, source = controller_config(params, name, args.controller_config)
+            model = load_model(args.model, package_path=args.package_path)
+        mode = args.mode or ("sim" if config.kinematic else "hardware")
+        sim_time = bool(rospy.get_param("/use_sim_time", False))
+        if args.speed != 1.0 and not sim_time:
+            raise ValueError(f"--speed {args.speed:g} needs /use_sim_time true (set it before "
+                             "the nodes start, e.g. <param name=\"/use_sim_time\" value=\"true\"/>"
+                             "): without it other nodes stamp and wait in wall-clock time")
+    except (ControllerConfigError, ModelError, OSError, ValueError) as err:
+        rospy.logfatal(" ".join(str(err).split()))
+        return 2
+    for warning in caught:
+        rospy.logwarn(" ".join(str(warning.message).split()))
+    if not rospy.has_param("robot_description"):
+        rospy.set_param("robot_description", model.urdf)
+        rospy.loginfo(f"set {rospy.resolve_name('robot_description')} from {model.source}")
+    robot = start_robot(model, config, mode)
+    rospy.loginfo(f"simulating {model.source.name} in {mode} mode, {describe(config)} (from "
+                  f"{source}); speed {args.speed:g}, "
+                  f"{'/use_sim_time: publishing /clock' if sim_time else 'wall-clock time'}")
+    try:
+        Bringup(ros, robot, BringupOptions(args.speed, sim_time)).run(stop)
+    finally:
+        robot.sim.close()
+    return 0
+
+
+def _policy(parser: argparse.ArgumentParser, args: argparse.Namespace,
+            ros_args: list[str]) -> int:
+    from smartcar_gym.agents import require_train_extra
+
+    require_train_extra(f"{PROG} policy", POLICY_MODULES)
+    from smartcar_gym.agents.evaluate import _load_for_cli, _model_files, choose_normalizer
+    from smartcar_gym.agents.hyperparams import ALGOS
+    from smartcar_gym.agents.rollouts import DEFAULT_ENV_ID, ObsNormalizer, _predict
+    from smartcar_gym.model import ModelError
+    from smartcar_gym.ros.driving import GoalDriver
+    from smartcar_gym.ros.policy import PolicyNode
+    from smartcar_gym.ros.settings import policy_settings
+
+    args.random = False  # what smartcar-eval's helpers ask of its arguments
+    with contextlib.ExitStack() as stack:
+        files = _model_files(parser, args, stack)  # the rules of smartcar-eval, its errors
+        run = files.run
+        algo = args.algo or run.get("algo")
+        if algo not in ALGOS:
+            parser.error(f"cannot tell the algorithm of {files.model} ({algo!r}); pass --algo "
+                         f"(one of {', '.join(ALGOS)})")
+        env_id = args.env_id or run.get("env") or DEFAULT_ENV_ID
+        env_kwargs = {**(run.get("env_kwargs") or {}), **dict(args.env_kwargs)}
+        try:
+            settings = policy_settings(env_id, env_kwargs)
+        except (ModelError, OSError, ValueError) as err:
+            parser.error(f"{env_id} with {env_kwargs or 'no env kwargs'}: {err}")
+        if args.vecnormalize is not None and not args.vecnormalize.is_file():
+            parser.error(f"--vecnormalize: no such file: {args.vecnormalize}")
+        vecnormalize, normaliser, warning = choose_normalizer(files, args.vecnormalize)
+        try:
+            ros = _ros_or_fail()  # before the slow part
+        except RosUnavailable as err:
+            return _fail(str(err))
+        model = _load_for_cli(parser, files.model, algo, args.device)
+        try:
+            normalizer = ObsNormalizer(vecnormalize) if vecnormalize is not None else None
+        except Exception as err:  # a pickle from anywhere: whatever fails, the file is the cause
+            parser.error(f"cannot load the normaliser {vecnormalize}: {type(err).__name__}: "
+                         f"{err}")
+    expected = tuple(getattr(model.observation_space, "shape", ()))
+    observed = settings.observation.space.shape
+    if expected != observed:
+        parser.error(f"{files.model} expects observations of shape {expected} but {env_id} "
+                     f"gives {observed}: the env changed since the model was trained")
+    stop = _init_node(ros, "smartcar_policy", ros_args)
+    rospy = ros.rospy
+    rospy.loginfo(f"policy {files.model} ({algo.upper()}, {env_id}); normaliser: {normaliser}")
+    if warning:
+        rospy.logwarn(warning)
+
+    def act(obs: Any) -> Any:
+        return _predict(model, obs, normalizer, deterministic=True)
+
+    driver = GoalDriver(settings, act, args.stale_after, args.stop_on)
+    try:
+        PolicyNode(ros, driver).spin(stop)
+    finally:
+        rospy.signal_shutdown("smartcar-ros policy ended")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

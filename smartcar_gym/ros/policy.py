@@ -1,0 +1,80 @@
+"""``smartcar-ros policy``: a trained policy as a ROS node that drives to rviz's 2D Nav Goal.
+
+Subscribes ``odom``, ``joint_states`` and ``/move_base_simple/goal`` (and, to stop on the
+simulator's ground truth, ``base_pose_ground_truth``) and publishes ``cmd_vel``.
+A decision is made when odometry arrives (at the controller's rate, as the env steps), with
+the joint states of the same instant when they come within ``JOINT_WAIT_S``; between
+odometry messages a watchdog (at the controller's rate of wall-clock time) stops the car when
+odometry goes stale. The decisions themselves are ``driving.GoalDriver``'s.
+"""
+
+from __future__ import annotations
+
+import threading
+from typing import Any
+
+from smartcar_gym.ros import messages as m
+from smartcar_gym.ros.driving import Command, GoalDriver
+
+JOINT_WAIT_S = 0.02  # wall seconds to wait for the joint states stamped with the odometry
+
+
+class PolicyNode:
+    """The rospy side of ``GoalDriver`` (``ros``: see ``debian.import_ros``)."""
+
+    def __init__(self, ros: Any, driver: GoalDriver) -> None:
+        self.rospy = rospy = ros.rospy
+        self.driver = driver
+        self.types = m.RospyTypes(rospy.Time)
+        self._lock = threading.Condition()
+        self.pub = rospy.Publisher("cmd_vel", ros.geometry_msgs.Twist, queue_size=10)
+        rospy.Subscriber("joint_states", ros.sensor_msgs.JointState, self._on_joint_states,
+                         queue_size=10)
+        rospy.Subscriber("odom", ros.nav_msgs.Odometry, self._on_odometry, queue_size=10)
+        if driver.stop_on == "ground_truth":
+            rospy.Subscriber(m.GROUND_TRUTH_TOPIC, ros.nav_msgs.Odometry, self._on_ground_truth,
+                             queue_size=10)
+        rospy.Subscriber("/move_base_simple/goal", ros.geometry_msgs.PoseStamped,
+                         self._on_goal, queue_size=10)
+
+    def _now_ns(self) -> int:
+        return self.rospy.Time.now().to_nsec()
+
+    def _send(self, command: Command) -> None:
+        if command.log is not None:
+            level, text = command.log
+            {"info": self.rospy.loginfo, "warn": self.rospy.logwarn,
+             "error": self.rospy.logerr}[level](text)
+        if command.twist is not None:
+            self.pub.publish(m.twist_message(self.types, *command.twist))
+
+    def _on_goal(self, msg: Any) -> None:
+        with self._lock:
+            self._send(self.driver.on_goal(msg))
+
+    def _on_joint_states(self, msg: Any) -> None:
+        with self._lock:
+            self.driver.on_joint_states(msg)
+            self._lock.notify_all()
+
+    def _on_ground_truth(self, msg: Any) -> None:
+        with self._lock:
+            self.driver.on_ground_truth(msg)
+
+    def _on_odometry(self, msg: Any) -> None:
+        with self._lock:
+            self.driver.on_odometry(msg)
+            odom = self.driver.odometry
+            if odom is not None:  # the joint states of the same instant, if they come soon
+                self._lock.wait_for(lambda: self.driver.wheels is not None
+                                    and self.driver.wheels.stamp_ns >= odom.stamp_ns,
+                                    timeout=JOINT_WAIT_S)
+            self._send(self.driver.step(self._now_ns()))
+
+    def spin(self, stop: threading.Event) -> None:
+        """The watchdog, at the controller's rate of wall-clock time (so that it runs when ROS
+        time stands still), until ``stop`` is set or ROS shuts down."""
+        period = 1.0 / self.driver.settings.rate_hz
+        while not (stop.wait(period) or self.rospy.is_shutdown()):
+            with self._lock:
+                self._send(self.driver.watchdog(self._now_ns()))

@@ -1,0 +1,127 @@
+"""``smartcar-ros`` without ROS and its shipped ROS package: one-line errors, the package files."""
+
+from __future__ import annotations
+
+import os
+import socket
+import subprocess
+import sys
+import textwrap
+import xml.etree.ElementTree as ET
+
+import pytest
+
+from smartcar_gym.ros.cli import main
+from smartcar_gym.ros.debian import APT_LINE
+from smartcar_gym.ros.package import package_folder, ros_package
+
+BLOCKER = textwrap.dedent("""
+    import sys
+
+    BLOCKED = {blocked!r}
+
+    class Blocker:
+        def find_spec(self, name, path=None, target=None):
+            if name.partition(".")[0] in BLOCKED:
+                raise ModuleNotFoundError(f"No module named {{name!r}} (blocked)", name=name)
+            return None
+
+    sys.meta_path.insert(0, Blocker())
+    from smartcar_gym.ros.cli import main
+    sys.exit(main({argv!r}))
+""")
+
+
+def _run(argv: list[str], blocked: tuple[str, ...] = (), env: dict | None = None,
+         ) -> subprocess.CompletedProcess:
+    code = BLOCKER.format(blocked=blocked, argv=argv)
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=120, env={**os.environ, "PYTHONWARNINGS": "ignore",
+                                            **(env or {})})
+
+
+@pytest.mark.parametrize("command", [["bringup"], ["policy", "--pretrained"]])
+def test_without_rospy_one_line_names_the_debian_packages(command):
+    result = _run(command, blocked=("rospy",))
+    assert result.returncode == 2, result.stderr
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1, result.stderr
+    assert lines[0].startswith("smartcar-ros: error: cannot import rospy (ModuleNotFoundError")
+    assert lines[0].endswith(f"(python3-rospy): {APT_LINE}")
+    for package in ("ros-core", "python3-rospy", "python3-nav-msgs", "python3-geometry-msgs",
+                    "python3-sensor-msgs", "python3-tf2-msgs"):
+        assert package in APT_LINE
+
+
+def test_a_missing_message_package_is_named():
+    result = _run(["bringup"], blocked=("nav_msgs",))
+    line = result.stderr.strip()
+    assert result.returncode == 2 and "\n" not in line
+    if "cannot import rospy" not in line:  # ROS is installed: the blocked package is named
+        assert "cannot import nav_msgs.msg" in line and "(python3-nav-msgs)" in line
+
+
+def test_policy_without_the_train_extra_says_so():
+    result = _run(["policy", "--pretrained"], blocked=("torch", "stable_baselines3"))
+    assert result.returncode == 2
+    assert result.stderr.strip() == (
+        "smartcar-ros policy: error: stable_baselines3, torch not installed; smartcar-ros "
+        'policy needs the train extra: pip install "smartcar-gym[train]"')
+
+
+def test_no_master_is_one_line_not_a_hang():
+    probe = subprocess.run([sys.executable, "-c", "from smartcar_gym.ros.debian import "
+                            "import_ros; import_ros()"], capture_output=True, timeout=60)
+    if probe.returncode != 0:
+        pytest.skip("rospy is not installed: nothing to connect with")
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]  # nothing listens there once closed
+    result = _run(["bringup"], env={"ROS_MASTER_URI": f"http://127.0.0.1:{port}"})
+    assert result.returncode == 2
+    assert result.stderr.strip() == (
+        f"smartcar-ros: error: no ROS master at http://127.0.0.1:{port}: start roscore (or "
+        "roslaunch) first, or set ROS_MASTER_URI")
+
+
+@pytest.mark.parametrize("argv, expected", [
+    (["bringup", "--speed", "0"], "argument --speed: expected a positive number, got '0'"),
+    (["bringup", "--mode", "fast"], "argument --mode: invalid choice: 'fast'"),
+    (["policy"], "one of the arguments --model --pretrained is required"),
+    (["policy", "--pretrained", "--stop-on", "truth"], "argument --stop-on: invalid choice"),
+])
+def test_bad_arguments_exit_2(argv, expected, capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main(argv)
+    assert exit_info.value.code == 2
+    assert expected in capsys.readouterr().err
+
+
+def test_ros_arguments_are_left_to_rospy(capsys):
+    assert main(["package", "__name:=other", "_sim:=true"]) == 0  # not argparse errors
+    assert capsys.readouterr().out.strip() == str(package_folder())
+
+
+def test_the_ros_package_is_shipped_for_ros_package_path():
+    folder = package_folder()
+    names = {ET.parse(p).getroot().findtext("name") for p in folder.glob("*/package.xml")}
+    assert names == {"smartcar_gym_ros", "smartcar_description"}
+    package = ros_package()
+    for launch in ("smartcar_display.launch", "smartcar_policy.launch"):
+        root = ET.parse(package / "launch" / launch).getroot()  # well-formed XML
+        assert root.tag == "launch"
+    display = ET.parse(package / "launch" / "smartcar_display.launch").getroot()
+    node = display.find("node[@name='arbotix']")
+    assert (node.get("pkg"), node.get("type")) == ("smartcar_gym_ros", "bringup")
+    assert node.find("rosparam[@command='load']") is not None  # the tutorial's private params
+    for script in ("bringup", "policy"):
+        assert os.access(package / "nodes" / script, os.X_OK)
+    rviz = (package / "urdf.rviz").read_text()
+    assert "Topic: /move_base_simple/goal" in rviz and "Fixed Frame: /odom" in rviz
+
+
+def test_node_script_says_how_to_find_smartcar_ros(tmp_path):
+    result = subprocess.run([str(ros_package() / "nodes" / "bringup")], capture_output=True,
+                            text=True, timeout=30, env={"PATH": "/usr/bin:/bin"})
+    assert result.returncode == 2
+    assert "smartcar-ros is not on PATH: activate the virtualenv" in result.stderr

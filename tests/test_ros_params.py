@@ -56,7 +56,7 @@ def test_private_parameters_override_the_files_top_level_keys(tmp_path):
     path = tmp_path / "arbotix.yaml"
     path.write_text(yaml.safe_dump(SHIPPED))
     config, source = controller_config({"sim": True, "read_rate": 50}, "/arbotix", path)
-    assert config.sim is True and config.read_rate_hz == 50.0
+    assert config.kinematic is True and config.read_rate_hz == 50.0
     assert config.ticks_meter == 4100  # the rest is the file's
     assert source == f"{path} with /arbotix parameters read_rate, sim"
 

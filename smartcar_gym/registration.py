@@ -32,8 +32,8 @@ SPECS: dict[str, EnvSpec] = {
     "SmartCar-v0": EnvSpec(ENTRY_POINT, MAX_EPISODE_STEPS, REWARD_THRESHOLD),
     "SmartCarSim-v0": EnvSpec(ENTRY_POINT, MAX_EPISODE_STEPS, REWARD_THRESHOLD,
                               {"controller_mode": "sim"}),
-    # 30 s: detours around obstacles to goals 1-2 m away
-    "SmartCarNav-v0": EnvSpec(NAV_ENTRY_POINT, 300, None),
+    # 20 s, as SmartCar-v0: goals up to 2 m away and a detour take at most 10 s
+    "SmartCarNav-v0": EnvSpec(NAV_ENTRY_POINT, 200, None),
     # 10 s: HER learns from short episodes; goals 0.5-1.5 m away take 3-5 s
     "SmartCarGoal-v0": EnvSpec(GOAL_ENTRY_POINT, 100, None),
 }

@@ -59,7 +59,7 @@ def test_drawn_obstacles_stand_where_the_layout_says_and_leave_room(env):
         env.reset(seed=seed)
         u = env.unwrapped
         layouts.append(u.obstacles)
-        assert len(u.obstacles) == 6
+        assert len(u.obstacles) == 8
         for i, o in enumerate(u.obstacles):
             assert o.distance(np.zeros(2)) >= radius + 0.2
             assert o.distance(u.goal) >= radius + 0.2

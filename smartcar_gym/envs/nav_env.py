@@ -102,20 +102,21 @@ class SmartCarNavEnv(SmartCarEnv):
 
     Terminated on reaching the goal (ground-truth distance under ``goal_tolerance``), touching
     an obstacle (``info["collision"]``), flipping over or leaving the arena. Truncated by the
-    ``TimeLimit`` (300 steps = 30 s for SmartCarNav-v0). ``info``: SmartCar-v0's keys plus
+    ``TimeLimit`` (200 steps = 20 s for SmartCarNav-v0). ``info``: SmartCar-v0's keys plus
     ``collision`` (bool).
 
     ## Arguments
 
     SmartCar-v0's (``controller_config``, ``controller_mode``, ``render_mode``, ...), with
-    these defaults changed: ``goal_range=(1.0, 2.0)``, ``arena_size=6.0``; and:
+    these defaults changed: ``goal_range=(0.5, 2.0)``, ``goal_tolerance=0.2`` (the car's
+    length; TurtleBot3 navigation work uses 0.2 m), ``arena_size=6.0``; and:
 
     | kwarg              | default        | meaning                                             |
     |--------------------|----------------|-----------------------------------------------------|
     | model              | shipped xacro  | robot description; the shipped one is expanded with |
     |                    | with laser     | ``laser:=true`` (adds the ``laser`` link)           |
     | model_args         | None           | xacro arguments for ``model`` (a dict)              |
-    | obstacles          | 6              | number of obstacles drawn per episode               |
+    | obstacles          | 8              | number of obstacles drawn per episode               |
     | obstacle_size      | (0.15, 0.35)   | min, max box side / cylinder diameter (m)           |
     | obstacle_clearance | 0.2            | free space around the car at the start and the goal |
     | obstacle_layout    | None           | a fixed layout (list or file) instead of drawing    |
@@ -144,7 +145,7 @@ class SmartCarNavEnv(SmartCarEnv):
         model: str | os.PathLike | RobotModel | None = None,
         *,
         model_args: Mapping[str, Any] | None = None,
-        obstacles: int = 6,
+        obstacles: int = 8,
         obstacle_size: tuple[float, float] = (0.15, 0.35),
         obstacle_clearance: float = 0.2,
         obstacle_layout: Sequence[Mapping[str, Any]] | str | os.PathLike | None = None,
@@ -152,7 +153,8 @@ class SmartCarNavEnv(SmartCarEnv):
         laser: Mapping[str, Any] | LaserConfig | None = None,
         laser_mount: Sequence[float] | None = None,
         scan_sectors: int = 36,
-        goal_range: tuple[float, float] = (1.0, 2.0),
+        goal_range: tuple[float, float] = (0.5, 2.0),
+        goal_tolerance: float = 0.2,
         arena_size: float = 6.0,
         **kwargs: Any,
     ) -> None:
@@ -166,7 +168,8 @@ class SmartCarNavEnv(SmartCarEnv):
             raise ValueError(f"collision_penalty must be a number >= 0, got "
                              f"{collision_penalty!r}")
         model = _nav_model(model, model_args, kwargs)
-        super().__init__(model, goal_range=goal_range, arena_size=arena_size, **kwargs)
+        super().__init__(model, goal_range=goal_range, goal_tolerance=goal_tolerance,
+                         arena_size=arena_size, **kwargs)
         try:
             self._set_up_obstacles(float(collision_penalty), laser_mount, obstacles,
                                    obstacle_size, obstacle_clearance)
@@ -379,7 +382,7 @@ def footprint_radius(model: RobotModel) -> float:
 
 def _doc_table() -> str:
     """SmartCarNav-v0's observation table as its docstring shows it (the shipped car)."""
-    task = NavigationTask(goal_range_m=(1.0, 2.0), arena_half_size_m=3.0)
+    task = NavigationTask(goal_range_m=(0.5, 2.0), arena_half_size_m=3.0)
     observation = Observation.compose(
         NAV_OBSERVATION_ORDER,
         robot_entries(["lf", "lb", "rf", "rb"], 2 * task.arena_half_size_m),

@@ -61,8 +61,6 @@ def cast_rays(sim: Simulator, starts: np.ndarray, ends: np.ndarray) -> RayHits:
                          f"got {len(starts)}")
     results = sim.client.rayTestBatch(starts, ends, numThreads=1,
                                       collisionFilterMask=ALL_GROUPS ^ HIDDEN_GROUP)
-    return RayHits(
-        fraction=np.array([r[2] for r in results], dtype=float),
-        body=np.array([r[0] for r in results], dtype=int),
-        point=np.array([r[3] for r in results], dtype=float).reshape(-1, 3),
-    )
+    body, _, fraction, point, _ = zip(*results, strict=True)
+    return RayHits(fraction=np.array(fraction, dtype=float), body=np.array(body, dtype=int),
+                   point=np.array(point, dtype=float))

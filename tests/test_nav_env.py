@@ -10,9 +10,11 @@ import numpy as np
 import pytest
 
 import smartcar_gym  # noqa: F401
-from smartcar_gym.envs.nav_env import SmartCarNavEnv, _doc_table, footprint_radius
+from smartcar_gym.envs.nav_env import SmartCarNavEnv, _doc_table
+from smartcar_gym.envs.nav_parts import footprint_radius
 from smartcar_gym.envs.sensors.scan import scan_sectors
 from smartcar_gym.envs.smartcar_env import SmartCarEnv
+from smartcar_gym.model import SHIPPED_MODEL
 
 AHEAD = [{"shape": "box", "position": [0.6, 0.0], "size": [0.2, 1.0]}]  # face at x = 0.5
 FORWARD = np.array([1.0, 0.0], dtype=np.float32)
@@ -178,6 +180,17 @@ def test_a_model_without_laser_link_needs_a_mount():
         assert obs[-4] == pytest.approx(0.45 - env.unwrapped.robot.pose().x, abs=3e-3)
     finally:
         env.close()
+
+
+def test_a_model_path_is_expanded_with_model_args():
+    env = gym.make("SmartCarNav-v0", model=SHIPPED_MODEL, model_args={"laser": "true"})
+    try:
+        assert "laser" in env.unwrapped.robot_model.links
+        assert np.allclose(env.unwrapped.mount[:3, 3], [0.0, 0.0, 0.1])
+    finally:
+        env.close()
+    with pytest.raises(ValueError, match="no 'laser' link"):
+        gym.make("SmartCarNav-v0", model=str(SHIPPED_MODEL))  # a path: no xacro arguments
 
 
 def test_noisy_scans_are_seeded():

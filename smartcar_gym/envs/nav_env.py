@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from smartcar_gym import checks
+from smartcar_gym.envs.nav_parts import footprint_radius, laser_config, nav_model
 from smartcar_gym.envs.observation import Observation, Readings
 from smartcar_gym.envs.robots.entries import robot_entries
 from smartcar_gym.envs.sensors.laser import (
@@ -33,9 +34,7 @@ from smartcar_gym.envs.tasks.obstacles import (
     clearance,
     read_layout,
 )
-from smartcar_gym.model import RobotModel, load_model
-from smartcar_gym.model.kinematics import link_frames, transform
-from smartcar_gym.model.urdf import UrdfRobot
+from smartcar_gym.model import RobotModel
 from smartcar_gym.sim.obstacles import add_obstacle, touching
 
 #: SmartCar-v0's rows, then the scan
@@ -87,8 +86,8 @@ class SmartCarNavEnv(SmartCarEnv):
 
     As SmartCar-v0 (the car at the origin facing +x, the goal at a uniform distance in
     ``goal_range`` and bearing), then the obstacles: ``obstacles`` of them drawn with
-    ``self.np_random``, centred in the square ``|x|, |y| <= goal_range[1]``, half boxes and half
-    cylinders, sides and diameters uniform in ``obstacle_size``, each keeping
+    ``self.np_random``, centred in the square ``|x|, |y| <= goal_range[1]``, each a box or a
+    cylinder with equal chance, sides and diameters uniform in ``obstacle_size``, each keeping
     ``obstacle_clearance`` of free space around the car's footprint circle (0.15 m for the
     shipped car) at the start and at the goal, and 0.3 m from the others (the car fits
     through every gap). Or a given layout: ``obstacle_layout`` (every episode) or
@@ -158,7 +157,7 @@ class SmartCarNavEnv(SmartCarEnv):
         arena_size: float = 6.0,
         **kwargs: Any,
     ) -> None:
-        self.laser_config = _laser_config(laser)
+        self.laser_config = laser_config(laser)
         scan_entry(self.laser_config, scan_sectors)  # checks scan_sectors
         self.scan_sectors = scan_sectors
         self.layout = None if obstacle_layout is None else read_layout(obstacle_layout,
@@ -167,7 +166,7 @@ class SmartCarNavEnv(SmartCarEnv):
                 and collision_penalty >= 0):
             raise ValueError(f"collision_penalty must be a number >= 0, got "
                              f"{collision_penalty!r}")
-        model = _nav_model(model, model_args, kwargs)
+        model = nav_model(model, model_args, kwargs)
         super().__init__(model, goal_range=goal_range, goal_tolerance=goal_tolerance,
                          arena_size=arena_size, **kwargs)
         try:
@@ -328,56 +327,6 @@ def _segment_distance(point: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
     length2 = float(ab @ ab)
     s = 0.0 if length2 == 0 else min(1.0, max(0.0, float((point - a) @ ab) / length2))
     return float(np.linalg.norm(point - (a + s * ab)))
-
-
-def _laser_config(laser: Mapping[str, Any] | LaserConfig | None) -> LaserConfig:
-    if laser is None or isinstance(laser, LaserConfig):
-        return laser or LaserConfig()
-    if not isinstance(laser, Mapping):
-        raise TypeError(f"laser must be a dict of LaserConfig fields or a LaserConfig, got "
-                        f"{type(laser).__name__}: {laser!r}")
-    fields = [f.name for f in dataclasses.fields(LaserConfig)]
-    unknown = sorted(set(map(str, laser)) - set(fields))
-    if unknown:
-        raise ValueError(f"laser: unknown field(s) {unknown}; LaserConfig has "
-                         f"{', '.join(fields)}")
-    return LaserConfig(**laser)
-
-
-def _nav_model(model: Any, model_args: Mapping[str, Any] | None,
-               kwargs: dict[str, Any]) -> Any:
-    """The shipped car with ``laser:=true`` by default; a path loaded with ``model_args``."""
-    if model_args is not None and not isinstance(model_args, Mapping):
-        raise TypeError(f"model_args must be a dict of xacro arguments, got {model_args!r}")
-    if model is None:
-        model_args = {"laser": "true", **(model_args or {})}
-    elif isinstance(model, RobotModel) or model_args is None:
-        return model
-    checks.source("model", model, RobotModel)
-    return load_model(model, mappings=model_args, package_path=kwargs.pop("package_path", None),
-                      wheels=kwargs.pop("wheels", None))
-
-
-def footprint_radius(model: RobotModel) -> float:
-    """Radius (m) of the smallest circle about base_link (in x-y) that holds every collision
-    shape of the model: the car's footprint for obstacle clearances."""
-    robot = UrdfRobot(model.name, model.links, model.joints, model.base_link)
-    frames = link_frames(robot)
-    radius = 0.0
-    for name, link in model.links.items():
-        for shape in link.collisions:
-            centre = (frames[name] @ transform(shape.origin))[:2, 3]
-            geometry = shape.geometry
-            if geometry.type == "box":
-                extent = float(np.linalg.norm(geometry.size)) / 2.0
-            elif geometry.type == "cylinder":
-                extent = math.hypot(geometry.size[0], geometry.size[1] / 2.0)
-            elif geometry.type == "sphere":
-                extent = geometry.size[0]
-            else:  # a mesh: the link origin only
-                extent = 0.0
-            radius = max(radius, float(np.linalg.norm(centre)) + extent)
-    return radius
 
 
 def _doc_table() -> str:

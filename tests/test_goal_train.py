@@ -10,7 +10,7 @@ import pytest
 import yaml
 
 from smartcar_gym.agents import evaluate, train
-from smartcar_gym.agents.hyperparams import load_hyperparams
+from smartcar_gym.agents.hyperparams import build_algo_kwargs, load_hyperparams, normalize_kwargs
 from smartcar_gym.agents.model_files import load_model
 from smartcar_gym.agents.rollouts import RandomPolicy, evaluate_policy_episodes
 
@@ -30,9 +30,15 @@ class DriveToGoal:
 
 
 def test_shipped_sac_entry_uses_her_and_a_multi_input_policy():
+    from stable_baselines3 import HerReplayBuffer
+
     hp = load_hyperparams("sac", "SmartCarGoal-v0")
-    assert hp["policy"] == "MultiInputPolicy" and hp["replay_buffer_class"] == "HerReplayBuffer"
-    assert "goal_selection_strategy='future'" in hp["replay_buffer_kwargs"]
+    assert hp["policy"] == "MultiInputPolicy" and hp["n_envs"] == 1
+    kwargs = build_algo_kwargs("sac", hp, n_actions=2)
+    assert kwargs["replay_buffer_class"] is HerReplayBuffer
+    assert kwargs["replay_buffer_kwargs"] == {"goal_selection_strategy": "future",
+                                              "n_sampled_goal": 4}
+    assert normalize_kwargs(hp["normalize"]) == {"norm_obs": True, "norm_reward": False}
 
 
 @pytest.fixture(scope="module")

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from smartcar_gym.envs.robots import drive
-from smartcar_gym.sim.obstacles import add_obstacle, touching
+from smartcar_gym.sim.obstacles import add_obstacle, nearest_distance
 from smartcar_gym.sim.rays import MAX_RAYS, cast_rays, hide_from_rays
 
 
@@ -58,16 +58,20 @@ def test_hidden_bodies_let_rays_through_but_still_collide(sim, hardware_robot):
     pose = robot.pose()
     assert pose.z == pytest.approx(z0, abs=5e-3)  # still on the ground
     assert 0.35 < pose.x < 0.43  # stopped by the wall (front at x + 0.125 = 0.55)
-    assert touching(robot.body, [wall]) == [wall]
+    assert nearest_distance(robot.body, [wall], 0.3) <= 0.0  # touching
 
 
-def test_touching_reads_current_poses_without_a_physics_step(sim, hardware_robot):
+def test_nearest_distance_reads_current_poses_without_a_physics_step(sim, hardware_robot):
     body = hardware_robot.body
     box = add_obstacle(sim, "box", "box", (0.2, 0.2), (1.0, 0.0))
-    assert touching(body, [box]) == []
-    assert touching(body, [box], margin_m=0.8) == [box]
+    far = add_obstacle(sim, "far", "cylinder", (0.2,), (-2.0, 0.0))
+    x = hardware_robot.pose().x
+    # the car's front (base box, x + 0.125) to the box's face (0.9)
+    assert nearest_distance(body, [box, far], 1.0) == pytest.approx(0.9 - x - 0.125, abs=2e-3)
+    assert nearest_distance(body, [box, far], 0.3) == 0.3  # none nearer than that
+    assert nearest_distance(body, [], 0.3) == 0.3
     body.set_link_pose((0.8, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))  # teleported into it
-    assert touching(body, [box]) == [box]
+    assert nearest_distance(body, [box, far], 0.3) < 0.0
 
 
 def test_bad_rays_and_obstacles_are_refused(sim):

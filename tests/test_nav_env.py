@@ -85,12 +85,33 @@ def test_driving_into_an_obstacle_is_a_penalised_terminal_collision(env):
             break
         assert not info["collision"]
     assert info["collision"] is True and terminated and not truncated
-    assert not info["is_success"]
+    assert not info["is_success"] and info["clearance"] <= 0.0
     assert 0.35 < info["pose"][0] < 0.4  # the front (x + 0.125) at the face (0.5)
     progress = 10 * (distance - info["distance"]) - 0.01 - 0.01 * 1.0
     assert reward == pytest.approx(progress - 10.0)
     assert obs[21 + 18] < 0.2  # the sector ahead sees the box
     assert 9 < steps < 21  # 0.375 m at up to 0.5 m/s
+
+
+def test_proximity_penalty_follows_the_ground_truth_clearance():
+    env = gym.make("SmartCarNav-v0", proximity_penalty=2.0, proximity_m=0.3)
+    try:
+        _, info = env.reset(seed=0, options={"goal": (1.5, 0.5), "obstacles": AHEAD})
+        assert info["clearance"] == 0.3  # 0.375 m from the box: capped at proximity_m
+        u, seen = env.unwrapped, []
+        for _ in range(60):
+            distance = u._distance
+            _, reward, terminated, _, info = env.step(FORWARD)
+            progress = 10 * (distance - info["distance"]) - 0.02
+            inside = min(1.0, max(0.0, (0.3 - info["clearance"]) / 0.3))
+            assert reward == pytest.approx(progress - 2.0 * inside - 10.0 * info["collision"])
+            seen.append(info["clearance"])
+            if terminated:
+                break
+        assert info["collision"] and seen[-1] <= 0.0
+        assert any(0.0 < c < 0.3 for c in seen)  # the penalty grew on the way in
+    finally:
+        env.close()
 
 
 def test_collisions_are_seen_in_sim_mode_too():

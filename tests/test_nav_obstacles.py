@@ -128,9 +128,16 @@ def test_bad_layout_files_name_the_file(tmp_path):
         read_layout(entry)
 
 
-def test_collision_term_of_the_reward():
-    task = NavigationTask(collision_penalty=7.0)
+def test_collision_and_proximity_terms_of_the_reward():
+    task = NavigationTask(collision_penalty=7.0, proximity_penalty=0.5, proximity_m=0.2)
     assert task.collision_reward(np.array([True, False])).tolist() == [-7.0, 0.0]
     assert task.collision_reward(False) == 0.0
+    assert task.proximity_reward(np.array([0.3, 0.2, 0.15, 0.0, -0.01])) == pytest.approx(
+        [0.0, 0.0, -0.125, -0.5, -0.5])
+    assert NavigationTask().proximity_reward(0.0) == 0.0  # off by default
     with pytest.raises(ValueError, match="collision_penalty"):
         NavigationTask(collision_penalty=-1.0)
+    with pytest.raises(ValueError, match="proximity_penalty"):
+        NavigationTask(proximity_penalty=-1.0)
+    with pytest.raises(ValueError, match="proximity_m"):
+        NavigationTask(proximity_m=0.0)

@@ -35,7 +35,7 @@ from smartcar_gym.envs.tasks.obstacles import (
     read_layout,
 )
 from smartcar_gym.model import RobotModel
-from smartcar_gym.sim.obstacles import add_obstacle, touching
+from smartcar_gym.sim.obstacles import add_obstacle, nearest_distance
 
 #: SmartCar-v0's rows, then the scan
 NAV_OBSERVATION_ORDER = (*OBSERVATION_ORDER, SCAN_KEY)
@@ -149,6 +149,8 @@ class SmartCarNavEnv(SmartCarEnv):
         obstacle_clearance: float = 0.2,
         obstacle_layout: Sequence[Mapping[str, Any]] | str | os.PathLike | None = None,
         collision_penalty: float = 10.0,
+        proximity_penalty: float = 0.0,
+        proximity_m: float = 0.3,
         laser: Mapping[str, Any] | LaserConfig | None = None,
         laser_mount: Sequence[float] | None = None,
         scan_sectors: int = 36,
@@ -162,15 +164,16 @@ class SmartCarNavEnv(SmartCarEnv):
         self.scan_sectors = scan_sectors
         self.layout = None if obstacle_layout is None else read_layout(obstacle_layout,
                                                                        "obstacle_layout")
-        if not (checks.is_real(collision_penalty) and math.isfinite(collision_penalty)
-                and collision_penalty >= 0):
-            raise ValueError(f"collision_penalty must be a number >= 0, got "
-                             f"{collision_penalty!r}")
+        rewards = {"collision_penalty": collision_penalty,
+                   "proximity_penalty": proximity_penalty, "proximity_m": proximity_m}
+        for name, value in rewards.items():
+            if not (checks.is_real(value) and math.isfinite(value) and value >= 0):
+                raise ValueError(f"{name} must be a number >= 0, got {value!r}")
         model = nav_model(model, model_args, kwargs)
         super().__init__(model, goal_range=goal_range, goal_tolerance=goal_tolerance,
                          arena_size=arena_size, **kwargs)
         try:
-            self._set_up_obstacles(float(collision_penalty), laser_mount, obstacles,
+            self._set_up_obstacles(rewards, laser_mount, obstacles,
                                    obstacle_size, obstacle_clearance)
         except BaseException:
             self.close()  # the world super() opened
@@ -179,12 +182,12 @@ class SmartCarNavEnv(SmartCarEnv):
         self._next_layout: tuple[Obstacle, ...] | None = None
         self._goal_given = False
 
-    def _set_up_obstacles(self, collision_penalty: float, laser_mount: Any, obstacles: Any,
+    def _set_up_obstacles(self, rewards: dict[str, float], laser_mount: Any, obstacles: Any,
                           obstacle_size: Any, obstacle_clearance: Any) -> None:
         """The task with its collision penalty, the laser's mount and the obstacle field."""
         self.task = NavigationTask(
             **{f.name: getattr(self.task, f.name) for f in dataclasses.fields(self.task)},
-            collision_penalty=collision_penalty,
+            **{name: float(value) for name, value in rewards.items()},
         )
         self.mount = (mount_from_pose(laser_mount) if laser_mount is not None
                       else mount_from_model(self.robot_model))
@@ -267,15 +270,22 @@ class SmartCarNavEnv(SmartCarEnv):
     # -- step, observation, render -------------------------------------------------------------
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         obs, reward, terminated, truncated, info = super().step(action)
-        collision = bool(touching(self.robot.body, self._obstacle_bodies))
-        info["collision"] = collision
-        reward = float(reward + self.task.collision_reward(collision))
+        nearest = self._clearance()
+        collision = nearest <= 0.0
+        info["collision"], info["clearance"] = collision, nearest
+        reward = float(reward + self.task.collision_reward(collision)
+                       + self.task.proximity_reward(nearest))
         return obs, reward, terminated or collision, truncated, info
+
+    def _clearance(self) -> float:
+        """Ground-truth distance (m) between the car and the nearest obstacle, at most
+        ``proximity_m``; <= 0 when they touch."""
+        return nearest_distance(self.robot.body, self._obstacle_bodies, self.task.proximity_m)
 
     def reset(self, *, seed: int | None = None,
               options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
         obs, info = super().reset(seed=seed, options=options)
-        info["collision"] = False
+        info["collision"], info["clearance"] = False, self._clearance()
         return obs, info
 
     def readings(self) -> Readings:

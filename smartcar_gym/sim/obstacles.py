@@ -1,9 +1,10 @@
 """Static obstacles: boxes and upright cylinders that stand on the ground and collide.
 
 ``add_obstacle`` creates one fixed body (mass 0: pybullet never moves it) with a collision shape
-and a visual of the same shape. ``touching`` tells which of some bodies a body touches, from the
-bodies' current poses: it works whether or not the physics was stepped since they last moved
-(a kinematically moved robot, ``controller_mode="sim"``, gets no contact points from pybullet).
+and a visual of the same shape. ``nearest_distance`` measures how close a body is to some others
+(<= 0: touching), from the bodies' current poses: it works whether or not the physics was
+stepped since they last moved (a kinematically moved robot, ``controller_mode="sim"``, gets no
+contact points from pybullet).
 """
 
 from __future__ import annotations
@@ -58,8 +59,12 @@ def add_obstacle(
     return body
 
 
-def touching(body: Body, others: Sequence[Body], margin_m: float = 0.0) -> list[Body]:
-    """The bodies of ``others`` closer than ``margin_m`` to ``body`` (0: touching or overlapping),
-    measured between collision shapes at their current poses."""
+def nearest_distance(body: Body, others: Sequence[Body], max_distance_m: float) -> float:
+    """The smallest distance (m) between ``body``'s collision shapes and those of ``others``
+    at their current poses (< 0: overlapping), or ``max_distance_m`` if none is nearer."""
     closest = body.sim.client.getClosestPoints
-    return [other for other in others if closest(body.uid, other.uid, margin_m)]
+    nearest = max_distance_m
+    for other in others:
+        for point in closest(body.uid, other.uid, max_distance_m):
+            nearest = min(nearest, point[8])
+    return float(nearest)

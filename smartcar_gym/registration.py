@@ -1,27 +1,57 @@
-"""Registration of the smartcar environments with Gymnasium (idempotent)."""
+"""Registration of the smartcar environments with Gymnasium (idempotent).
+
+``ENV_IDS`` lists every registered id; ``SPECS`` says how each is registered.
+"""
 
 from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
 
 from gymnasium.envs.registration import register, registry
 
 ENTRY_POINT = "smartcar_gym.envs.smartcar_env:SmartCarEnv"
+NAV_ENTRY_POINT = "smartcar_gym.envs.nav_env:SmartCarNavEnv"
+GOAL_ENTRY_POINT = "smartcar_gym.envs.goal_env:SmartCarGoalEnv"
 MAX_EPISODE_STEPS = 200
-# Mean return of a policy that reaches the goal reliably (see README, "Training").
+# Mean return of a policy that reaches the goal reliably (see docs/results.md).
 REWARD_THRESHOLD = 15.0
 
-ENV_IDS = ("SmartCar-v0", "SmartCarSim-v0")
+
+@dataclass(frozen=True)
+class EnvSpec:
+    """How one id is registered: entry point, episode limit, reward threshold, kwargs."""
+
+    entry_point: str
+    max_episode_steps: int
+    reward_threshold: float | None
+    kwargs: dict[str, Any] = field(default_factory=dict)
+
+
+SPECS: dict[str, EnvSpec] = {
+    "SmartCar-v0": EnvSpec(ENTRY_POINT, MAX_EPISODE_STEPS, REWARD_THRESHOLD),
+    "SmartCarSim-v0": EnvSpec(ENTRY_POINT, MAX_EPISODE_STEPS, REWARD_THRESHOLD,
+                              {"controller_mode": "sim"}),
+    # 20 s, as SmartCar-v0: goals up to 2 m away and a detour take at most 10 s
+    "SmartCarNav-v0": EnvSpec(NAV_ENTRY_POINT, 200, None),
+    # 10 s: HER learns from short episodes; goals 0.5-1.5 m away take 3-5 s
+    "SmartCarGoal-v0": EnvSpec(GOAL_ENTRY_POINT, 100, None),
+}
+
+#: every registered id
+ENV_IDS: tuple[str, ...] = tuple(SPECS)
 
 
 def register_envs() -> None:
-    """Register SmartCar-v0 (hardware controller) and SmartCarSim-v0 (the driver's sim mode)."""
-    kwargs = {"SmartCar-v0": {}, "SmartCarSim-v0": {"controller_mode": "sim"}}
+    """Register every id of ``ENV_IDS`` that is not registered yet."""
     for env_id in ENV_IDS:
         if env_id in registry:
             continue
+        spec = SPECS[env_id]
         register(
             id=env_id,
-            entry_point=ENTRY_POINT,
-            max_episode_steps=MAX_EPISODE_STEPS,
-            reward_threshold=REWARD_THRESHOLD,
-            kwargs=kwargs[env_id],
+            entry_point=spec.entry_point,
+            max_episode_steps=spec.max_episode_steps,
+            reward_threshold=spec.reward_threshold,
+            kwargs=dict(spec.kwargs),
         )

@@ -212,11 +212,17 @@ def pretrained_files() -> Iterator[Path]:
         yield folder
 
 
+# What a policy needs of an off-policy model's replay buffer: none (a buffer of one entry, of
+# the default class: a saved HerReplayBuffer cannot be rebuilt without the training env).
+_NO_BUFFER = {"buffer_size": 1, "replay_buffer_class": None, "replay_buffer_kwargs": {}}
+
+
 def load_model(path: str | os.PathLike, algo: str, device: str = "cpu") -> Any:
-    """Load an SB3 model zip with the class for ``algo`` (a pickle: only from a trusted source)."""
+    """Load an SB3 model zip with the class for ``algo`` (a pickle: only from a trusted source),
+    for its policy: an off-policy model comes without its replay buffer."""
     from smartcar_gym.agents.hyperparams import algo_class
 
-    return algo_class(algo).load(str(path), device=device)
+    return algo_class(algo).load(str(path), device=device, custom_objects=_NO_BUFFER)
 
 
 # The module of each algorithm's policy classes, as recorded in a saved model's "data".

@@ -111,15 +111,20 @@ class RandomPolicy:
         self.action_space.seed(seed)
 
     def predict(self, obs: np.ndarray, deterministic: bool = True) -> tuple[np.ndarray, None]:
-        """One sampled action per observation in the batch."""
-        batch = np.asarray(obs).reshape(-1, np.asarray(obs).shape[-1])
+        """One sampled action per observation in the batch (a dict of batches for a Dict)."""
+        first = np.asarray(next(iter(obs.values())) if isinstance(obs, dict) else obs)
+        batch = first.reshape(-1, first.shape[-1])
         return np.stack([self.action_space.sample() for _ in batch]), None
 
 
-def _predict(model: Any, obs: np.ndarray, normalizer: ObsNormalizer | None,
-             deterministic: bool) -> np.ndarray:
-    """The action for one observation (a batch of one, so results do not depend on batching)."""
-    batch = obs[None].astype(np.float32)
+def _predict(model: Any, obs: np.ndarray | dict[str, np.ndarray],
+             normalizer: ObsNormalizer | None, deterministic: bool) -> np.ndarray:
+    """The action for one observation (a batch of one, so results do not depend on batching);
+    a ``Dict`` observation (SmartCarGoal-v0) is a dict of arrays."""
+    if isinstance(obs, dict):
+        batch = {key: np.asarray(value, dtype=np.float32)[None] for key, value in obs.items()}
+    else:
+        batch = obs[None].astype(np.float32)
     if normalizer is not None:
         batch = normalizer(batch)
     action, _ = model.predict(batch, deterministic=deterministic)
@@ -174,7 +179,8 @@ def evaluate_policy_episodes(
             actions = np.zeros((n_slots, *envs.single_action_space.shape), dtype=np.float32)
             for slot, episode in enumerate(episode_of):
                 if episode is not None:
-                    actions[slot] = _predict(model, obs[slot], normalizer, deterministic)
+                    actions[slot] = _predict(model, _slot(obs, slot), normalizer,
+                                             deterministic)
             obs, reward, terminated, truncated, info = envs.step(actions)
             reset_mask = np.zeros(n_slots, dtype=bool)
             for slot, episode in enumerate(episode_of):
@@ -198,7 +204,8 @@ def evaluate_policy_episodes(
                 slots = np.flatnonzero(reset_mask)
                 goals = _goals(envs, slots)
                 for slot in slots:
-                    obs[slot] = new_obs[slot]
+                    for array, new in _arrays(obs, new_obs):
+                        array[slot] = new[slot]
                     tracks[slot] = _Track(
                         episode_of[slot], seed + episode_of[slot], goals[slot], new_info, slot
                     )
@@ -207,6 +214,18 @@ def evaluate_policy_episodes(
             bar.close()
         envs.close()
     return sorted(records, key=lambda r: r.episode)
+
+
+def _slot(obs: np.ndarray | dict[str, np.ndarray], slot: int) -> Any:
+    """Sub-env ``slot``'s observation of a batch (a dict of batches for a Dict space)."""
+    return {k: v[slot] for k, v in obs.items()} if isinstance(obs, dict) else obs[slot]
+
+
+def _arrays(obs: Any, new_obs: Any) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Pairs of (batch held, batch of the new observations), one per Dict key."""
+    if isinstance(obs, dict):
+        return [(obs[k], new_obs[k]) for k in obs]
+    return [(obs, new_obs)]
 
 
 class ObservationShapeError(ValueError):

@@ -172,6 +172,9 @@ class SmartCarEnv(gym.Env):
     """
 
     metadata = {"render_modes": RenderModes(["human", "rgb_array"]), "render_fps": 10}
+    #: the keys ``reset(options=...)`` accepts, and the env's name in messages (subclasses add)
+    reset_options: tuple[str, ...] = ("goal",)
+    env_name = "SmartCar-v0"
 
     def __init__(
         self,
@@ -299,6 +302,7 @@ class SmartCarEnv(gym.Env):
                 self.robot.spawn(0.0, 0.0, 0.0)
                 self.goal = goal if goal is not None else self.task.sample_goal(
                     self.np_random, np.zeros(2))
+                self._build_world()
                 self._prev_action = np.zeros(2, dtype=np.float32)
                 pose = self.robot.pose()
                 self._distance = float(self.task.distance(np.array([pose.x, pose.y]), self.goal))
@@ -319,11 +323,16 @@ class SmartCarEnv(gym.Env):
                 f"reset options must be a dict such as {{'goal': (x, y)}}, got "
                 f"{type(options).__name__}: {options!r}"
             )
-        unknown = set(options) - {"goal"}
+        unknown = set(options) - set(self.reset_options)
         if unknown:
-            raise ValueError(f"unknown reset option(s) {sorted(unknown, key=str)}; SmartCar-v0 "
-                             "takes 'goal'")
+            raise ValueError(f"unknown reset option(s) {sorted(unknown, key=str)}; "
+                             f"{self.env_name} takes {', '.join(map(repr, self.reset_options))}")
         return self.task.check_goal(options["goal"]) if "goal" in options else None
+
+    def _build_world(self) -> None:
+        """Extension hook: ``reset`` calls it once the robot is spawned and ``self.goal`` chosen,
+        before the first observation; subclasses add bodies and sensors here (and may move
+        the goal). SmartCar-v0 adds nothing."""
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         with self._exclusive("step"):

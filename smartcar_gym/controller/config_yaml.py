@@ -16,12 +16,19 @@ import yaml
 from smartcar_gym.controller.config_values import ControllerConfigError
 
 DEFAULT_CONFIG = "smartcar_arbotix.yaml"
+CALIBRATED_CONFIG = "smartcar_arbotix_calibrated.yaml"  # base_width 0.33: SmartCarNav-v0's
 _MERGE = "tag:yaml.org,2002:merge"
 
 
 def default_config_path() -> str:
     """Path of the shipped ``smartcar_gym/config/smartcar_arbotix.yaml``."""
     return str(resources.files("smartcar_gym") / "config" / DEFAULT_CONFIG)
+
+
+def calibrated_config_path() -> str:
+    """Path of the shipped ``smartcar_arbotix_calibrated.yaml`` (odometry calibrated:
+    ``base_width`` 0.33 m, the car's effective track; everything else as the shipped one)."""
+    return str(resources.files("smartcar_gym") / "config" / CALIBRATED_CONFIG)
 
 
 def _shown(node: yaml.Node) -> str:

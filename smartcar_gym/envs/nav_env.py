@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from smartcar_gym import checks
+from smartcar_gym.controller.config_yaml import calibrated_config_path
 from smartcar_gym.envs.nav_parts import footprint_radius, laser_config, nav_model
 from smartcar_gym.envs.observation import Observation, Readings
 from smartcar_gym.envs.robots.entries import robot_entries
@@ -106,9 +107,12 @@ class SmartCarNavEnv(SmartCarEnv):
 
     ## Arguments
 
-    SmartCar-v0's (``controller_config``, ``controller_mode``, ``render_mode``, ...), with
-    these defaults changed: ``goal_range=(0.5, 2.0)``, ``goal_tolerance=0.2`` (the car's
-    length; TurtleBot3 navigation work uses 0.2 m), ``arena_size=6.0``; and:
+    SmartCar-v0's (``controller_mode``, ``render_mode``, ...), with these defaults changed:
+    ``controller_config`` is the shipped ``smartcar_arbotix_calibrated.yaml`` (the tutorial's
+    YAML with odometry calibrated: ``base_width`` 0.33 m, the car's effective track, for the
+    tutorial's 0.26, which overstates every turn by 27 % and puts odometry 0.25-0.5 m off over
+    these drives), ``goal_range=(0.5, 2.0)``, ``goal_tolerance=0.2`` (the car's length;
+    TurtleBot3 navigation work uses 0.2 m), ``arena_size=6.0``; and:
 
     | kwarg              | default        | meaning                                             |
     |--------------------|----------------|-----------------------------------------------------|
@@ -170,6 +174,8 @@ class SmartCarNavEnv(SmartCarEnv):
             if not (checks.is_real(value) and math.isfinite(value) and value >= 0):
                 raise ValueError(f"{name} must be a number >= 0, got {value!r}")
         model = nav_model(model, model_args, kwargs)
+        if kwargs.get("controller_config") is None:
+            kwargs["controller_config"] = calibrated_config_path()
         super().__init__(model, goal_range=goal_range, goal_tolerance=goal_tolerance,
                          arena_size=arena_size, **kwargs)
         try:

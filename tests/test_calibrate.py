@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import math
+import subprocess
+import sys
+import textwrap
 
 import numpy as np
 import pytest
@@ -168,3 +171,23 @@ def test_cli_a_car_that_cannot_move_is_reported(tmp_path, capsys):
         cli.main(["--controller-config", str(path)])
     assert err.value.code == 2
     assert "calibration failed: the car did not move as commanded" in capsys.readouterr().err
+
+
+def test_smartcar_calibrate_needs_no_train_extra(tmp_path):
+    """Core dependencies only: the training stack is made unimportable in a subprocess."""
+    blocked = ("torch", "stable_baselines3", "tensorboard", "pandas", "matplotlib", "tqdm",
+               "rich", "imageio_ffmpeg")
+    code = textwrap.dedent(f"""
+        import sys
+        class Blocker:
+            def find_spec(self, name, path=None, target=None):
+                if name.partition(".")[0] in {blocked!r}:
+                    raise ModuleNotFoundError(name)
+        sys.meta_path.insert(0, Blocker())
+        from smartcar_gym.calibration.cli import main
+        print("EXIT", main(["--side", "0.5", "--output", {str(tmp_path / "c.yaml")!r}]))
+    """)
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                            timeout=300, check=False)
+    assert result.returncode == 0, result.stderr
+    assert "EXIT 0" in result.stdout and (tmp_path / "c.yaml").is_file()

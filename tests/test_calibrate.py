@@ -6,6 +6,7 @@ import math
 import subprocess
 import sys
 import textwrap
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -25,6 +26,7 @@ from smartcar_gym.calibration.yaml_edit import calibrated_text
 from smartcar_gym.controller import load_controller_config, parse_controller_config
 from smartcar_gym.controller.config_yaml import default_config_path
 from smartcar_gym.envs.robots.variation import Variation
+from smartcar_gym.model import load_model
 
 # The sphere-wheel car turns as if its track were 0.329 m (10 s spins at 1 rad/s with
 # base_width 0.33: odometry within 0.25 % of the true turn; docs/sim2real.md).
@@ -54,6 +56,17 @@ def test_calibration_recovers_the_effective_track_from_a_mis_set_yaml(shipped_mo
     assert umbmark_error(result.after) < 0.04
     spins_after = [RunError.of(r).relative for r in result.after if r.name.startswith("spin")]
     assert max(map(abs, spins_after)) < 0.015
+
+
+def test_a_two_wheel_car_is_calibrated_to_its_geometric_track(tmp_path):
+    """Two wheels 0.14 m apart and no skid: the effective track is the geometric one."""
+    fixtures = Path(__file__).parent / "fixtures"
+    model = load_model(fixtures / "meshbot_description" / "urdf" / "meshbot.urdf",
+                       package_path=[fixtures])
+    assert model.track_width_m == pytest.approx(0.14)
+    result = calibrate(model, load_controller_config(), SHORT, "spin")
+    assert result.base_width_m == pytest.approx(0.14, rel=0.02)
+    assert result.ticks_meter == pytest.approx(4100, rel=0.02)
 
 
 def test_calibration_recovers_a_known_track_and_true_ticks_per_metre(shipped_model,

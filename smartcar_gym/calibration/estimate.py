@@ -20,6 +20,7 @@ from smartcar_gym.calibration.drives import Run
 
 YAW_WEIGHT_M = 1.0  # metres of position error that weigh as one radian of heading error
 MAX_ITERATIONS = 50
+MAX_HALVINGS = 40
 
 
 class CalibrationError(ValueError):
@@ -112,10 +113,19 @@ def fit(runs: Sequence[Run], ticks_meter: float, base_width_m: float,
                 f"a straight run with turns or squares (runs: {[r.name for r in runs]})"
             )
         step = np.linalg.lstsq(jacobian, -residual, rcond=None)[0]
-        params = params + step
-        if not (np.all(np.isfinite(params)) and params[0] > 0 and min(params[1:]) > 0):
-            raise CalibrationError(f"the fit diverged (base width, scales: {params.tolist()}): "
-                                   "did the car move as commanded?")
+        cost = float(residual @ residual)
+        for _ in range(MAX_HALVINGS):  # backtrack: a full step may overshoot far from the fit
+            trial = params + step
+            if np.all(np.isfinite(trial)) and trial[0] > 0 and min(trial[1:]) > 0:
+                new = _residuals(trial, runs, ticks_meter, use_yaw)
+                if float(new @ new) <= cost:
+                    break
+            step = step / 2
+        else:
+            raise CalibrationError(
+                f"the fit does not converge (base width, scales now {params.tolist()}): did the "
+                "car move as commanded?")
+        params = trial
         if np.max(np.abs(step) / np.maximum(np.abs(params), 1e-9)) < 1e-10:
             break
     residual = _residuals(params, runs, ticks_meter, use_yaw)

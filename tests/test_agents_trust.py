@@ -130,7 +130,7 @@ def fake_package(tiny_run, tmp_path, monkeypatch):
     (folder.parent / "config.yaml").write_text("algo: sac\nenv: Elsewhere-v0\n")
 
     @contextmanager
-    def pretrained_files():
+    def pretrained_files(name="default"):
         yield folder
 
     monkeypatch.setattr(evaluate, "pretrained_files", pretrained_files)

@@ -33,6 +33,7 @@ from smartcar_gym.agents.hyperparams import (
 )
 from smartcar_gym.agents.model_files import (
     PRETRAINED_MODEL,
+    PRETRAINED_POLICIES,
     ModelFiles,
     ModelFilesError,
     load_model,
@@ -77,8 +78,10 @@ def build_parser() -> argparse.ArgumentParser:
     source.add_argument("--model", type=Path, help="a model .zip, or a run folder (its final "
                         "model) of smartcar-train or rl-baselines3-zoo; the run's config and "
                         "normaliser are found from the folder's layout")
-    source.add_argument("--pretrained", action="store_true", help="the policy shipped with the "
-                        "package")
+    source.add_argument("--pretrained", nargs="?", const="default", metavar="NAME",
+                        choices=tuple(PRETRAINED_POLICIES), help="a policy shipped with the "
+                        "package: default (the one --pretrained alone names) or robust "
+                        "(trained with randomize=default)")
     source.add_argument("--random", action="store_true", help="uniform random actions, seeded "
                         "with --seed (a baseline)")
     parser.add_argument("--algo", choices=ALGOS, help="algorithm of --model (default: from the "
@@ -161,8 +164,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         outputs: dict[str, Any] = {} if files is None else {"normaliser": vecnormalize or source}
         if args.json is not None:
             payload = {
-                "model": str(model_path if not args.pretrained else "pretrained:" +
-                             PRETRAINED_MODEL),
+                "model": str(model_path if not args.pretrained else "pretrained:" + (
+                    PRETRAINED_MODEL if args.pretrained == "default"
+                    else f"{args.pretrained}/{PRETRAINED_MODEL}")),
                 "algo": algo, "env": env_id, "env_kwargs": env_kwargs, "seed": args.seed,
                 "n_envs": args.n_envs, "deterministic": not args.stochastic,
                 "normalizer": None if vecnormalize is None else str(vecnormalize),
@@ -229,7 +233,7 @@ def _model_files(parser: argparse.ArgumentParser, args: argparse.Namespace,
         return None
     if args.pretrained:
         try:
-            return shipped_model(stack.enter_context(pretrained_files()))
+            return shipped_model(stack.enter_context(pretrained_files(args.pretrained)))
         except FileNotFoundError as err:
             parser.error(str(err))
     if not args.model.exists():

@@ -22,7 +22,12 @@ from typing import Any
 
 import yaml
 
-from smartcar_gym.agents.model_files import PRETRAINED_MODEL, find_vecnormalize, load_model
+from smartcar_gym.agents.model_files import (
+    PRETRAINED_MODEL,
+    PRETRAINED_POLICIES,
+    find_vecnormalize,
+    load_model,
+)
 from smartcar_gym.agents.rollouts import evaluate_policy_episodes, summarize
 
 DEFAULT_OUT = Path(__file__).resolve().parent.parent / "pretrained"
@@ -79,7 +84,8 @@ def export_run(
         "source": f"{run_dir.name}/{model_name}",
         "versions": config.get("versions"),
         "evaluation": {
-            "command": f"smartcar-eval --pretrained --episodes {episodes} --seed {seed}",
+            "command": f"smartcar-eval --pretrained{_shipped_name(out_dir)} --episodes "
+                       f"{episodes} --seed {seed}",
             "deterministic": True,
             **summarize(records),
         },
@@ -87,6 +93,14 @@ def export_run(
     }
     (out_dir / "provenance.json").write_text(json.dumps(provenance, indent=2) + "\n")
     return provenance
+
+
+def _shipped_name(out_dir: Path) -> str:
+    """`` robust`` for a policy exported to ``pretrained/robust``: how --pretrained names it."""
+    for name, sub in PRETRAINED_POLICIES.items():
+        if sub and out_dir.resolve() == (DEFAULT_OUT / sub).resolve():
+            return f" {name}"
+    return ""
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -33,6 +33,9 @@ from smartcar_gym.agents.hyperparams import HyperparamsError, normalize_kwargs
 from smartcar_gym.agents.zoo_folder import read_zoo_run
 
 PRETRAINED_MODEL = "ppo_smartcar.zip"
+#: the shipped policies: name -> folder under smartcar_gym/pretrained ("": the folder itself);
+#: ``robust`` was trained with ``randomize="default"`` (docs/sim2real.md)
+PRETRAINED_POLICIES = {"default": "", "robust": "robust"}
 # What smartcar_gym.agents.export writes in provenance.json (the keys that identify it).
 PROVENANCE_KEYS = ("algo", "env", "source", "evaluation", "exported")
 # Places of a model (ModelFiles.place).
@@ -201,9 +204,16 @@ def find_vecnormalize(model_path: str | os.PathLike) -> Path | None:
 
 
 @contextlib.contextmanager
-def pretrained_files() -> Iterator[Path]:
-    """The folder of the shipped policy (``ppo_smartcar.zip``, ``vecnormalize.pkl``, provenance)."""
-    with resources.as_file(resources.files("smartcar_gym") / "pretrained") as folder:
+def pretrained_files(name: str = "default") -> Iterator[Path]:
+    """The folder of a shipped policy (``ppo_smartcar.zip``, ``vecnormalize.pkl``, provenance):
+    ``default`` or another of ``PRETRAINED_POLICIES``."""
+    if name not in PRETRAINED_POLICIES:
+        raise FileNotFoundError(f"no shipped policy {name!r}; shipped: "
+                                f"{', '.join(PRETRAINED_POLICIES)}")
+    place = resources.files("smartcar_gym") / "pretrained"
+    if PRETRAINED_POLICIES[name]:
+        place = place / PRETRAINED_POLICIES[name]
+    with resources.as_file(place) as folder:
         if not (folder / PRETRAINED_MODEL).exists():
             raise FileNotFoundError(
                 f"no shipped policy: {folder / PRETRAINED_MODEL} does not exist (train one with "

@@ -24,6 +24,7 @@ from smartcar_gym.controller import (
     load_controller_config,
 )
 from smartcar_gym.envs.observation import Entry, Observation, Readings
+from smartcar_gym.envs.randomization import Randomization
 from smartcar_gym.envs.robots.entries import robot_entries
 from smartcar_gym.envs.robots.smartcar import Pose2D, SmartCarRobot
 from smartcar_gym.envs.tasks.reach import GoalReachingTask
@@ -125,7 +126,9 @@ class SmartCarEnv(gym.Env):
     The world is rebuilt (``resetSimulation``), the car is placed at the origin facing +x, left
     to settle for 0.1 s, and the controller starts: the start pose is the odometry origin. The
     goal is drawn with ``self.np_random`` at a uniform distance in ``goal_range`` and a uniform
-    bearing. ``reset(options={"goal": (x, y)})`` sets it instead (the only option).
+    bearing. ``reset(options={"goal": (x, y)})`` sets it instead (the only option). With
+    ``randomize``, the robot, the ground and the true start pose are then drawn from
+    ``self.np_random`` (after the goal: the goals are the nominal env's for the same seed).
     ``close()`` disconnects the pybullet client; a later ``reset()`` connects a new one, and so
     does the first ``reset()`` of a copy (``copy.deepcopy`` or pickle): a copy has the same
     settings and random state but a world of its own.
@@ -137,7 +140,8 @@ class SmartCarEnv(gym.Env):
     arena. Truncated by the ``TimeLimit`` (200 steps = 20 s for SmartCar-v0).
 
     ``info``: ``is_success`` (bool), ``distance`` (ground truth, m), ``pose`` (ground-truth
-    x, y, yaw), ``odom_pose`` (odometry x, y, yaw), ``odom_error`` (m between the two).
+    x, y, yaw), ``odom_pose`` (odometry x, y, yaw), ``odom_error`` (m between the two), and
+    with ``randomize`` ``randomization``: this episode's draw (factor -> value, ``noise_seed``).
 
     ## Arguments
 
@@ -163,6 +167,10 @@ class SmartCarEnv(gym.Env):
     |                   |                | radius (one contact each, faster) or "urdf": the     |
     |                   |                | model's own collision shapes (cylinders)             |
     | render_width/height | 480, 360     | rgb_array image size (px, at most 4096)              |
+    | randomize         | None           | domain randomisation: None (the nominal robot),      |
+    |                   |                | "default" (the shipped preset), a dict               |
+    |                   |                | ``{factor: [low, high]}`` or a YAML file of one;     |
+    |                   |                | drawn per episode (docs/sim2real.md)                 |
 
     ## Version History
 
@@ -194,12 +202,15 @@ class SmartCarEnv(gym.Env):
         render_width: int = 480,
         render_height: int = 360,
         wheel_contact: str = "sphere",
+        randomize: str | os.PathLike | dict | Randomization | None = None,
     ) -> None:
         checks.one_of("render_mode", render_mode, list(self.metadata["render_modes"]),
                       none_ok=True)
         checks.one_of("controller_mode", controller_mode, MODES, none_ok=True)
         self.render_mode = render_mode
         self.wheel_contact = check_wheel_contact(wheel_contact)
+        self.randomization = Randomization.from_spec(randomize)
+        self._draw = None
         self.max_linear = checks.positive_number("max_linear", max_linear)
         self.max_angular = checks.positive_number("max_angular", max_angular)
         half = checks.positive_number("arena_size", arena_size) / 2.0
@@ -297,11 +308,16 @@ class SmartCarEnv(gym.Env):
             goal = self._check_options(options)
             if self.sim is None:  # closed (or a copy): open a world of its own
                 self._open()
+            if goal is None:
+                goal = self.task.sample_goal(self.np_random, np.zeros(2))
             with self.sim.building():  # the GUI must not draw a half-built world
                 self.sim.reset()
-                self.robot.spawn(0.0, 0.0, 0.0)
-                self.goal = goal if goal is not None else self.task.sample_goal(
-                    self.np_random, np.zeros(2))
+                start = (0.0, 0.0, 0.0)
+                if self.randomization is not None:
+                    self._draw = self.randomization.apply(self.np_random, self.sim, self.robot)
+                    start = self._draw.start_pose
+                self.robot.spawn(*start)
+                self.goal = goal
                 self._build_world()
                 self._prev_action = np.zeros(2, dtype=np.float32)
                 pose = self.robot.pose()
@@ -447,7 +463,7 @@ class SmartCarEnv(gym.Env):
 
     def _info(self, pose: Pose2D, success: bool) -> dict[str, Any]:
         odom = self.robot.odometry
-        return {
+        info = {
             "is_success": success,
             "distance": self._distance,
             "pose": np.array([pose.x, pose.y, pose.yaw]),
@@ -455,6 +471,9 @@ class SmartCarEnv(gym.Env):
             "odom_pose": np.array([odom.x, odom.y, math.remainder(odom.theta, 2 * math.pi)]),
             "odom_error": math.hypot(odom.x - pose.x, odom.y - pose.y),
         }
+        if self._draw is not None:
+            info["randomization"] = self._draw.info
+        return info
 
 
 def _doc_table() -> str:

@@ -27,6 +27,8 @@ from smartcar_gym.controller import (
     MotorOutput,
     Odometry,
 )
+from smartcar_gym.controller.latency import CommandDelay
+from smartcar_gym.envs.robots.variation import Variation
 from smartcar_gym.model import ModelError, RobotModel, Wheel
 from smartcar_gym.model.contact import WheelContact, simulated_urdf
 from smartcar_gym.sim.body import BASE, Body
@@ -80,7 +82,8 @@ class SmartCarRobot:
             model's own wheel collision shapes); see ``smartcar_gym.model.contact``.
 
     Use: ``spawn`` into a freshly reset world, then ``cmd_vel`` and ``sim.run_until``; read
-    ``odometry``, ``joint_states()`` and ``pose()``.
+    ``odometry``, ``joint_states()`` and ``pose()``. ``vary`` before ``spawn`` makes the robot
+    differ from its model and YAML (domain randomisation).
     """
 
     def __init__(
@@ -132,6 +135,32 @@ class SmartCarRobot:
         self._next_update_ns = 0
         self._last_update_ns = 0
         self._kinematic_pose = (0.0, 0.0, 0.0)
+        #: the plant of the next spawn (None: the model and YAML as written); see ``vary``
+        self.variation: Variation | None = None
+        self._nominal = (config, self._urdf, self.spawn_z)
+        self._delay: CommandDelay | None = None
+
+    def vary(self, variation: Variation | None) -> None:
+        """Make the next ``spawn`` build this plant; None: the model and YAML as written.
+
+        ``config`` and ``base`` become the emulation's (true motor, effective track), the
+        wheels are resized, and encoders, command latency, masses and wheel friction follow
+        ``variation`` until the next call.
+        """
+        config, urdf, spawn_z = self._nominal
+        self._delay = None
+        if variation is not None:
+            config = variation.config(config)
+            urdf = variation.urdf(urdf, self.model)
+            spawn_z = variation.spawn_height(self.wheels)
+            if variation.latency:
+                self._delay = CommandDelay(variation.latency, self.update_period_ns)
+        self.variation = variation
+        self.config, self._urdf, self.spawn_z = config, urdf, spawn_z
+        self.base = ArbotixBase(config, self.mode, self.model.wheel_radius_m, drive=self)
+        if variation is not None:
+            self.base.encoders = variation.encoders(self.model.wheel_radius_m,
+                                                    config.ticks_meter)
 
     @property
     def wheel_joint_indices(self) -> list[int]:
@@ -172,6 +201,8 @@ class SmartCarRobot:
         self.body = body
         self._wheel_idx = [body.joint_index(w.joint) for w in self.wheels]
         self._encoder_idx = [body.joint_index(w.joint) for w in self.encoder_wheels]
+        if self.variation is not None:
+            self.variation.apply_to_body(body, self._wheel_idx)
         # pybullet's velocity motor on each wheel, held at speed 0 with at most the gearbox's
         # friction torque, is the gearbox's Coulomb friction; the DC motors add their torque.
         body.set_velocity_motors(
@@ -196,6 +227,8 @@ class SmartCarRobot:
         if not self.kinematic and settle_s > 0:
             sim.settle(settle_s)
         self.base.reset(sim.time_s)
+        if self._delay is not None:
+            self._delay.clear()
         self._last_update_ns = sim.now_ns
         self._next_update_ns = sim.now_ns + self.update_period_ns
         sim.add_event_source(self)
@@ -211,7 +244,11 @@ class SmartCarRobot:
 
     # -- commands ------------------------------------------------------------------------------
     def cmd_vel(self, linear_x: float, angular_z: float) -> None:
-        """A ``geometry_msgs/Twist`` on ``cmd_vel`` now (m/s, rad/s); acts at the next update."""
+        """A ``geometry_msgs/Twist`` on ``cmd_vel`` now (m/s, rad/s); acts at the next update
+        (or ``latency`` updates later, see ``vary``)."""
+        if self._delay is not None:
+            self._delay.publish(linear_x, angular_z, self.sim.now_ns)
+            return
         self.base.cmd_vel(linear_x, angular_z, self.sim.time_s)
 
     # -- EventSource: the controller's updates and the board's PID frames ----------------------
@@ -230,6 +267,9 @@ class SmartCarRobot:
             if self.kinematic:
                 self._move_kinematically((now_ns - self._last_update_ns) / NS_PER_S)
             self.base.update(now_s)
+            if self._delay is not None:  # messages that arrive now act at the next update
+                for linear_x, angular_z in self._delay.arrivals(now_ns):
+                    self.base.cmd_vel(linear_x, angular_z, now_s)
             self._last_update_ns = now_ns
             self._next_update_ns += self.update_period_ns
         self.base.board_tick(now_s)

@@ -255,3 +255,25 @@ def test_copies_get_their_own_world(env):
             assert clone.sim is not env.unwrapped.sim
         finally:
             clone.close()
+
+
+def test_nav_runs_the_calibrated_yaml_which_differs_from_the_tutorials_in_base_width_only():
+    import dataclasses
+
+    from smartcar_gym.controller import load_controller_config
+    from smartcar_gym.controller.config_yaml import calibrated_config_path, default_config_path
+
+    calibrated = load_controller_config(calibrated_config_path())
+    tutorial = load_controller_config(default_config_path())
+    assert (calibrated.base_width_m, tutorial.base_width_m) == (0.33, 0.26)
+    assert dataclasses.replace(calibrated, base_width_m=0.26, source=tutorial.source) == tutorial
+    env = gym.make("SmartCarNav-v0", obstacles=0)
+    try:
+        assert env.unwrapped.controller_config == calibrated
+    finally:
+        env.close()
+    env = gym.make("SmartCarNav-v0", obstacles=0, controller_config=default_config_path())
+    try:
+        assert env.unwrapped.controller_config.base_width_m == 0.26
+    finally:
+        env.close()

@@ -27,7 +27,8 @@ def test_a_directory_is_named_as_one_with_the_descriptions_it_holds() -> None:
         load_model(package)
     assert str(info.value) == (
         f"{package} is a directory, not a robot description; expected {EXPECTED}; it holds "
-        "urdf/gazebo.urdf.xacro, urdf/smartcar.urdf.xacro, urdf/smartcar_body.urdf.xacro")
+        "urdf/gazebo.urdf.xacro, urdf/laser.urdf.xacro, urdf/smartcar.urdf.xacro, "
+        "urdf/smartcar_body.urdf.xacro")
 
 
 def test_a_directory_without_descriptions_says_so(tmp_path: Path) -> None:

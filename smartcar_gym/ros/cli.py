@@ -3,7 +3,7 @@
 ::
 
     smartcar-ros bringup [--model URDF|XACRO] [--controller-config YAML] [--speed N]
-    smartcar-ros policy (--pretrained | --model ZIP) [--vecnormalize FILE]
+    smartcar-ros policy (--pretrained [NAME] | --model ZIP) [--vecnormalize FILE]
     smartcar-ros package        # the ROS package folder, for ROS_PACKAGE_PATH
 
 Arguments with ``:=`` are ROS's (``__name:=``, remappings, ``_param:=value``) and go to rospy,
@@ -24,6 +24,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from smartcar_gym.agents.model_files import PRETRAINED_POLICIES
 from smartcar_gym.ros.debian import RosUnavailable, import_ros
 from smartcar_gym.ros.driving import STOP_ON
 from smartcar_gym.ros.package import package_folder
@@ -83,7 +84,10 @@ def build_parser() -> argparse.ArgumentParser:
     source = policy.add_mutually_exclusive_group(required=True)
     source.add_argument("--model", type=Path, help="a model .zip, or a run folder of "
                         "smartcar-train or rl-baselines3-zoo")
-    source.add_argument("--pretrained", action="store_true", help="the shipped policy")
+    source.add_argument("--pretrained", nargs="?", const="default", metavar="NAME",
+                        choices=tuple(PRETRAINED_POLICIES), help="a policy shipped with the "
+                        "package: default (the one --pretrained alone names) or another of "
+                        f"{', '.join(PRETRAINED_POLICIES)}")
     policy.add_argument("--algo", help="algorithm of --model (default: from its run)")
     policy.add_argument("--env", dest="env_id", help="the env the policy was trained in "
                         "(default: the run's, else SmartCar-v0)")

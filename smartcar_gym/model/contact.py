@@ -10,7 +10,9 @@ same radius at the same place; ``"urdf"`` keeps the model's shapes as written.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from typing import Literal
+from xml.etree import ElementTree
 
 from smartcar_gym.model.loader import RobotModel
 from smartcar_gym.model.urdf import parse_xml, serialize_xml
@@ -37,19 +39,26 @@ def simulated_urdf(model: RobotModel, wheel_contact: WheelContact = "sphere") ->
     if wheel_contact == "urdf":
         return model.urdf
     root = parse_xml(model.urdf, str(model.source))
-    wheel_links = {w.link for w in model.wheels}
     changed = False
+    for shape in round_wheel_shapes(root, model):
+        if shape.tag == "cylinder":
+            shape.tag = "sphere"
+            shape.attrib = {"radius": shape.get("radius", "")}
+            changed = True
+    return serialize_xml(root) if changed else model.urdf
+
+
+def round_wheel_shapes(root: ElementTree.Element,
+                       model: RobotModel) -> Iterator[ElementTree.Element]:
+    """In each drive wheel link of the parsed URDF ``root``, the shape element (``cylinder`` or
+    ``sphere``) of its first round ``<collision>``: the one that gives the wheel its radius."""
+    wheel_links = {w.link for w in model.wheels}
     for link in root.findall("link"):
         if link.get("name") not in wheel_links:
             continue
         for collision in link.findall("collision"):
             geometry = collision.find("geometry")
             shape = None if geometry is None else next(iter(geometry), None)
-            if shape is None or shape.tag not in ("cylinder", "sphere"):
-                continue
-            if shape.tag == "cylinder":
-                shape.tag = "sphere"
-                shape.attrib = {"radius": shape.get("radius", "")}
-                changed = True
-            break
-    return serialize_xml(root) if changed else model.urdf
+            if shape is not None and shape.tag in ("cylinder", "sphere"):
+                yield shape
+                break

@@ -22,6 +22,7 @@ import numpy as np
 from smartcar_gym.controller import ArbotixConfig
 from smartcar_gym.controller.encoder_faults import FaultyEncoder
 from smartcar_gym.model import RobotModel, Wheel
+from smartcar_gym.model.contact import round_wheel_shapes
 from smartcar_gym.model.urdf import parse_xml, serialize_xml
 from smartcar_gym.sim.body import BASE, Body
 from smartcar_gym.sim.dynamics import scale_lateral_friction, scale_mass
@@ -112,17 +113,8 @@ class Variation:
         if self.wheel_radius == 1.0:
             return text
         root = parse_xml(text, str(model.source))
-        wheel_links = {w.link for w in model.wheels}
-        for link in root.findall("link"):
-            if link.get("name") not in wheel_links:
-                continue
-            for collision in link.findall("collision"):
-                geometry = collision.find("geometry")
-                shape = None if geometry is None else next(iter(geometry), None)
-                if shape is not None and shape.tag in ("cylinder", "sphere"):
-                    radius = float(shape.get("radius")) * self.wheel_radius
-                    shape.set("radius", repr(radius))
-                    break
+        for shape in round_wheel_shapes(root, model):
+            shape.set("radius", repr(float(shape.get("radius")) * self.wheel_radius))
         return serialize_xml(root)
 
     def spawn_height(self, wheels: Sequence[Wheel]) -> float:

@@ -160,7 +160,7 @@ def test_summary_and_trajectory_plot(tmp_path):
 @pytest.mark.parametrize("n", [1, 2, 4, 16])
 def test_trajectory_plot_has_room_for_its_title_and_legend(n, tmp_path):
     """One 3-inch panel (270 px) could show neither the six-entry legend nor a long title."""
-    title = "ppo_smartcar.zip on SmartCar-v0: 100% success over 100 episodes (first 16 shown)"
+    title = "policy.zip on SmartCar-v0: 100% success over 100 episodes (first 16 shown)"
     out = plot_trajectories([_record(i, i % 2 == 0, 20) for i in range(n)],
                             tmp_path / "paths.png", title=title)
     height, width = iio.imread(out).shape[:2]
@@ -186,15 +186,15 @@ def test_model_files_are_found_next_to_the_model(tiny_run):
 def test_export_packages_a_run_that_smartcar_eval_can_load(tiny_run, tmp_path, capsys):
     provenance = export_run(tiny_run, tmp_path / "pretrained", episodes=2)
     names = sorted(p.name for p in (tmp_path / "pretrained").iterdir())
-    assert names == ["ppo_smartcar.zip", "provenance.json", "vecnormalize.pkl"]
-    assert (tmp_path / "pretrained" / "ppo_smartcar.zip").stat().st_size < 1_000_000
+    assert names == ["policy.zip", "provenance.json", "vecnormalize.pkl"]
+    assert (tmp_path / "pretrained" / "policy.zip").stat().st_size < 1_000_000
     for key in ("command", "seed", "timesteps", "wall_time_s", "evaluation"):
         assert provenance[key] is not None
     assert provenance["evaluation"]["episodes"] == 2
     assert 0.0 <= provenance["evaluation"]["success_rate"] <= 1.0
     assert provenance["selected_by_eval"] is None  # model.zip: the last one, not a selection
     # algo and env kwargs come from provenance.json beside the model
-    argv = ["--model", str(tmp_path / "pretrained" / "ppo_smartcar.zip"), "--episodes", "1",
+    argv = ["--model", str(tmp_path / "pretrained" / "policy.zip"), "--episodes", "1",
             "--no-progress", "--json", str(tmp_path / "e.json")]
     assert evaluate.main(argv) == 0
     data = json.loads((tmp_path / "e.json").read_text())

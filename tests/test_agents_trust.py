@@ -121,7 +121,7 @@ def fake_package(tiny_run, tmp_path, monkeypatch):
     marker = tmp_path / "code-ran"
     folder = tmp_path / "smartcar_gym" / "pretrained"
     folder.mkdir(parents=True)
-    shutil.copyfile(tiny_run / "model.zip", folder / "ppo_smartcar.zip")
+    shutil.copyfile(tiny_run / "model.zip", folder / "policy.zip")
     shutil.copyfile(tiny_run / "vecnormalize.pkl", folder / "vecnormalize.pkl")
     shipped = resources.files("smartcar_gym") / "pretrained" / "provenance.json"
     provenance = {**json.loads(shipped.read_text()), "env_kwargs": {"max_episode_steps": 30}}

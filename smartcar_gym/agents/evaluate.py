@@ -80,8 +80,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "normaliser are found from the folder's layout")
     source.add_argument("--pretrained", nargs="?", const="default", metavar="NAME",
                         choices=tuple(PRETRAINED_POLICIES), help="a policy shipped with the "
-                        "package: default (the one --pretrained alone names) or robust "
-                        "(trained with randomize=default)")
+                        "package: default (the one --pretrained alone names), robust "
+                        "(trained with randomize=default) or nav (SAC on SmartCarNav-v0)")
     source.add_argument("--random", action="store_true", help="uniform random actions, seeded "
                         "with --seed (a baseline)")
     parser.add_argument("--algo", choices=ALGOS, help="algorithm of --model (default: from the "

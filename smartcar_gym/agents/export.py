@@ -5,7 +5,7 @@
     python -m smartcar_gym.agents.export runs/ppo_SmartCar-v0_s0 --episodes 100 --n-envs 2
 
 copies ``model.zip`` and ``vecnormalize.pkl`` of the run to ``smartcar_gym/pretrained/`` as
-``ppo_smartcar.zip`` and ``vecnormalize.pkl``, evaluates it on seeded episodes and writes
+``policy.zip`` and ``vecnormalize.pkl``, evaluates it on seeded episodes and writes
 ``provenance.json``: the training command, seed, steps, wall time and the success rate.
 """
 

@@ -7,7 +7,7 @@ normaliser is only taken from a place whose layout says which file belongs to th
   ``vecnormalize.pkl``, ``best_model.zip`` with ``best_model_vecnormalize.pkl``,
   ``checkpoints/ckpt_<n>_steps.zip`` with ``ckpt_<n>_steps_vecnormalize.pkl``;
 * a policy exported by ``smartcar_gym.agents.export`` (the shipped one included):
-  ``ppo_smartcar.zip`` with ``vecnormalize.pkl`` and ``provenance.json``;
+  ``policy.zip`` with ``vecnormalize.pkl`` and ``provenance.json``;
 * an rl-baselines3-zoo run folder: ``<env>/vecnormalize.pkl`` when ``<env>/config.yml`` says
   ``normalize`` (see ``zoo_folder``).
 
@@ -32,10 +32,10 @@ import yaml
 from smartcar_gym.agents.hyperparams import HyperparamsError, normalize_kwargs
 from smartcar_gym.agents.zoo_folder import read_zoo_run
 
-PRETRAINED_MODEL = "ppo_smartcar.zip"
+PRETRAINED_MODEL = "policy.zip"
 #: the shipped policies: name -> folder under smartcar_gym/pretrained ("": the folder itself);
 #: ``robust`` was trained with ``randomize="default"`` (docs/sim2real.md)
-PRETRAINED_POLICIES = {"default": "", "robust": "robust"}
+PRETRAINED_POLICIES = {"default": "", "robust": "robust", "nav": "nav"}
 # What smartcar_gym.agents.export writes in provenance.json (the keys that identify it).
 PROVENANCE_KEYS = ("algo", "env", "source", "evaluation", "exported")
 # Places of a model (ModelFiles.place).
@@ -185,7 +185,7 @@ def _final_model(folder: Path) -> Path:
 
 def shipped_model(folder: str | os.PathLike) -> ModelFiles:
     """The shipped policy in the package folder ``folder`` (see ``pretrained_files``): only
-    that folder's ``ppo_smartcar.zip``, ``vecnormalize.pkl`` and ``provenance.json`` are read."""
+    that folder's ``policy.zip``, ``vecnormalize.pkl`` and ``provenance.json`` are read."""
     folder = Path(folder)
     provenance = _provenance(folder) or {}
     return _exported(folder / PRETRAINED_MODEL, provenance, SHIPPED)
@@ -205,7 +205,7 @@ def find_vecnormalize(model_path: str | os.PathLike) -> Path | None:
 
 @contextlib.contextmanager
 def pretrained_files(name: str = "default") -> Iterator[Path]:
-    """The folder of a shipped policy (``ppo_smartcar.zip``, ``vecnormalize.pkl``, provenance):
+    """The folder of a shipped policy (``policy.zip``, ``vecnormalize.pkl``, provenance):
     ``default`` or another of ``PRETRAINED_POLICIES``."""
     if name not in PRETRAINED_POLICIES:
         raise FileNotFoundError(f"no shipped policy {name!r}; shipped: "

@@ -1,0 +1,56 @@
+"""The SmartCarNav-v0 policy shipped in the package (SAC, sac.yaml's entry)."""
+
+from __future__ import annotations
+
+import json
+from importlib import resources
+
+import pytest
+
+from smartcar_gym.agents import evaluate
+from smartcar_gym.agents.evaluate import (
+    PRETRAINED_MODEL,
+    evaluate_policy_episodes,
+    load_model,
+    summarize,
+)
+
+FOLDER = resources.files("smartcar_gym") / "pretrained" / "nav"
+MIN_SUCCESS = 0.8  # measured: docs/tasks.md (100 episodes); 32 episodes vary by about 5 points
+
+
+def _provenance() -> dict:
+    return json.loads((FOLDER / "provenance.json").read_text())
+
+
+def test_the_nav_policy_is_shipped_with_its_provenance():
+    for name in (PRETRAINED_MODEL, "vecnormalize.pkl", "provenance.json"):
+        assert (FOLDER / name).is_file(), name
+    assert (FOLDER / PRETRAINED_MODEL).stat().st_size < 1_500_000  # SAC keeps its critics
+    provenance = _provenance()
+    assert (provenance["algo"], provenance["env"]) == ("sac", "SmartCarNav-v0")
+    assert provenance["evaluation"]["command"].startswith("smartcar-eval --pretrained nav")
+    assert provenance["evaluation"]["episodes"] == 100
+    assert provenance["evaluation"]["success_rate"] >= 0.85
+
+
+def test_smartcar_eval_pretrained_nav_runs_on_its_env(tmp_path):
+    out = tmp_path / "eval.json"
+    code = evaluate.main(["--pretrained", "nav", "--episodes", "2", "--no-progress",
+                          "--json", str(out)])
+    assert code == 0
+    data = json.loads(out.read_text())
+    assert (data["model"], data["env"]) == (f"pretrained:nav/{PRETRAINED_MODEL}",
+                                            "SmartCarNav-v0")
+    assert data["normalizer"].endswith("pretrained/nav/vecnormalize.pkl")
+
+
+@pytest.mark.slow
+def test_the_nav_policy_reaches_goals_among_obstacles():
+    provenance = _provenance()
+    with resources.as_file(FOLDER) as folder:
+        model = load_model(folder / PRETRAINED_MODEL, provenance["algo"])
+        records = evaluate_policy_episodes(
+            model, provenance["env"], n_episodes=32, n_envs=2, seed=0,
+            vecnormalize_path=folder / "vecnormalize.pkl")
+    assert summarize(records)["success_rate"] >= MIN_SUCCESS

@@ -6,14 +6,10 @@ import json
 from importlib import resources
 
 import pytest
+from shipped_policies import evaluate_shipped
 
 from smartcar_gym.agents import evaluate
-from smartcar_gym.agents.evaluate import (
-    PRETRAINED_MODEL,
-    evaluate_policy_episodes,
-    load_model,
-    summarize,
-)
+from smartcar_gym.agents.evaluate import PRETRAINED_MODEL
 
 FOLDER = resources.files("smartcar_gym") / "pretrained" / "nav"
 MIN_SUCCESS = 0.8  # measured: docs/tasks.md (100 episodes); 32 episodes vary by about 5 points
@@ -47,10 +43,5 @@ def test_smartcar_eval_pretrained_nav_runs_on_its_env(tmp_path):
 
 @pytest.mark.slow
 def test_the_nav_policy_reaches_goals_among_obstacles():
-    provenance = _provenance()
-    with resources.as_file(FOLDER) as folder:
-        model = load_model(folder / PRETRAINED_MODEL, provenance["algo"])
-        records = evaluate_policy_episodes(
-            model, provenance["env"], n_episodes=32, n_envs=2, seed=0,
-            vecnormalize_path=folder / "vecnormalize.pkl")
-    assert summarize(records)["success_rate"] >= MIN_SUCCESS
+    summary, _ = evaluate_shipped("nav", n_episodes=32, n_envs=2)
+    assert summary["success_rate"] >= MIN_SUCCESS

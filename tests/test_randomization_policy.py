@@ -6,14 +6,10 @@ import json
 from importlib import resources
 
 import pytest
+from shipped_policies import evaluate_shipped
 
 from smartcar_gym.agents import evaluate
-from smartcar_gym.agents.evaluate import (
-    PRETRAINED_MODEL,
-    evaluate_policy_episodes,
-    load_model,
-    summarize,
-)
+from smartcar_gym.agents.evaluate import PRETRAINED_MODEL
 
 FOLDER = resources.files("smartcar_gym") / "pretrained" / "robust"
 MIN_NOMINAL_SUCCESS = 0.9  # measured: 96 % over 100 episodes (docs/sim2real.md)
@@ -45,10 +41,5 @@ def test_smartcar_eval_pretrained_robust_loads_its_own_files(tmp_path, capsys):
 
 @pytest.mark.slow
 def test_the_robust_policy_reaches_nominal_goals():
-    provenance = _provenance()
-    with resources.as_file(FOLDER) as folder:
-        model = load_model(folder / PRETRAINED_MODEL, provenance["algo"])
-        records = evaluate_policy_episodes(
-            model, provenance["env"], n_episodes=32, n_envs=2, seed=0,
-            vecnormalize_path=folder / "vecnormalize.pkl")
-    assert summarize(records)["success_rate"] >= MIN_NOMINAL_SUCCESS
+    summary, _ = evaluate_shipped("robust", n_episodes=32, n_envs=2)
+    assert summary["success_rate"] >= MIN_NOMINAL_SUCCESS

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import signal
 from collections.abc import Iterator
 
 import pytest
@@ -34,3 +35,18 @@ def hardware_robot(sim, shipped_model, shipped_config) -> SmartCarRobot:
     robot = SmartCarRobot(sim, shipped_model, shipped_config, mode="hardware")
     robot.spawn()
     return robot
+
+
+@pytest.fixture
+def hard_timeout():
+    """``hard_timeout(seconds)``: fail (instead of hanging) if the test runs longer (Ray tests)."""
+    def arm(seconds: int) -> None:
+        def fire(signum, frame):
+            raise TimeoutError(f"still running after {seconds} s: Ray is waiting for something")
+
+        signal.signal(signal.SIGALRM, fire)
+        signal.alarm(seconds)
+
+    yield arm
+    signal.alarm(0)
+    signal.signal(signal.SIGALRM, signal.SIG_DFL)

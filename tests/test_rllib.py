@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import json
 import os
-import signal
 from pathlib import Path
 
 import numpy as np
@@ -35,21 +34,6 @@ def ray_head():
     ray.init(address="local", num_cpus=2, include_dashboard=False, log_to_driver=False)
     yield ray
     ray.shutdown()
-
-
-@pytest.fixture
-def hard_timeout():
-    """Fail (instead of hanging) if the test runs longer than the given seconds."""
-    def arm(seconds: int) -> None:
-        def fire(signum, frame):
-            raise TimeoutError(f"still running after {seconds} s: Ray is waiting for something")
-
-        signal.signal(signal.SIGALRM, fire)
-        signal.alarm(seconds)
-
-    yield arm
-    signal.alarm(0)
-    signal.signal(signal.SIGALRM, signal.SIG_DFL)
 
 
 def test_more_env_runners_than_cpus_is_refused_at_once(ray_head, hard_timeout):

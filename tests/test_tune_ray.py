@@ -33,21 +33,6 @@ def no_auth_token(monkeypatch):
     monkeypatch.setenv("RAY_AUTH_MODE", "disabled")  # throwaway heads: no token under $HOME
 
 
-@pytest.fixture
-def hard_timeout():
-    """Fail (instead of hanging) if the test runs longer than the given seconds."""
-    def arm(seconds: int) -> None:
-        def fire(signum, frame):
-            raise TimeoutError(f"still running after {seconds} s: Ray is waiting for something")
-
-        signal.signal(signal.SIGALRM, fire)
-        signal.alarm(seconds)
-
-    yield arm
-    signal.alarm(0)
-    signal.signal(signal.SIGALRM, signal.SIG_DFL)
-
-
 def write_space(path: Path, **space) -> Path:
     path.write_text(yaml.safe_dump({"hyperparams": TINY, "eval_episodes": 1, **space}))
     return path

@@ -41,16 +41,9 @@ TOPICS = {  # topic (resolved, as rosbag record writes it) -> message type
 
 def missing_library() -> str | None:
     """What is missing to write bags (None if nothing is): one line naming the extra."""
-    import importlib.util
+    from smartcar_gym.agents import missing_modules
 
-    missing = []
-    for name in ("rosbags", "mcap"):
-        try:
-            found = importlib.util.find_spec(name) is not None
-        except (ImportError, ValueError):
-            found = False
-        if not found:
-            missing.append(name)
+    missing = missing_modules(("rosbags", "mcap"))
     if missing:
         return f"{', '.join(missing)} not installed; --bag needs the ros extra: {ROS_EXTRA}"
     return None

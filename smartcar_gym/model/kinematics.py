@@ -21,6 +21,16 @@ def rpy_matrix(rpy: Sequence[float]) -> np.ndarray:
     return rz @ ry @ rx
 
 
+def quaternion_matrix(quaternion: Sequence[float]) -> np.ndarray:
+    """The rotation matrix of an (x, y, z, w) unit quaternion (pybullet's and ROS's order)."""
+    x, y, z, w = quaternion
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+    ])
+
+
 def transform(origin: Origin) -> np.ndarray:
     """4x4 homogeneous transform of an ``<origin>``."""
     result = np.eye(4)

@@ -21,6 +21,7 @@ import numpy as np
 
 from smartcar_gym.controller import Odometry
 from smartcar_gym.envs.robots.smartcar import JointStates, pose_from
+from smartcar_gym.model.kinematics import quaternion_matrix
 
 NS_PER_S = 1_000_000_000
 ZERO_COVARIANCE = np.zeros(36)
@@ -122,7 +123,7 @@ def ground_truth_message(types: MessageTypes, pose: tuple[Sequence[float], Seque
     The robot starts at the world's origin, where the odometry starts too.
     """
     position, q = pose
-    rotation = _rotation(q).T  # world -> base link
+    rotation = quaternion_matrix(q).T  # world -> base link
     linear, angular = (rotation @ np.asarray(v, dtype=float) for v in velocity)
     body_pose = types("geometry_msgs/Pose",
                       position=types("geometry_msgs/Point", x=float(position[0]),
@@ -139,14 +140,6 @@ def ground_truth_message(types: MessageTypes, pose: tuple[Sequence[float], Seque
                     covariance=ZERO_COVARIANCE.copy()))
 
 
-def _rotation(q: Sequence[float]) -> np.ndarray:
-    """The rotation matrix of an (x, y, z, w) unit quaternion."""
-    x, y, z, w = q
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-    ])
 
 
 def joint_state_message(types: MessageTypes, states: JointStates, stamp_ns: int) -> Any:

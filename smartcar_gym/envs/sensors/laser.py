@@ -16,7 +16,7 @@ import numpy as np
 
 from smartcar_gym.envs.sensors.scan import LaserConfig, LaserScan
 from smartcar_gym.model import RobotModel
-from smartcar_gym.model.kinematics import link_frames
+from smartcar_gym.model.kinematics import link_frames, quaternion_matrix
 from smartcar_gym.model.urdf import UrdfRobot
 from smartcar_gym.sim.body import Body
 from smartcar_gym.sim.camera import BoxPart
@@ -62,13 +62,6 @@ def mount_from_model(model: RobotModel, link: str = "laser") -> np.ndarray | Non
     return link_frames(robot)[link]
 
 
-def _rotation(quaternion: Sequence[float]) -> np.ndarray:
-    x, y, z, w = quaternion
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-    ])
 
 
 class SimulatedLaser:
@@ -120,7 +113,7 @@ class SimulatedLaser:
         """Cast every beam now (one batch) and return the scan (ranges as REP 117 says)."""
         config = self.config
         position, orientation = self.body.link_pose()
-        rotation = _rotation(orientation)
+        rotation = quaternion_matrix(orientation)
         origin = np.asarray(position) + rotation @ self.mount[:3, 3]
         directions = self._directions @ rotation.T
         hits = cast_rays(self.sim, np.broadcast_to(origin, directions.shape),

@@ -43,6 +43,28 @@ def test_reward_hand_computed():
     np.testing.assert_allclose(batch, [0.99, -10.01])
 
 
+def test_step_outcome_is_the_pure_functions_bit_for_bit():
+    """``evaluate`` (the per-step path on floats) agrees exactly with the array functions."""
+    task = GoalReachingTask(goal_tolerance_m=0.1, arena_half_size_m=2.5)
+    rng = np.random.default_rng(3)
+    cases = 0
+    for _ in range(2000):
+        position = rng.uniform(-2.7, 2.7, 2)
+        goal = position + rng.normal(0.0, 0.2, 2) if rng.random() < 0.3 else rng.uniform(-2, 2, 2)
+        up_z = rng.choice([1.0, 0.7, 0.4])
+        action = rng.uniform(-1, 1, 2)
+        previous = float(rng.uniform(0, 3))
+        out = task.evaluate(previous, position, up_z, goal, action)
+        distance = task.distance(position, goal)
+        success = bool(task.is_success(distance))
+        failure = bool(task.is_failure(position, up_z))
+        reward = float(task.reward(previous, distance, action, success, failure))
+        assert (out.distance, out.success, out.failure, out.reward) == (
+            float(distance), success, failure, reward)
+        cases += success + 2 * failure
+    assert cases > 100  # successes and failures were both exercised
+
+
 @pytest.mark.parametrize(
     "kwargs, message",
     [

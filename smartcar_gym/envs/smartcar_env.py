@@ -434,6 +434,10 @@ class SmartCarEnv(gym.Env):
             raise ResetNeeded(f"SmartCarEnv: call reset() before {call}()")
 
     def _validate_action(self, action: Any) -> np.ndarray:
+        if type(action) is np.ndarray and action.shape == (2,) and action.dtype.kind == "f":
+            a0, a1 = float(action[0]), float(action[1])  # the usual case, in a few microseconds
+            if math.isfinite(a0) and math.isfinite(a1):
+                return np.array([min(max(a0, -1.0), 1.0), min(max(a1, -1.0), 1.0)])
         if np.iscomplexobj(action):
             raise ValueError(f"action must be real numbers, got {np.asarray(action).tolist()}")
         try:

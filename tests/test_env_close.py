@@ -84,14 +84,21 @@ def test_make_step_close_cycles_leak_no_client_and_little_memory():
 
 
 def test_resets_do_not_grow_memory():
-    """pybullet's file cache kept every spawned URDF (a new temporary path each reset)."""
+    """pybullet's file cache kept every spawned URDF (a new temporary path each reset).
+
+    A leak grows every window of resets; the heap may grow once (by ~2 MB, depending on
+    what the process did before), so the smaller of two windows is what is held.
+    """
     env = gym.make("SmartCar-v0")
     env.reset(seed=0)
     for _ in range(100):
         env.reset()
-    before = _rss_mb()
-    for _ in range(600):
-        env.reset()
-    grown = _rss_mb() - before
+    growth = []
+    for _ in range(2):
+        before = _rss_mb()
+        for _ in range(600):
+            env.reset()
+        growth.append(_rss_mb() - before)
     env.close()
-    assert grown < 1.5, f"{grown:.1f} MB more after 600 resets (3.5 MB with the file cache)"
+    assert min(growth) < 1.5, (
+        f"{growth} MB more after each 600 resets (3.5 MB with the file cache)")

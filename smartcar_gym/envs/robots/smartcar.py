@@ -12,7 +12,6 @@ commanded twist and no physics is stepped.
 from __future__ import annotations
 
 import math
-import tempfile
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -194,10 +193,9 @@ class SmartCarRobot:
         t = 0 with its odometry origin at the robot's pose; it fires first at t = 1 / rate.
         """
         sim = self.sim
-        with tempfile.TemporaryDirectory(prefix="smartcar_gym_") as tmp:
-            # pybullet parses the file while loading it: nothing needs to outlive this block
-            urdf_path = self.model.write_urdf(tmp, self._urdf)
-            body = sim.load_urdf(self.name, urdf_path, (x, y, self.spawn_z), yaw)
+        # pybullet parses the file while loading it; the next spawn overwrites it
+        urdf_path = self.model.write_urdf(sim.scratch_dir, self._urdf)
+        body = sim.load_urdf(self.name, urdf_path, (x, y, self.spawn_z), yaw)
         self.body = body
         self._wheel_idx = [body.joint_index(w.joint) for w in self.wheels]
         self._encoder_idx = [body.joint_index(w.joint) for w in self.encoder_wheels]

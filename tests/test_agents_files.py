@@ -86,7 +86,7 @@ def test_train_argument_errors_exit_2_with_a_clear_message(argv, message, capsys
 @pytest.mark.parametrize(("freq", "start", "schedule"), [
     (20_000, 0, [20_000, 40_000, 60_000]),
     (20_000, 40_000, [40_000, 60_000, 80_000]),  # a multiple: evaluated there
-    (20_000, 149_504, [160_000, 180_000, 200_000]),  # half of the default 299,008 steps
+    (20_000, 124_928, [140_000, 160_000, 180_000]),  # half of the default 249,856 steps
     (256, 256, [256, 512, 768]),
 ])
 def test_evaluations_run_at_multiples_of_eval_freq_from_eval_start(freq, start, schedule):

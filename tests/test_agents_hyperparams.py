@@ -33,11 +33,12 @@ def test_ppo_defaults_are_the_documented_ones():
     hp = load_hyperparams("ppo", "SmartCar-v0")
     assert hp["normalize"] is True
     assert (hp["n_envs"], hp["n_steps"], hp["batch_size"]) == (8, 256, 256)
-    assert (hp["n_epochs"], hp["gamma"], hp["gae_lambda"]) == (20, 0.99, 0.95)
+    assert (hp["n_epochs"], hp["gamma"], hp["gae_lambda"]) == (10, 0.98, 0.95)
+    assert hp["learning_rate"] == 6e-4
     assert parse_policy_kwargs(hp["policy_kwargs"]) == {"net_arch": [64, 64], "log_std_init": -1.0}
-    # PPO finishes whole rollouts of n_steps * n_envs = 2048 steps: 299,008 is 146 of them, so
+    # PPO finishes whole rollouts of n_steps * n_envs = 2048 steps: 249,856 is 122 of them, so
     # a default run stops exactly there (a budget between two multiples would run past it)
-    assert hp["n_timesteps"] == 299_008 == 146 * hp["n_steps"] * hp["n_envs"]
+    assert hp["n_timesteps"] == 249_856 == 122 * hp["n_steps"] * hp["n_envs"]
 
 
 def test_missing_env_id_names_the_file_and_the_ids_it_has():

@@ -3,7 +3,7 @@
     python benchmarks/train_speed.py [--timesteps 16384] [--rounds 3] [--baseline-ref 1103dff]
 
 Each round runs ``smartcar-train`` with the shipped PPO defaults (8 subprocess envs, 2048 steps
-per update, 20 epochs) for ``--timesteps`` steps without evaluations or checkpoints, once with
+per update; its own epochs) for ``--timesteps`` steps without evaluations or checkpoints, once with
 the round-1 code (fixed 2 ms stepping, extracted with ``git archive``) and once with this
 checkout, in turn. It reports the training steps/s of each (from ``summary.json``: rollouts and
 PPO updates) and their ratio, median over rounds. The machine's speed drifts by up to a half,

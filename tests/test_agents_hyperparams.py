@@ -34,7 +34,7 @@ def test_ppo_defaults_are_the_documented_ones():
     assert hp["normalize"] is True
     assert (hp["n_envs"], hp["n_steps"], hp["batch_size"]) == (8, 256, 256)
     assert (hp["n_epochs"], hp["gamma"], hp["gae_lambda"]) == (10, 0.98, 0.95)
-    assert hp["learning_rate"] == 6e-4
+    assert hp["learning_rate"] == "lin_1e-3"  # zoo's linear decay from 1e-3 to 0
     assert parse_policy_kwargs(hp["policy_kwargs"]) == {"net_arch": [64, 64], "log_std_init": -1.0}
     # PPO finishes whole rollouts of n_steps * n_envs = 2048 steps: 249,856 is 122 of them, so
     # a default run stops exactly there (a budget between two multiples would run past it)

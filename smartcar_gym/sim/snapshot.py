@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import os
-import tempfile
 from pathlib import Path
 
 import imageio.v3 as iio
@@ -26,9 +25,8 @@ def render_image(model: RobotModel, *, width: int = 640, height: int = 480,
     """
     sim = Simulator(max_substep_s=SETTLE_SUBSTEP_S)
     try:
-        with tempfile.TemporaryDirectory() as tmp:
-            spawn_z = max((w.radius_m - w.position_m[2] for w in model.wheels), default=0.0)
-            body = sim.load_urdf("robot", model.write_urdf(tmp), (0.0, 0.0, spawn_z))
+        spawn_z = max((w.radius_m - w.position_m[2] for w in model.wheels), default=0.0)
+        body = sim.load_urdf("robot", model.write_urdf(sim.scratch_dir), (0.0, 0.0, spawn_z))
         if settle_s > 0:
             sim.settle(settle_s)
         return model_image(sim.client, body.uid, width, height, yaw_deg, pitch_deg)

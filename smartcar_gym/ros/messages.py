@@ -140,8 +140,6 @@ def ground_truth_message(types: MessageTypes, pose: tuple[Sequence[float], Seque
                     covariance=ZERO_COVARIANCE.copy()))
 
 
-
-
 def joint_state_message(types: MessageTypes, states: JointStates, stamp_ns: int) -> Any:
     """``sensor_msgs/JointState`` of the wheel joints (rad, rad/s, N m)."""
     return types("sensor_msgs/JointState", header=header(types, stamp_ns, ""),

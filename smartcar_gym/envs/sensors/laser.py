@@ -62,8 +62,6 @@ def mount_from_model(model: RobotModel, link: str = "laser") -> np.ndarray | Non
     return link_frames(robot)[link]
 
 
-
-
 class SimulatedLaser:
     """A ``LaserConfig`` scanner fixed to a robot body by ``mount`` (base_link -> laser, 4x4).
 

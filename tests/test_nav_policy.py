@@ -3,27 +3,23 @@
 from __future__ import annotations
 
 import json
-from importlib import resources
 
 import pytest
-from shipped_policies import evaluate_shipped
+import shipped_policies as shipped
 
 from smartcar_gym.agents import evaluate
 from smartcar_gym.agents.evaluate import PRETRAINED_MODEL
 
-FOLDER = resources.files("smartcar_gym") / "pretrained" / "nav"
+NAME = "nav"
+FOLDER = shipped.folder(NAME)
 MIN_SUCCESS = 0.8  # measured: docs/tasks.md (100 episodes); 32 episodes vary by about 5 points
-
-
-def _provenance() -> dict:
-    return json.loads((FOLDER / "provenance.json").read_text())
 
 
 def test_the_nav_policy_is_shipped_with_its_provenance():
     for name in (PRETRAINED_MODEL, "vecnormalize.pkl", "provenance.json"):
         assert (FOLDER / name).is_file(), name
     assert (FOLDER / PRETRAINED_MODEL).stat().st_size < 1_500_000  # SAC keeps its critics
-    provenance = _provenance()
+    provenance = shipped.provenance(NAME)
     assert (provenance["algo"], provenance["env"]) == ("sac", "SmartCarNav-v0")
     assert provenance["evaluation"]["command"].startswith("smartcar-eval --pretrained nav")
     assert provenance["evaluation"]["episodes"] == 100
@@ -43,5 +39,5 @@ def test_smartcar_eval_pretrained_nav_runs_on_its_env(tmp_path):
 
 @pytest.mark.slow
 def test_the_nav_policy_reaches_goals_among_obstacles():
-    summary, _ = evaluate_shipped("nav", n_episodes=32, n_envs=2)
+    summary, _ = shipped.evaluate_shipped(NAME, n_episodes=32, n_envs=2)
     assert summary["success_rate"] >= MIN_SUCCESS

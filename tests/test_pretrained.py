@@ -5,24 +5,14 @@ with the commands in the README ("Training"): ``smartcar-train`` with the shippe
 then ``python -m smartcar_gym.agents.export runs/ppo_SmartCar-v0_s0``.
 """
 
-import json
-from importlib import resources
-
 import pytest
+import shipped_policies as shipped
 
-from smartcar_gym.agents.evaluate import (
-    PRETRAINED_MODEL,
-    evaluate_policy_episodes,
-    load_model,
-    summarize,
-)
+from smartcar_gym.agents.evaluate import PRETRAINED_MODEL
 
-FOLDER = resources.files("smartcar_gym") / "pretrained"
+NAME = "default"
+FOLDER = shipped.folder(NAME)
 MIN_SUCCESS_RATE = 0.9
-
-
-def _provenance():
-    return json.loads((FOLDER / "provenance.json").read_text())
 
 
 def test_shipped_policy_is_in_the_package():
@@ -35,7 +25,7 @@ def test_shipped_policy_is_in_the_package():
 
 def test_shipped_policy_is_small_and_documented():
     assert (FOLDER / PRETRAINED_MODEL).stat().st_size < 1_000_000
-    provenance = _provenance()
+    provenance = shipped.provenance(NAME)
     for key in ("algo", "env", "command", "seed", "timesteps", "wall_time_s", "evaluation"):
         assert provenance.get(key) is not None, key
     assert provenance["evaluation"]["success_rate"] >= MIN_SUCCESS_RATE
@@ -43,16 +33,8 @@ def test_shipped_policy_is_small_and_documented():
 
 @pytest.mark.slow
 def test_shipped_policy_reaches_its_goals():
-    provenance = _provenance()
-    with resources.as_file(FOLDER) as folder:
-        model = load_model(folder / PRETRAINED_MODEL, provenance["algo"])
-        stats = folder / "vecnormalize.pkl"
-        records = evaluate_policy_episodes(
-            model, provenance["env"], n_episodes=64, n_envs=4, seed=0,
-            env_kwargs=provenance.get("env_kwargs") or {},
-            vecnormalize_path=stats if stats.is_file() else None,
-        )
-    summary = summarize(records)
+    summary, records = shipped.evaluate_shipped(
+        NAME, n_episodes=64, n_envs=4, env_kwargs=shipped.provenance(NAME).get("env_kwargs"))
     failures = [(r.seed, round(r.final_distance_m, 3)) for r in records if not r.success]
     assert summary["success_rate"] >= MIN_SUCCESS_RATE, (
         f"shipped policy: {summary['success_rate']:.1%} success over 64 episodes "

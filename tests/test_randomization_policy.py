@@ -3,26 +3,22 @@
 from __future__ import annotations
 
 import json
-from importlib import resources
 
 import pytest
-from shipped_policies import evaluate_shipped
+import shipped_policies as shipped
 
 from smartcar_gym.agents import evaluate
 from smartcar_gym.agents.evaluate import PRETRAINED_MODEL
 
-FOLDER = resources.files("smartcar_gym") / "pretrained" / "robust"
+NAME = "robust"
+FOLDER = shipped.folder(NAME)
 MIN_NOMINAL_SUCCESS = 0.9  # measured: 96 % over 100 episodes (docs/sim2real.md)
-
-
-def _provenance() -> dict:
-    return json.loads((FOLDER / "provenance.json").read_text())
 
 
 def test_the_robust_policy_is_shipped_with_its_provenance():
     for name in (PRETRAINED_MODEL, "vecnormalize.pkl", "provenance.json"):
         assert (FOLDER / name).is_file(), name
-    provenance = _provenance()
+    provenance = shipped.provenance(NAME)
     assert provenance["env_kwargs"] == {"randomize": "default"}
     assert "--env-kwargs randomize=default" in provenance["command"]
     assert provenance["evaluation"]["command"].startswith("smartcar-eval --pretrained robust")
@@ -41,5 +37,5 @@ def test_smartcar_eval_pretrained_robust_loads_its_own_files(tmp_path, capsys):
 
 @pytest.mark.slow
 def test_the_robust_policy_reaches_nominal_goals():
-    summary, _ = evaluate_shipped("robust", n_episodes=32, n_envs=2)
+    summary, _ = shipped.evaluate_shipped(NAME, n_episodes=32, n_envs=2)
     assert summary["success_rate"] >= MIN_NOMINAL_SUCCESS

@@ -12,6 +12,7 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import pytest
+import ros_needs
 import yaml
 
 from smartcar_gym.model import load_model
@@ -74,11 +75,8 @@ def test_policy_without_the_train_extra_says_so():
         'policy needs the train extra: pip install "smartcar-gym[train]"')
 
 
+@ros_needs.needs(ros_needs.ROSPY)
 def test_no_master_is_one_line_not_a_hang():
-    probe = subprocess.run([sys.executable, "-c", "from smartcar_gym.ros.debian import "
-                            "import_ros; import_ros()"], capture_output=True, timeout=60)
-    if probe.returncode != 0:
-        pytest.skip("rospy is not installed: nothing to connect with")
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]  # nothing listens there once closed
@@ -140,8 +138,7 @@ TUTORIAL = Path(__file__).parent / "fixtures" / "seed" / "smartcar_description"
 
 
 @pytest.mark.slow
-@pytest.mark.skipif(shutil.which("roslaunch") is None,
-                    reason="roslaunch not found: apt-get install ros-core")
+@ros_needs.needs("roslaunch")
 @pytest.mark.parametrize("ours_first", [True, False])
 def test_roslaunch_keeps_the_shipped_model_and_the_tutorials_package_apart(ours_first,
                                                                             tmp_path):

@@ -167,11 +167,17 @@ CLIS = {
 }
 
 
+# every CLI beside the tutorial's workspace; three beside the broken one, one with it empty
+CLI_RUNS = [(cli, "tutorial") for cli in CLIS] + [
+    ("model-urdf-laser", "broken"), ("eval-pretrained", "broken"), ("calibrate", "broken"),
+    ("model-urdf-laser", "empty")]
+
+
 @pytest.mark.slow
-@pytest.mark.parametrize("cli", CLIS)
-def test_the_clis_run_beside_the_tutorials_workspace(cli, workspaces, tmp_path):
+@pytest.mark.parametrize(("cli", "kind"), CLI_RUNS)
+def test_the_clis_run_beside_a_workspace(cli, kind, workspaces, tmp_path):
     name, args = CLIS[cli]
-    result = _cli(name, args, workspaces["tutorial"], tmp_path)
+    result = _cli(name, args, workspaces[kind], tmp_path)
     assert result.returncode == 0, result.stderr[-2000:]
     assert "smartcar_description" not in result.stderr, result.stderr[-2000:]
     if cli == "model-urdf-laser":

@@ -205,3 +205,21 @@ def test_find_is_restored_after_loading(tmp_path: Path) -> None:
         warnings.simplefilter("ignore")
         load_model()
     assert (sa._eval_find, sa._eval_dict["find"]) == before
+
+
+def test_a_shipped_file_searches_the_shipped_descriptions_first(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    other = make_package(tmp_path / "ws" / "smartcar_description", name="smartcar_description")
+    monkeypatch.setenv("ROS_PACKAGE_PATH", str(tmp_path / "ws"))
+    asker = SHIPPED_PKG / "urdf" / "smartcar.urdf.xacro"
+    assert search_roots([tmp_path / "explicit"], requested_by=asker)[:3] == [
+        SHIPPED_DESCRIPTIONS, tmp_path / "explicit", tmp_path / "ws"]
+    assert find_package("smartcar_description", requested_by=asker) == SHIPPED_PKG
+    assert find_package("smartcar_description", requested_by=robot_file(tmp_path, "x")) == other
+    # a package the shipped descriptions lack is searched for as from any other file
+    make_package(tmp_path / "ws" / "probe_description")
+    assert find_package("probe_description", requested_by=asker) == (
+        tmp_path / "ws" / "probe_description")
+    with pytest.raises(ModelError, match=r"searched the shipped descriptions .* \(asked for by "
+                                         r"a shipped file\); package_path/ROS_PACKAGE_PATH"):
+        find_package("missing_description", requested_by=asker)

@@ -9,13 +9,13 @@ from __future__ import annotations
 import importlib.util
 import json
 import os
-import shutil
 import subprocess
 import sys
 import textwrap
 
 import numpy as np
 import pytest
+import ros_needs
 
 from smartcar_gym.agents.evaluate import main as eval_main
 
@@ -106,10 +106,9 @@ def test_mcap_holds_the_same_messages(evaluated):
     assert [(topic, t) for topic, t, _ in messages] == [(topic, t) for topic, t, _ in rows]
 
 
+@ros_needs.needs("rosbag", ros_needs.DEBIAN_ROSBAG)
 def test_debian_rosbag_info_and_rosbag_read_the_bag(evaluated):
     bag, _, record = evaluated
-    if shutil.which("rosbag") is None:
-        pytest.skip("Debian's rosbag is not installed: apt-get install python3-rosbag")
     info = subprocess.run(["rosbag", "info", str(bag)], capture_output=True, text=True,
                           timeout=60)
     assert info.returncode == 0, info.stderr

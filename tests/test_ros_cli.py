@@ -3,14 +3,20 @@
 from __future__ import annotations
 
 import os
+import shutil
 import socket
 import subprocess
 import sys
 import textwrap
 import xml.etree.ElementTree as ET
+from pathlib import Path
 
 import pytest
+import ros_needs
+import yaml
 
+from smartcar_gym.model import load_model
+from smartcar_gym.model.packages import SHIPPED_DESCRIPTIONS
 from smartcar_gym.ros.cli import main
 from smartcar_gym.ros.debian import APT_LINE
 from smartcar_gym.ros.package import package_folder, ros_package
@@ -69,11 +75,8 @@ def test_policy_without_the_train_extra_says_so():
         'policy needs the train extra: pip install "smartcar-gym[train]"')
 
 
+@ros_needs.needs(ros_needs.ROSPY)
 def test_no_master_is_one_line_not_a_hang():
-    probe = subprocess.run([sys.executable, "-c", "from smartcar_gym.ros.debian import "
-                            "import_ros; import_ros()"], capture_output=True, timeout=60)
-    if probe.returncode != 0:
-        pytest.skip("rospy is not installed: nothing to connect with")
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]  # nothing listens there once closed
@@ -103,13 +106,17 @@ def test_ros_arguments_are_left_to_rospy(capsys):
 
 
 def test_the_ros_package_is_shipped_for_ros_package_path():
-    folder = package_folder()
-    names = {ET.parse(p).getroot().findtext("name") for p in folder.glob("*/package.xml")}
-    assert names == {"smartcar_gym_ros", "smartcar_description"}
     package = ros_package()
+    # only smartcar_gym_ros goes on ROS_PACKAGE_PATH: the shipped smartcar_description would
+    # shadow (or be shadowed by) a workspace's own
+    assert package_folder() == package
+    assert ET.parse(package / "package.xml").getroot().findtext("name") == "smartcar_gym_ros"
+    assert not list(package.glob("*/**/package.xml"))
     for launch in ("smartcar_display.launch", "smartcar_policy.launch"):
         root = ET.parse(package / "launch" / launch).getroot()  # well-formed XML
         assert root.tag == "launch"
+        text = (package / "launch" / launch).read_text()
+        assert "$(find smartcar_description)" not in text  # found from $(dirname) instead
     display = ET.parse(package / "launch" / "smartcar_display.launch").getroot()
     node = display.find("node[@name='arbotix']")
     assert (node.get("pkg"), node.get("type")) == ("smartcar_gym_ros", "bringup")
@@ -125,3 +132,45 @@ def test_node_script_says_how_to_find_smartcar_ros(tmp_path):
                             text=True, timeout=30, env={"PATH": "/usr/bin:/bin"})
     assert result.returncode == 2
     assert "smartcar-ros is not on PATH: activate the virtualenv" in result.stderr
+
+
+TUTORIAL = Path(__file__).parent / "fixtures" / "seed" / "smartcar_description"
+
+
+@pytest.mark.slow
+@ros_needs.needs("roslaunch")
+@pytest.mark.parametrize("ours_first", [True, False])
+def test_roslaunch_keeps_the_shipped_model_and_the_tutorials_package_apart(ours_first,
+                                                                            tmp_path):
+    """A workspace with the tutorial's smartcar_description beside $(smartcar-ros package) on
+    ROS_PACKAGE_PATH, in either order: the shipped launch files load the shipped model and
+    YAML, and the workspace's $(find smartcar_description) is the workspace's package."""
+    tutorial = tmp_path / "src" / "smartcar_description"
+    shutil.copytree(TUTORIAL, tutorial)
+    (tutorial / "package.xml").write_text(
+        '<?xml version="1.0"?>\n<package format="2"><name>smartcar_description</name>'
+        "<version>0.0.0</version></package>\n")
+    (tutorial / "launch").mkdir()
+    where = tutorial / "launch" / "where.launch"
+    where.write_text('<launch><param name="where" value="$(find smartcar_description)"/>'
+                     "</launch>\n")
+    folders = [str(package_folder()), str(tmp_path / "src")]
+    env = {**os.environ, "ROS_PACKAGE_PATH": os.pathsep.join(folders if ours_first
+                                                             else folders[::-1]),
+           "ROS_HOME": str(tmp_path / "ros"), "PYTHONWARNINGS": "ignore",
+           "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ.get('PATH', '')}"}
+    launch = ros_package() / "launch" / "smartcar_policy.launch"
+    result = subprocess.run(["roslaunch", "--dump-params", str(launch), str(where)],
+                            capture_output=True, text=True, timeout=120, env=env)
+    assert result.returncode == 0, result.stdout + result.stderr
+    params = yaml.safe_load(result.stdout)
+    assert params["/where"] == str(tutorial)
+    assert params["/robot_description"].strip() == load_model().urdf.strip()
+    assert params["/arbotix/controllers/base_controller/base_width"] == 0.26  # our YAML's
+    assert params["/arbotix/smartcar_gym/board/frame_ms"] == 33
+    node = subprocess.run(["roslaunch", "--args", "/arbotix", "smartcar_gym_ros",
+                           "smartcar_policy.launch"], capture_output=True, text=True,
+                          timeout=120, env=env)
+    model = node.stdout.split("--model ")[1].split()[0]
+    assert Path(model).resolve() == SHIPPED_DESCRIPTIONS / "smartcar_description" / "urdf" / (
+        "smartcar.urdf.xacro"), node.stdout + node.stderr

@@ -3,7 +3,8 @@
 Each test starts its nodes (``python -m smartcar_gym.ros ...``) and a probe node
 (``ros_probe.py``) as processes in new sessions against this module's own roscore on a free
 loopback port, and ends them (SIGINT, then SIGKILL) however it ends. Without Debian's ROS 1
-(``roscore`` and rospy) the module is skipped, saying which packages are missing.
+(``roscore`` and rospy) the module is skipped, and a test needing more (roslaunch,
+robot_state_publisher, rosbag) without it, naming the Debian packages to install (ros_needs).
 """
 
 from __future__ import annotations
@@ -12,7 +13,6 @@ import importlib.util
 import json
 import math
 import os
-import shutil
 import signal
 import socket
 import subprocess
@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import ros_needs
 import yaml
 
 from smartcar_gym.controller import default_config_path
@@ -33,19 +34,7 @@ HERE = Path(__file__).parent
 PROBE = HERE / "ros_probe.py"
 
 
-def _ros_missing() -> str | None:
-    if shutil.which("roscore") is None:
-        return "roscore not found: apt-get install ros-core (.ci/run does)"
-    check = subprocess.run(
-        [sys.executable, "-c", "from smartcar_gym.ros.debian import import_ros; import_ros()"],
-        capture_output=True, text=True, timeout=60)
-    if check.returncode != 0:
-        return check.stderr.strip().splitlines()[-1]
-    return None
-
-
-MISSING = _ros_missing()
-pytestmark = pytest.mark.skipif(MISSING is not None, reason=f"no ROS 1: {MISSING}")
+pytestmark = ros_needs.needs("roscore", ros_needs.ROSPY)
 
 
 def _free_port() -> int:
@@ -319,6 +308,7 @@ def test_policy_drives_to_a_nav_goal_and_stops(ros, tmp_path):
     assert twists and all(t == [0.0, 0.0] for t in twists), twists
 
 
+@ros_needs.needs("roslaunch", "robot_state_publisher")
 def test_launch_file_runs_the_tutorials_graph(ros, tmp_path):
     package = subprocess.run([sys.executable, "-m", "smartcar_gym.ros", "package"],
                              capture_output=True, text=True, check=True).stdout.strip()
@@ -379,6 +369,7 @@ def test_bringup_refuses_a_bad_configuration_in_one_line(ros, tmp_path):
     assert lines[0].endswith(f"{tmp_path / 'missing.yaml'}: controller config file not found")
 
 
+@ros_needs.needs("rosbag")
 @pytest.mark.skipif(importlib.util.find_spec("rosbags") is None,
                     reason='rosbags not installed: pip install "smartcar-gym[ros]"')
 def test_rosbag_play_publishes_a_written_bag(ros, tmp_path):

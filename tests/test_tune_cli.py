@@ -66,7 +66,9 @@ needs_tune = pytest.mark.skipif(not HAS_TUNE, reason='Ray Tune is not installed:
     ({"hyperparams": {"learnin_rate": 1e-4}}, [], "unknown hyperparameter(s) for ppo"),
     ({"env_kwargs": {"goal_tolerance": {"grid": [0.1, -1.0]}}}, [],
      "env_kwargs: cannot make SmartCar-v0 with goal_tolerance=-1.0"),
-    ({}, ["--timesteps", "1000"], "grace_period (30720) must be below the steps per trial"),
+    ({"timesteps": 1000}, [], "grace_period (30720) must be below the steps per trial (1000), "
+     "or no trial can be stopped; lower it, or run every trial to the end with "
+     "--no-early-stopping"),
     ({}, ["--hyperparams", "gamma={uniform: [0.9, 1.5]}"], "gamma must be a number in [0, 1]"),
 ])
 def test_bad_spaces_exit_2_with_one_line(tmp_path, capsys, space, args, message):
@@ -135,3 +137,25 @@ def test_an_address_nothing_listens_on_fails_at_once(tmp_path, capsys, monkeypat
     assert code == 2 and f"cannot connect to the Ray cluster at 127.0.0.1:{port}" in err
     assert err.count("\n") == 1 and time.monotonic() - start < 30  # Ray alone: minutes
     assert not (tmp_path / "s").exists()
+
+
+@pytest.mark.parametrize(("timesteps", "grace", "note"), [
+    (4096, None, "smartcar-tune: note: no early stopping: early_stopping.grace_period (30720) "
+                 "is not below the 4096 steps per trial"),
+    (20480, 10240, "smartcar-tune: note: early_stopping.grace_period 30720 is not below the "
+                   "20480 steps per trial: scaled to 10240"),
+    (40960, 30720, None),
+])
+def test_a_quick_sweep_of_the_shipped_space_runs(timesteps, grace, note, tmp_path, capsys):
+    """``smartcar-tune --timesteps 4096 --out sweep`` used to refuse the shipped space's
+    grace_period (30720): now it runs, the grace period fitted to the trial, said in one line."""
+    args = tune_cli.build_parser().parse_args(["--timesteps", str(timesteps),
+                                                "--out", str(tmp_path / "s")])
+    sweep, _ = tune_cli.new_sweep(args)  # what main runs before Ray starts
+    err = capsys.readouterr().err
+    assert sweep.timesteps == timesteps
+    assert (sweep.early_stopping or {}).get("grace_period") == grace
+    if note is None:
+        assert err == ""
+    else:
+        assert err.count("\n") == 1 and err.startswith(note), err

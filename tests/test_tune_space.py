@@ -14,6 +14,7 @@ from smartcar_gym.scale.space import (
     apply_overrides,
     build_sweep,
     env_kwargs_samples,
+    fit_grace_period,
     load_space,
     parse_dimension,
     shipped_space_file,
@@ -125,9 +126,10 @@ def test_a_mapping_that_names_no_dimension_is_a_value():
     ({"cpus_per_trial": 1.5}, "cpus_per_trial must be a whole number >= 1"),
     ({"eval_freq": 0}, "eval_freq must be a whole number >= 1"),
     ({"early_stopping": {"grace": 10}}, "unknown key(s) grace"),
-    ({"timesteps": 1000, "early_stopping": {}}, "grace_period (20480) must be below"),
     ({"early_stopping": {"reduction_factor": 1}}, "reduction_factor must be a number > 1"),
-    ({"timesteps": 1000, "early_stopping": {"grace_period": 1000}}, "must be below the steps"),
+    ({"timesteps": 1000, "early_stopping": {"grace_period": 1000}},
+     "grace_period (1000) must be below the steps per trial (1000), or no trial can be "
+     "stopped; lower it, or run every trial to the end with --no-early-stopping"),
     ({"early_stopping": "asha"}, "early_stopping must be a mapping"),
     ({"hyperparams": [1, 2]}, "hyperparams must be a mapping"),
     ({"hyperparams_file": "missing.yaml"}, "hyperparams_file"),
@@ -215,3 +217,45 @@ def test_numbers_without_a_dot_are_numbers_in_dimensions():
     assert sweep.hyperparams["learning_rate"] == Dimension("loguniform", (1e-4, 1e-3))
     assert sweep.env_kwargs["wheel_contact"] == Dimension("grid", ("sphere", "urdf"))
     assert sweep.hyperparams["policy_kwargs"].values == ("dict(net_arch=[64])",)
+
+
+@pytest.mark.parametrize(("timesteps", "eval_freq", "eval_start", "grace"), [
+    (30720, 10240, 0, 10240),     # half is 15,360 steps: the evaluation at 10,240
+    (20480, 10240, 0, 10240),     # half is the first evaluation
+    (20479, 10240, 0, None),      # half is 10,239 steps: no evaluation in it
+    (4096, 10240, 0, None),       # the only evaluation is the final one
+    (4096, 512, 0, 2048),         # evaluations every 512 steps: the 4th is half-way
+    (4096, 512, 2100, None),      # the first evaluation (2,560) is past half-way
+    (1_000_000, 10240, 20000, 491520),
+])
+def test_grace_period_fits_the_last_evaluation_in_the_first_half(timesteps, eval_freq,
+                                                                 eval_start, grace):
+    assert fit_grace_period(timesteps, eval_freq, eval_start) == grace
+
+
+def test_a_grace_period_too_long_for_the_trial_is_scaled_or_dropped_with_a_note():
+    data, path = load_space()  # grace_period 30720, eval_freq 10240
+    fits = build_sweep({**data, "timesteps": 30721}, path, fit_early_stopping=True)
+    assert fits.early_stopping == {"grace_period": 30720, "reduction_factor": 2}
+    assert fits.notes == []
+    scaled = build_sweep({**data, "timesteps": 30720}, path, fit_early_stopping=True)
+    assert scaled.early_stopping == {"grace_period": 10240, "reduction_factor": 2}
+    assert scaled.notes == ["early_stopping.grace_period 30720 is not below the 30720 steps per "
+                            "trial: scaled to 10240 (the last evaluation in a trial's first "
+                            "half); --no-early-stopping runs every trial to the end"]
+    quick = build_sweep({**data, "timesteps": 4096}, path, fit_early_stopping=True)
+    assert quick.early_stopping is None
+    assert quick.notes == ["no early stopping: early_stopping.grace_period (30720) is not below "
+                           "the 4096 steps per trial, and a trial has no evaluation (every 10240 "
+                           "steps) in its first half to scale it to; every trial runs to the end "
+                           "(as with --no-early-stopping)"]
+    # what sweep.yaml keeps: the scaled values, which --resume reads without a note
+    again = build_sweep(yaml.safe_load(yaml.safe_dump(scaled.to_yaml())), "sweep.yaml")
+    assert again.early_stopping == scaled.early_stopping and again.notes == []
+    # grace_period left to its default (2 evaluations) is fitted without fit_early_stopping
+    short = sweep_of(timesteps=1000, eval_freq=500, early_stopping={})
+    assert short.early_stopping == {"grace_period": 500, "reduction_factor": 2}
+    assert short.notes[0].startswith("early_stopping.grace_period 1000 is not below the 1000 "
+                                     "steps per trial: scaled to 500")
+    with pytest.raises(SpaceError, match="--no-early-stopping"):  # set beside its timesteps
+        build_sweep({**data, "timesteps": 4096}, path)

@@ -185,7 +185,8 @@ def load_model(
         path: a ``.urdf`` file (parsed as is) or a ``.xacro`` file (expanded by xacro).
         package_path: folders searched first for ``$(find pkg)`` and ``package://pkg``; then
             ROS_PACKAGE_PATH, the folders enclosing the asking file (closest first), and last
-            the shipped descriptions.
+            the shipped descriptions (which a shipped file searches first: the shipped model's
+            includes never come from ROS_PACKAGE_PATH).
         mappings: xacro arguments (``<xacro:arg>``), name -> value.
         wheels: drive wheel joints by side, ``{"left": [...], "right": [...]}``; default: found.
         strict: raise ModelError on any defect instead of warning.

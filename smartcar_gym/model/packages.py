@@ -2,6 +2,10 @@
 
 Search order, first match wins:
 
+0. when the asking file is one of the shipped descriptions: the shipped descriptions, so the
+   shipped model resolves its own includes from the installed package whatever
+   ``ROS_PACKAGE_PATH`` holds (a user's workspace with the tutorial's ``smartcar_description``
+   on it does not replace our files with the tutorial's);
 1. the explicit ``package_path`` folders, then ``ROS_PACKAGE_PATH`` (``os.pathsep``-separated):
    each folder itself, then its subfolders breadth first (hidden folders, ``*_IGNORE``-marked
    folders and the inside of packages are skipped, as rospack does);
@@ -67,10 +71,17 @@ def enclosing_folders(file: str | os.PathLike | None) -> list[Path]:
     return list(Path(file).expanduser().resolve().parents)
 
 
+def is_shipped(file: str | os.PathLike | None) -> bool:
+    """Whether ``file`` is one of the descriptions shipped with smartcar_gym."""
+    return file is not None and Path(file).expanduser().resolve().is_relative_to(
+        SHIPPED_DESCRIPTIONS)
+
+
 def _search_plan(package_path: PackagePath,
                  requested_by: str | os.PathLike | None) -> list[tuple[Path, bool]]:
     """(folder, search its subfolders too) in search order, each folder once."""
-    plan = [(root, True) for root in _path_roots(package_path)]
+    plan = [(SHIPPED_DESCRIPTIONS, True)] if is_shipped(requested_by) else []
+    plan += [(root, True) for root in _path_roots(package_path)]
     plan += [(folder, False) for folder in enclosing_folders(requested_by)]
     plan.append((SHIPPED_DESCRIPTIONS, True))
     unique: dict[Path, bool] = {}
@@ -124,7 +135,9 @@ def _candidates(root: Path) -> Iterator[Path]:
 def _searched(package_path: PackagePath, requested_by: str | os.PathLike | None) -> str:
     """Where a package was looked for, in words, for error messages."""
     roots = _path_roots(package_path)
-    parts = [("package_path/ROS_PACKAGE_PATH folders " + ", ".join(map(str, roots))
+    parts = [f"the shipped descriptions {SHIPPED_DESCRIPTIONS} (asked for by a shipped file)"
+             ] if is_shipped(requested_by) else []
+    parts += [("package_path/ROS_PACKAGE_PATH folders " + ", ".join(map(str, roots))
               + " and their subfolders") if roots else "no package_path or ROS_PACKAGE_PATH"]
     if requested_by is not None:
         parts.append(f"the folders enclosing {Path(requested_by).name}")

@@ -23,7 +23,7 @@ from __future__ import annotations
 import copy
 import itertools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -54,6 +54,10 @@ KEYS = ("algo", "env", "hyperparams_file", "hyperparams", "env_kwargs", "seed", 
         "timesteps", "cpus_per_trial", "eval_freq", "eval_episodes", "eval_start",
         "early_stopping", "random_seed")
 ASHA_KEYS = ("grace_period", "reduction_factor")
+# A grace period that does not fit a shortened trial is scaled to an evaluation in this first
+# part of it, so ASHA still compares trials at least once before their end (the shipped space's
+# 30,720 steps do not fit trials of up to 30,720 steps; half of 20,480 is its first evaluation).
+GRACE_FRACTION = 0.5
 
 
 class SpaceError(ValueError):
@@ -108,6 +112,7 @@ class Sweep:
     early_stopping: dict[str, Any] | None = None  # ASHA's settings; None: no early stopping
     random_seed: int = 0
     source: str = ""
+    notes: list[str] = field(default_factory=list)  # what build_sweep changed, one line each
 
     def dimensions(self) -> dict[str, Dimension]:
         """The searched values by name: ``seed``, hyperparameter names, ``env_kwargs.<key>``."""
@@ -209,11 +214,14 @@ def load_space(path: str | Path | None = None) -> tuple[dict[str, Any], Path]:
 
 
 def build_sweep(data: dict[str, Any], source: str | Path,
-                base_dir: Path | None = None) -> Sweep:
+                base_dir: Path | None = None, *, fit_early_stopping: bool = False) -> Sweep:
     """Check a space mapping and merge it onto its base hyperparameters.
 
     ``source`` names the mapping in errors; a relative ``hyperparams_file`` is read from
-    ``base_dir`` (the space file's folder).
+    ``base_dir`` (the space file's folder). A grace period that is not below the steps per
+    trial is scaled to the trial (see ``fit_grace_period``, said in ``Sweep.notes``) when
+    ``fit_early_stopping`` (the trial length came from the command line) or when the space
+    does not set it; set in the space beside its own ``timesteps``, it is an error.
     """
     unknown = sorted(set(data) - set(KEYS))
     if unknown:
@@ -254,7 +262,7 @@ def build_sweep(data: dict[str, Any], source: str | Path,
         random_seed=_whole(data.get("random_seed", 0), "random_seed", source, 0),
         source=str(source),
     )
-    sweep.early_stopping = _asha(data.get("early_stopping"), sweep, source)
+    sweep.early_stopping = _asha(data.get("early_stopping"), sweep, source, fit_early_stopping)
     # What smartcar-train would fill in on the trial's node (its CPU count for n_envs): fixed
     # here, so that every trial's hyperparams.yaml is complete.
     sweep.hyperparams.setdefault("n_envs", sweep.cpus_per_trial)
@@ -318,7 +326,8 @@ def apply_overrides(data: dict[str, Any], hyperparams: list[tuple[str, Any]] | N
     return data
 
 
-def _asha(value: Any, sweep: Sweep, source: str | Path) -> dict[str, Any] | None:
+def _asha(value: Any, sweep: Sweep, source: str | Path,
+          fit: bool) -> dict[str, Any] | None:
     if value is None or value is False:
         return None
     if not isinstance(value, dict):
@@ -334,10 +343,34 @@ def _asha(value: Any, sweep: Sweep, source: str | Path) -> dict[str, Any] | None
     if not _is_number(factor) or factor <= 1:
         raise SpaceError(f"{source}: early_stopping.reduction_factor must be a number > 1, "
                          f"got {factor!r}")
-    if grace >= sweep.timesteps:
+    if grace < sweep.timesteps:
+        return {"grace_period": grace, "reduction_factor": factor}
+    if not fit and "grace_period" in value:
         raise SpaceError(f"{source}: early_stopping.grace_period ({grace}) must be below the "
-                         f"steps per trial ({sweep.timesteps}), or no trial can be stopped")
-    return {"grace_period": grace, "reduction_factor": factor}
+                         f"steps per trial ({sweep.timesteps}), or no trial can be stopped; "
+                         "lower it, or run every trial to the end with --no-early-stopping")
+    fitted = fit_grace_period(sweep.timesteps, sweep.eval_freq, sweep.eval_start)
+    if fitted is None:
+        sweep.notes.append(
+            f"no early stopping: early_stopping.grace_period ({grace}) is not below the "
+            f"{sweep.timesteps} steps per trial, and a trial has no evaluation (every "
+            f"{sweep.eval_freq} steps) in its first half to scale it to; "
+            "every trial runs to the end (as with --no-early-stopping)")
+        return None
+    sweep.notes.append(
+        f"early_stopping.grace_period {grace} is not below the {sweep.timesteps} steps per "
+        f"trial: scaled to {fitted} (the last evaluation in a trial's first half); "
+        "--no-early-stopping runs every trial to the end")
+    return {"grace_period": fitted, "reduction_factor": factor}
+
+
+def fit_grace_period(timesteps: int, eval_freq: int, eval_start: int = 0) -> int | None:
+    """The grace period for trials of ``timesteps`` steps: the step of the last evaluation
+    (ASHA compares trials at evaluations: multiples of ``eval_freq`` from ``eval_start`` on)
+    within the first ``GRACE_FRACTION`` of a trial; None when there is none."""
+    last = int(GRACE_FRACTION * timesteps) // eval_freq * eval_freq
+    first = max(eval_freq, -(-eval_start // eval_freq) * eval_freq)
+    return last if last >= first else None
 
 
 def _mapping(data: dict[str, Any], key: str, source: str | Path) -> dict[str, Any]:

@@ -146,8 +146,11 @@ def new_sweep(args: argparse.Namespace) -> tuple[Sweep, Path]:
                            timesteps=args.timesteps, cpus_per_trial=args.cpus_per_trial)
     if args.no_early_stopping:
         data["early_stopping"] = None
-    sweep = build_sweep(data, path, base_dir=path.parent)
+    sweep = build_sweep(data, path, base_dir=path.parent,
+                        fit_early_stopping=args.timesteps is not None)
     _check_env_kwargs(sweep)
+    for note in sweep.notes:
+        print(f"{PROG}: note: {note}", file=sys.stderr)
     n_envs = sweep.hyperparams.get("n_envs")
     if isinstance(n_envs, int) and n_envs > sweep.cpus_per_trial:
         print(f"{PROG}: note: each trial runs n_envs={n_envs} env processes on "

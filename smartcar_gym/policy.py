@@ -184,9 +184,9 @@ class Policy:
     @cached_property
     def settings(self) -> PolicySettings:
         """What acting outside the env needs of it (``ros.settings.PolicySettings``: wheel
-        joints, task, action scales, controller rate) for ``env_id`` with ``env_kwargs``.
-        Raises ``ValueError`` (or ``ModelError``, ``OSError``) for env settings that the env
-        would refuse, or an env that is not a ``SmartCarEnv``."""
+        joints, task, action scales, controller rate) for ``env_id`` with ``env_kwargs``,
+        computed on first use. Raises ``ValueError`` (or ``ModelError``, ``OSError``) for env
+        settings that the env would refuse, or an env that is not a ``SmartCarEnv``."""
         from smartcar_gym.ros.settings import policy_settings
 
         return policy_settings(self.env_id, self.env_kwargs)

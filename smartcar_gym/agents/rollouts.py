@@ -19,10 +19,10 @@ import gymnasium as gym
 import numpy as np
 
 from smartcar_gym.agents.env_factory import make_env
-from smartcar_gym.policy import DEFAULT_ENV_ID, ObsNormalizer, Policy, as_policy
+from smartcar_gym.policy import DEFAULT_ENV_ID, Policy, as_policy
 
-__all__ = ["DEFAULT_ENV_ID", "EpisodeRecord", "ObsNormalizer", "ObservationShapeError",
-           "RandomPolicy", "evaluate_policy_episodes", "record_video", "summarize"]
+__all__ = ["DEFAULT_ENV_ID", "EpisodeRecord", "ObservationShapeError", "RandomPolicy",
+           "evaluate_policy_episodes", "record_video", "summarize"]
 
 
 @dataclass

@@ -30,9 +30,9 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from smartcar_gym.agents.model_files import load_model, locate_model
 from smartcar_gym.agents.rollouts import evaluate_policy_episodes, summarize
 from smartcar_gym.envs.randomization import FACTORS, Randomization
+from smartcar_gym.policy import Policy
 
 PRETRAINED = resources.files("smartcar_gym") / "pretrained"
 
@@ -56,11 +56,9 @@ def _policy(arg: str) -> tuple[str, Path]:
     return name, Path(folder)
 
 
-def _load(folder: Path) -> tuple[Any, Path | None, str]:
+def _load(folder: Path) -> Policy:
     path = folder / "best_model.zip" if (folder / "config.yaml").is_file() else folder
-    files = locate_model(path)
-    algo = files.run.get("algo", "ppo")
-    return load_model(files.model, algo), files.normalizer, algo
+    return Policy.load(path)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -86,12 +84,11 @@ def main(argv: list[str] | None = None) -> int:
     start = time.perf_counter()
     for label, randomize in grid:
         results[label] = {}
-        for name, (model, normalizer, _) in loaded.items():
+        for name, policy in loaded.items():
             t0 = time.perf_counter()
             records = evaluate_policy_episodes(
-                model, "SmartCar-v0", n_episodes=args.episodes, n_envs=args.n_envs,
-                seed=args.seed, env_kwargs={"randomize": randomize},
-                vecnormalize_path=normalizer)
+                policy, "SmartCar-v0", n_episodes=args.episodes, n_envs=args.n_envs,
+                seed=args.seed, env_kwargs={"randomize": randomize})
             results[label][name] = {**summarize(records), "wall_s": time.perf_counter() - t0}
             print(f"{label:<32} {name:<10} {results[label][name]['success_rate']:6.1%} "
                   f"({time.perf_counter() - t0:.0f} s)", file=sys.stderr, flush=True)

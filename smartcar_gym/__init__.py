@@ -5,6 +5,8 @@
     import gymnasium as gym
     import smartcar_gym  # noqa: F401
     env = gym.make("SmartCar-v0")
+
+A trained policy (the ``train`` extra): ``smartcar_gym.policy.Policy.load("default").act(obs)``.
 """
 
 from __future__ import annotations

@@ -6,13 +6,8 @@ import json
 from importlib import resources
 from typing import Any
 
-from smartcar_gym.agents.evaluate import (
-    PRETRAINED_MODEL,
-    evaluate_policy_episodes,
-    load_model,
-    summarize,
-)
-from smartcar_gym.agents.model_files import PRETRAINED_POLICIES
+from smartcar_gym.agents.rollouts import evaluate_policy_episodes, summarize
+from smartcar_gym.policy import PRETRAINED_POLICIES, Policy
 
 
 def folder(name: str = "default"):
@@ -29,12 +24,7 @@ def evaluate_shipped(name: str, n_episodes: int, n_envs: int,
                      env_kwargs: dict[str, Any] | None = None) -> tuple[dict[str, Any], list]:
     """(summary, records) of the shipped policy ``name`` on seeded episodes 0..n_episodes-1 of
     its provenance's env (``env_kwargs``: that env's kwargs; default: none)."""
-    info = provenance(name)
-    with resources.as_file(folder(name)) as place:
-        model = load_model(place / PRETRAINED_MODEL, info["algo"])
-        stats = place / "vecnormalize.pkl"
-        records = evaluate_policy_episodes(
-            model, info["env"], n_episodes=n_episodes, n_envs=n_envs, seed=0,
-            env_kwargs=env_kwargs or {},
-            vecnormalize_path=stats if stats.is_file() else None)
+    policy = Policy.load(name)
+    records = evaluate_policy_episodes(policy, policy.env_id, n_episodes=n_episodes,
+                                       n_envs=n_envs, seed=0, env_kwargs=env_kwargs or {})
     return summarize(records), records

@@ -12,6 +12,7 @@ from importlib import resources
 import pytest
 import yaml
 
+from smartcar_gym import policy
 from smartcar_gym.agents import evaluate, train
 from smartcar_gym.agents.model_files import (
     SHIPPED,
@@ -133,7 +134,7 @@ def fake_package(tiny_run, tmp_path, monkeypatch):
     def pretrained_files(name="default"):
         yield folder
 
-    monkeypatch.setattr(evaluate, "pretrained_files", pretrained_files)
+    monkeypatch.setattr(policy, "pretrained_files", pretrained_files)
     return folder, marker
 
 

@@ -373,15 +373,11 @@ def test_bringup_refuses_a_bad_configuration_in_one_line(ros, tmp_path):
 @pytest.mark.skipif(importlib.util.find_spec("rosbags") is None,
                     reason='rosbags not installed: pip install "smartcar-gym[ros]"')
 def test_rosbag_play_publishes_a_written_bag(ros, tmp_path):
-    from smartcar_gym.agents.model_files import load_model, pretrained_files, shipped_model
+    from smartcar_gym.policy import Policy
     from smartcar_gym.ros.bag import write_bag
 
-    with pretrained_files() as folder:
-        files = shipped_model(folder)
-        model = load_model(files.model, "ppo")
-        bag = tmp_path / "episode.bag"
-        count = write_bag(model, bag, "SmartCar-v0", n_episodes=1, seed=2,
-                          vecnormalize_path=files.normalizer)
+    bag = tmp_path / "episode.bag"
+    count = write_bag(Policy.load("default"), bag, "SmartCar-v0", n_episodes=1, seed=2)
     record = subprocess.Popen(
         [sys.executable, str(PROBE), json.dumps({
             "record": {"/odom": "nav_msgs/Odometry", "/joint_states": "sensor_msgs/JointState"},

@@ -15,9 +15,8 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from smartcar_gym.agents.model_files import load_model, pretrained_files, shipped_model
-from smartcar_gym.agents.rollouts import ObsNormalizer, _predict
 from smartcar_gym.envs.observation import Readings
+from smartcar_gym.policy import Policy
 from smartcar_gym.ros import messages as m
 from smartcar_gym.ros.driving import GoalDriver
 from smartcar_gym.ros.settings import policy_settings
@@ -57,9 +56,7 @@ class WireTypes:
 
 @pytest.fixture(scope="module")
 def policy():
-    with pretrained_files() as folder:
-        files = shipped_model(folder)
-        return load_model(files.model, "ppo"), ObsNormalizer(files.normalizer)
+    return Policy.load("default")
 
 
 @pytest.mark.parametrize("backend", [
@@ -68,16 +65,15 @@ def policy():
                                                   reason="rosbags (the ros extra) not installed")),
 ])
 def test_node_observation_equals_the_envs_bit_for_bit(policy, backend):
-    model, normalizer = policy
     types = NamespaceTypes() if backend == "namespace" else WireTypes()
     wire = getattr(types, "wire", lambda msg, _: msg)
     raw = []
 
     def act(obs):
-        raw.append(_predict(model, obs, normalizer, deterministic=True))
+        raw.append(policy.act(obs))
         return raw[-1]
 
-    driver = GoalDriver(policy_settings("SmartCar-v0"), act, stale_after_s=0.5,
+    driver = GoalDriver(policy.settings, act, stale_after_s=0.5,
                         stop_on="ground_truth")
     env = gym.make("SmartCar-v0")
     base = env.unwrapped

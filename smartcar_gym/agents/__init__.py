@@ -14,6 +14,8 @@ Modules (imported on demand; this package imports nothing heavy):
 * ``training``: ``train()``, training a run with checkpoints and evaluation.
 * ``train``: the ``smartcar-train`` command.
 * ``rollouts``: ``evaluate_policy_episodes()`` (seeded, vectorised), ``summarize()``, videos.
+* ``smartcar_gym.policy`` (outside this package, used by the commands here and in ``ros``):
+  ``Policy.load()``, a model with its normaliser and env settings, and ``act(obs)``.
 * ``model_files``: a model's run config and the VecNormalize statistics its place assigns to
   it (never a pickle that the user did not name or that its run folder does not list), the
   shipped policy, ``load_model()``.

@@ -7,18 +7,17 @@
     smartcar-eval --model logs/ppo/SmartCar-v0_1      # an rl-baselines3-zoo run folder
 
 The episodes are run by ``rollouts.evaluate_policy_episodes`` (episode ``i`` uses seed
-``seed + i``; the results do not depend on ``n_envs``); ``model_files`` finds and loads the
-model, and says which normaliser (VecNormalize statistics, a pickle) may be loaded with it.
+``seed + i``; the results do not depend on ``n_envs``); ``smartcar_gym.policy.Policy.load``
+finds and loads the model and the normaliser (VecNormalize statistics, a pickle) that may be
+loaded with it (``model_files`` says which).
 ``evaluate_policy_episodes``, ``load_model`` and ``summarize`` can still be imported from here.
 """
 
 from __future__ import annotations
 
 import argparse
-import contextlib
 import json
 import sys
-import zipfile
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -31,17 +30,7 @@ from smartcar_gym.agents.hyperparams import (
     output_path_error,
     positive_int_arg,
 )
-from smartcar_gym.agents.model_files import (
-    PRETRAINED_MODEL,
-    PRETRAINED_POLICIES,
-    ModelFiles,
-    ModelFilesError,
-    load_model,
-    locate_model,
-    pretrained_files,
-    saved_algo,
-    shipped_model,
-)
+from smartcar_gym.agents.model_files import PRETRAINED_MODEL, PRETRAINED_POLICIES, load_model
 from smartcar_gym.agents.rollouts import (
     DEFAULT_ENV_ID,
     ObservationShapeError,
@@ -50,7 +39,7 @@ from smartcar_gym.agents.rollouts import (
     record_video,
     summarize,
 )
-from smartcar_gym.agents.zoo_folder import ZooRunError
+from smartcar_gym.policy import Policy, PolicyError
 
 __all__ = ["build_parser", "check_outputs", "evaluate_policy_episodes", "load_model", "main",
            "summarize"]
@@ -122,79 +111,75 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     require_train_extra("smartcar-eval", EVAL_MODULES)
     check_outputs(parser, args)
-    with contextlib.ExitStack() as stack:
-        files = _model_files(parser, args, stack)
-        model_path = Path("random-policy") if files is None else files.model
-        run = {} if files is None else files.run
-        algo = "random" if args.random else args.algo or run.get("algo")
-        if algo is None:
-            parser.error(f"cannot tell the algorithm of {model_path}: it is not in a run folder "
-                         "that says (smartcar-train's config.yaml, rl-baselines3-zoo's "
-                         "<env>/args.yml); pass --algo")
-        if algo not in (*ALGOS, "random"):
-            parser.error(f"unknown algorithm {algo!r} in the run's config; pass --algo")
-        env_id = args.env_id or run.get("env") or DEFAULT_ENV_ID
-        env_kwargs = {**(run.get("env_kwargs") or {}), **dict(args.env_kwargs)}
+    if args.random:
+        env_id = args.env_id or DEFAULT_ENV_ID
+        policy = Policy(RandomPolicy(args.seed), algo="random", env_id=env_id,
+                        env_kwargs=dict(args.env_kwargs),
+                        normalizer_source="none (random actions)")
+    else:
         try:
-            check_env(env_id, env_kwargs)  # here, not in a worker: a clear error
-        except EnvSetupError as err:
+            policy = Policy.load(args.model or args.pretrained, algo=args.algo,
+                                 env_id=args.env_id, env_kwargs=dict(args.env_kwargs),
+                                 normalizer=args.vecnormalize, device=args.device)
+        except PolicyError as err:
             parser.error(str(err))
-        warnings: list[str] = []
-        if files is None:
-            vecnormalize, source, model = None, "none (random actions)", RandomPolicy(args.seed)
-        else:
-            if args.vecnormalize is not None and not args.vecnormalize.is_file():
-                parser.error(f"--vecnormalize: no such file: {args.vecnormalize}")
-            vecnormalize, source, warning = choose_normalizer(files, args.vecnormalize)
-            print(f"smartcar-eval: normaliser: {source}", file=sys.stderr)
-            if warning:
-                warnings.append(warning)
-                print(f"smartcar-eval: warning: {warning}", file=sys.stderr)
-            model = _load_for_cli(parser, model_path, algo, args.device)
-        common = dict(env_id=env_id, seed=args.seed, env_kwargs=env_kwargs,
-                      deterministic=not args.stochastic, vecnormalize_path=vecnormalize)
-        try:
-            records = evaluate_policy_episodes(
-                model, n_episodes=args.episodes, n_envs=args.n_envs,
-                progress=not args.no_progress, **common,
-            )
-        except ObservationShapeError as err:
-            parser.error(str(err))
-        summary = summarize(records)
-        outputs: dict[str, Any] = {} if files is None else {"normaliser": vecnormalize or source}
-        if args.json is not None:
-            payload = {
-                "model": str(model_path if not args.pretrained else "pretrained:" + (
-                    PRETRAINED_MODEL if args.pretrained == "default"
-                    else f"{args.pretrained}/{PRETRAINED_MODEL}")),
-                "algo": algo, "env": env_id, "env_kwargs": env_kwargs, "seed": args.seed,
-                "n_envs": args.n_envs, "deterministic": not args.stochastic,
-                "normalizer": None if vecnormalize is None else str(vecnormalize),
-                "normalizer_source": source, "warnings": warnings,
-                **summary,
-                "episode_records": [r.to_dict() for r in records],
-            }
-            args.json.parent.mkdir(parents=True, exist_ok=True)
-            args.json.write_text(json.dumps(payload, indent=2) + "\n")
-            outputs["json"] = args.json
-        if args.plot is not None:
-            from smartcar_gym.agents.plots import plot_trajectories
+    model_path = policy.model_path or Path("random-policy")
+    algo, env_id, env_kwargs = policy.algo, policy.env_id, policy.env_kwargs
+    vecnormalize, source = policy.normalizer_path, policy.normalizer_source
+    try:
+        check_env(env_id, env_kwargs)  # here, not in a worker: a clear error
+    except EnvSetupError as err:
+        parser.error(str(err))
+    warnings: list[str] = []
+    if not args.random:
+        print(f"smartcar-eval: normaliser: {source}", file=sys.stderr)
+        if policy.warning:
+            warnings.append(policy.warning)
+            print(f"smartcar-eval: warning: {policy.warning}", file=sys.stderr)
+    common = dict(env_id=env_id, seed=args.seed, env_kwargs=env_kwargs,
+                  deterministic=not args.stochastic)
+    try:
+        records = evaluate_policy_episodes(
+            policy, n_episodes=args.episodes, n_envs=args.n_envs,
+            progress=not args.no_progress, **common,
+        )
+    except ObservationShapeError as err:
+        parser.error(str(err))
+    summary = summarize(records)
+    outputs: dict[str, Any] = {} if args.random else {"normaliser": vecnormalize or source}
+    if args.json is not None:
+        payload = {
+            "model": str(model_path if not args.pretrained else "pretrained:" + (
+                PRETRAINED_MODEL if args.pretrained == "default"
+                else f"{args.pretrained}/{PRETRAINED_MODEL}")),
+            "algo": algo, "env": env_id, "env_kwargs": env_kwargs, "seed": args.seed,
+            "n_envs": args.n_envs, "deterministic": not args.stochastic,
+            "normalizer": None if vecnormalize is None else str(vecnormalize),
+            "normalizer_source": source, "warnings": warnings,
+            **summary,
+            "episode_records": [r.to_dict() for r in records],
+        }
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        args.json.write_text(json.dumps(payload, indent=2) + "\n")
+        outputs["json"] = args.json
+    if args.plot is not None:
+        from smartcar_gym.agents.plots import plot_trajectories
 
-            tolerance = float(env_kwargs.get("goal_tolerance", 0.1))
-            shown = " (first 16 shown)" if len(records) > 16 else ""
-            plot_trajectories(records, args.plot, goal_tolerance_m=tolerance,
-                              title=f"{model_path.name} on {env_id}: "
-                                    f"{summary['success_rate']:.0%} success over "
-                                    f"{len(records)} episodes{shown}")
-            outputs["plot"] = args.plot
-        if args.video is not None:
-            n_frames = record_video(model, args.video, n_episodes=args.video_episodes, **common)
-            outputs[f"video ({n_frames} frames)"] = args.video
-        if args.bag is not None:
-            from smartcar_gym.ros.bag import write_bag
+        tolerance = float(env_kwargs.get("goal_tolerance", 0.1))
+        shown = " (first 16 shown)" if len(records) > 16 else ""
+        plot_trajectories(records, args.plot, goal_tolerance_m=tolerance,
+                          title=f"{model_path.name} on {env_id}: "
+                                f"{summary['success_rate']:.0%} success over "
+                                f"{len(records)} episodes{shown}")
+        outputs["plot"] = args.plot
+    if args.video is not None:
+        n_frames = record_video(policy, args.video, n_episodes=args.video_episodes, **common)
+        outputs[f"video ({n_frames} frames)"] = args.video
+    if args.bag is not None:
+        from smartcar_gym.ros.bag import write_bag
 
-            n_messages = write_bag(model, args.bag, n_episodes=args.episodes, **common)
-            outputs[f"bag ({n_messages} messages)"] = args.bag
+        n_messages = write_bag(policy, args.bag, n_episodes=args.episodes, **common)
+        outputs[f"bag ({n_messages} messages)"] = args.bag
     _print_summary(summary, model_path, env_id, args, outputs)
     for warning in warnings:  # again after the table, where the numbers are read
         print(f"smartcar-eval: warning: {warning}", file=sys.stderr)
@@ -224,67 +209,6 @@ def check_outputs(parser: argparse.ArgumentParser, args: argparse.Namespace) -> 
         problem = None if path is None else output_path_error(path)
         if problem:
             parser.error(f"{option}: {problem}")
-
-
-def _model_files(parser: argparse.ArgumentParser, args: argparse.Namespace,
-                 stack: contextlib.ExitStack) -> ModelFiles | None:
-    """The model of ``--model`` / ``--pretrained`` and its place (None for ``--random``)."""
-    if args.random:
-        return None
-    if args.pretrained:
-        try:
-            return shipped_model(stack.enter_context(pretrained_files(args.pretrained)))
-        except FileNotFoundError as err:
-            parser.error(str(err))
-    if not args.model.exists():
-        parser.error(f"--model: no such file: {args.model}")
-    try:
-        files = locate_model(args.model)
-    except (ModelFilesError, ZooRunError) as err:
-        parser.error(str(err))
-    if not zipfile.is_zipfile(files.model):
-        parser.error(f"--model: {files.model} is not a model (SB3 models are .zip files)")
-    return files
-
-
-def choose_normalizer(files: ModelFiles, named: Path | None) -> tuple[Path | None, str,
-                                                                       str | None]:
-    """The normaliser to load with a model: ``named`` (``--vecnormalize``), else the one its
-    place assigns to it. Returns the path (or None), where it comes from, and a warning when
-    none is loaded although the model may need one."""
-    if named is not None:
-        return named, f"{named} (named with --vecnormalize)", None
-    where = f"the {files.place} {files.folder}" if files.place else None
-    if files.normalizer is not None:
-        return files.normalizer, f"{files.normalizer} (that of {where})", None
-    if files.trained_with_normalizer is False:
-        return None, f"none ({where} trained without VecNormalize)", None
-    cost = ("a policy trained on normalised observations mostly fails on raw ones, so its "
-            "score would be meaningless")
-    if where is not None:
-        return None, "none (see the warning)", (
-            f"no normaliser loaded: {where} trained with VecNormalize but "
-            f"{files.expected_normalizer} does not exist; {cost}; pass --vecnormalize FILE")
-    strays = ", ".join(map(str, files.stray_normalizers))
-    return None, "none (see the warning)", (
-        f"no normaliser loaded: {files.model} is not in a smartcar-train run folder, an exported "
-        f"policy's folder or an rl-baselines3-zoo run folder, so none is looked for; {cost}. If "
-        "it was trained with VecNormalize (the shipped hyperparameters use it), pass "
-        "--vecnormalize FILE" + (f" ({strays} lies near the model but is not loaded unnamed: it "
-                                 "is a pickle)" if strays else ""))
-
-
-def _load_for_cli(parser: argparse.ArgumentParser, path: Path, algo: str, device: str) -> Any:
-    """``load_model``, with a clear ``parser.error`` for the wrong algorithm or a bad file."""
-    saved = saved_algo(path)
-    if saved is not None and saved != algo:
-        parser.error(f"{path} holds a {saved.upper()} model, not {algo.upper()}: pass "
-                     f"--algo {saved}")
-    try:
-        return load_model(path, algo, device=device)
-    except Exception as err:  # a file from anywhere: whatever fails, the file is the cause
-        parser.error(f"--model: cannot load {path} as a {algo.upper()} model: "
-                     f"{type(err).__name__}: {err}")
 
 
 def _print_summary(summary: dict[str, Any], model_path: Path, env_id: str,

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import math
 import os
-import pickle
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -20,8 +19,10 @@ import gymnasium as gym
 import numpy as np
 
 from smartcar_gym.agents.env_factory import make_env
+from smartcar_gym.policy import DEFAULT_ENV_ID, Policy, as_policy
 
-DEFAULT_ENV_ID = "SmartCar-v0"
+__all__ = ["DEFAULT_ENV_ID", "EpisodeRecord", "ObservationShapeError", "RandomPolicy",
+           "evaluate_policy_episodes", "record_video", "summarize"]
 
 
 @dataclass
@@ -71,17 +72,6 @@ def summarize(records: Sequence[EpisodeRecord]) -> dict[str, float | int | None]
     }
 
 
-class ObsNormalizer:
-    """Applies saved ``VecNormalize`` observation statistics (frozen) to raw observations."""
-
-    def __init__(self, vecnormalize_path: str | os.PathLike) -> None:
-        with open(vecnormalize_path, "rb") as f:
-            self.vec_normalize = pickle.load(f)
-
-    def __call__(self, obs: np.ndarray) -> np.ndarray:
-        return self.vec_normalize.normalize_obs(obs)
-
-
 def _vector_env(env_id: str, n_envs: int, env_kwargs: dict[str, Any]) -> gym.vector.VectorEnv:
     fns = [_EnvFn(env_id, env_kwargs) for _ in range(n_envs)]
     mode = gym.vector.AutoresetMode.DISABLED
@@ -117,22 +107,8 @@ class RandomPolicy:
         return np.stack([self.action_space.sample() for _ in batch]), None
 
 
-def _predict(model: Any, obs: np.ndarray | dict[str, np.ndarray],
-             normalizer: ObsNormalizer | None, deterministic: bool) -> np.ndarray:
-    """The action for one observation (a batch of one, so results do not depend on batching);
-    a ``Dict`` observation (SmartCarGoal-v0) is a dict of arrays."""
-    if isinstance(obs, dict):
-        batch = {key: np.asarray(value, dtype=np.float32)[None] for key, value in obs.items()}
-    else:
-        batch = obs[None].astype(np.float32)
-    if normalizer is not None:
-        batch = normalizer(batch)
-    action, _ = model.predict(batch, deterministic=deterministic)
-    return np.asarray(action, dtype=np.float32).reshape(-1)
-
-
 def evaluate_policy_episodes(
-    model: Any,
+    model: Policy | Any,
     env_id: str = DEFAULT_ENV_ID,
     n_episodes: int = 100,
     n_envs: int = 1,
@@ -144,21 +120,22 @@ def evaluate_policy_episodes(
 ) -> list[EpisodeRecord]:
     """Run ``n_episodes`` complete episodes over ``n_envs`` envs; episode i uses seed seed+i.
 
-    ``model`` is anything with SB3's ``predict(obs, deterministic=...)``; observations are
-    normalised with the ``VecNormalize`` statistics at ``vecnormalize_path`` if given. Envs
+    ``model`` is a ``smartcar_gym.policy.Policy`` (its normaliser applies), or anything with
+    SB3's ``predict(obs, deterministic=...)``, whose observations are normalised with the
+    ``VecNormalize`` statistics at ``vecnormalize_path`` if given. Envs
     run in worker processes when ``n_envs > 1`` (so call it under ``if __name__ ==
     "__main__":`` in a script). Records are returned in episode order. Sampled actions
     (``deterministic=False``) are reproducible for the same ``seed`` and ``n_envs``.
     """
     if n_episodes < 1 or n_envs < 1:
         raise ValueError(f"n_episodes and n_envs must be >= 1, got {n_episodes}, {n_envs}")
-    normalizer = ObsNormalizer(vecnormalize_path) if vecnormalize_path is not None else None
-    if not deterministic and hasattr(model, "set_random_seed"):
-        model.set_random_seed(seed)
+    policy = as_policy(model, vecnormalize_path)
+    if not deterministic and hasattr(policy.model, "set_random_seed"):
+        policy.model.set_random_seed(seed)
     n_slots = min(n_envs, n_episodes)
     envs = _vector_env(env_id, n_slots, dict(env_kwargs or {}))
     try:
-        _check_spaces(model, envs.single_observation_space, env_id)
+        _check_spaces(policy, envs.single_observation_space, env_id)
     except ObservationShapeError:
         envs.close()
         raise
@@ -179,8 +156,7 @@ def evaluate_policy_episodes(
             actions = np.zeros((n_slots, *envs.single_action_space.shape), dtype=np.float32)
             for slot, episode in enumerate(episode_of):
                 if episode is not None:
-                    actions[slot] = _predict(model, _slot(obs, slot), normalizer,
-                                             deterministic)
+                    actions[slot] = policy.act(_slot(obs, slot), deterministic)
             obs, reward, terminated, truncated, info = envs.step(actions)
             reset_mask = np.zeros(n_slots, dtype=bool)
             for slot, episode in enumerate(episode_of):
@@ -232,9 +208,9 @@ class ObservationShapeError(ValueError):
     """The model was trained on observations of another shape than the env's."""
 
 
-def _check_spaces(model: Any, space: gym.spaces.Space, env_id: str) -> None:
+def _check_spaces(policy: Policy, space: gym.spaces.Space, env_id: str) -> None:
     """A clear error when the model was trained on observations of another shape."""
-    expected = getattr(getattr(model, "observation_space", None), "shape", None)
+    expected = getattr(policy.observation_space, "shape", None)
     if expected is not None and tuple(expected) != tuple(space.shape):
         raise ObservationShapeError(
             f"the model expects observations of shape {tuple(expected)} but {env_id} gives "
@@ -283,7 +259,7 @@ class _Track:
 
 
 def record_video(
-    model: Any,
+    model: Policy | Any,
     out_path: str | os.PathLike,
     env_id: str = DEFAULT_ENV_ID,
     n_episodes: int = 3,
@@ -294,7 +270,8 @@ def record_video(
 ) -> int:
     """Render episodes 0..n-1 (seeds seed+i, as in the evaluation) to a .gif or .mp4.
 
-    Returns the number of frames written (mp4 through ``imageio-ffmpeg``, a dependency).
+    ``model`` and ``vecnormalize_path``: as for ``evaluate_policy_episodes``. Returns the
+    number of frames written (mp4 through ``imageio-ffmpeg``, a dependency).
     """
     import imageio.v3 as iio
 
@@ -302,7 +279,7 @@ def record_video(
     suffix = out_path.suffix.lower()
     if suffix not in (".gif", ".mp4"):
         raise ValueError(f"video file must end in .gif or .mp4, got {out_path.name!r}")
-    normalizer = ObsNormalizer(vecnormalize_path) if vecnormalize_path is not None else None
+    policy = as_policy(model, vecnormalize_path)
     env = make_env(env_id, {**(env_kwargs or {}), "render_mode": "rgb_array"})
     fps = float(env.metadata.get("render_fps") or 10)
     frames = []
@@ -312,7 +289,7 @@ def record_video(
             frames.append(env.render())
             done = False
             while not done:
-                action = _predict(model, obs, normalizer, deterministic)
+                action = policy.act(obs, deterministic)
                 obs, _, terminated, truncated, _ = env.step(action)
                 frames.append(env.render())
                 done = terminated or truncated

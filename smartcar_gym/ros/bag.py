@@ -18,11 +18,14 @@ import os
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from smartcar_gym.ros import messages as m
+
+if TYPE_CHECKING:
+    from smartcar_gym.policy import Policy
 
 ROS_EXTRA = 'pip install "smartcar-gym[ros]"'
 SUFFIXES = (".bag", ".mcap")
@@ -153,7 +156,7 @@ def _state(writer: EpisodeWriter, types: m.RosbagsTypes, env: Any, time_ns: int)
 
 
 def write_bag(
-    model: Any,
+    model: Policy | Any,
     out_path: str | os.PathLike,
     env_id: str,
     n_episodes: int,
@@ -163,11 +166,12 @@ def write_bag(
     vecnormalize_path: str | os.PathLike | None = None,
 ) -> int:
     """Run episodes 0..n-1 (seeds ``seed + i``) and write them to ``out_path``; returns the
-    number of messages written."""
+    number of messages written. ``model``: a ``smartcar_gym.policy.Policy``, or an SB3-like
+    model with the statistics at ``vecnormalize_path`` (as for ``evaluate_policy_episodes``)."""
     from smartcar_gym.agents.env_factory import make_env
-    from smartcar_gym.agents.rollouts import ObsNormalizer, _predict
+    from smartcar_gym.policy import as_policy
 
-    normalizer = ObsNormalizer(vecnormalize_path) if vecnormalize_path is not None else None
+    policy = as_policy(model, vecnormalize_path)
     env = make_env(env_id, env_kwargs)
     base = env.unwrapped
     if not all(hasattr(base, name) for name in ("robot", "sim", "goal", "max_linear")):
@@ -187,7 +191,7 @@ def write_bag(
                 _state(writer, types, base, offset_ns)
                 done = False
                 while not done:
-                    action = _predict(model, obs, normalizer, deterministic)
+                    action = policy.act(obs, deterministic)
                     linear, angular = np.clip(action.astype(np.float64), -1.0, 1.0) * scale
                     now_ns = offset_ns + base.sim.now_ns
                     writer.write("/cmd_vel", m.twist_message(types, linear, angular), now_ns)

@@ -14,7 +14,6 @@ Bad arguments, a missing rospy or no ROS master: one line on stderr and exit cod
 from __future__ import annotations
 
 import argparse
-import contextlib
 import math
 import signal
 import sys
@@ -218,56 +217,38 @@ def _policy(parser: argparse.ArgumentParser, args: argparse.Namespace,
     from smartcar_gym.agents import require_train_extra
 
     require_train_extra(f"{PROG} policy", POLICY_MODULES)
-    from smartcar_gym.agents.evaluate import _load_for_cli, _model_files, choose_normalizer
-    from smartcar_gym.agents.hyperparams import ALGOS
-    from smartcar_gym.agents.rollouts import DEFAULT_ENV_ID, ObsNormalizer, _predict
     from smartcar_gym.model import ModelError
+    from smartcar_gym.policy import Policy, PolicyError
     from smartcar_gym.ros.driving import GoalDriver
     from smartcar_gym.ros.policy import PolicyNode
-    from smartcar_gym.ros.settings import policy_settings
 
-    args.random = False  # what smartcar-eval's helpers ask of its arguments
-    with contextlib.ExitStack() as stack:
-        files = _model_files(parser, args, stack)  # the rules of smartcar-eval, its errors
-        run = files.run
-        algo = args.algo or run.get("algo")
-        if algo not in ALGOS:
-            parser.error(f"cannot tell the algorithm of {files.model} ({algo!r}); pass --algo "
-                         f"(one of {', '.join(ALGOS)})")
-        env_id = args.env_id or run.get("env") or DEFAULT_ENV_ID
-        env_kwargs = {**(run.get("env_kwargs") or {}), **dict(args.env_kwargs)}
-        try:
-            settings = policy_settings(env_id, env_kwargs)
-        except (ModelError, OSError, ValueError) as err:
-            parser.error(f"{env_id} with {env_kwargs or 'no env kwargs'}: {err}")
-        if args.vecnormalize is not None and not args.vecnormalize.is_file():
-            parser.error(f"--vecnormalize: no such file: {args.vecnormalize}")
-        vecnormalize, normaliser, warning = choose_normalizer(files, args.vecnormalize)
-        try:
-            ros = _ros_or_fail()  # before the slow part
-        except RosUnavailable as err:
-            return _fail(str(err))
-        model = _load_for_cli(parser, files.model, algo, args.device)
-        try:
-            normalizer = ObsNormalizer(vecnormalize) if vecnormalize is not None else None
-        except Exception as err:  # a pickle from anywhere: whatever fails, the file is the cause
-            parser.error(f"cannot load the normaliser {vecnormalize}: {type(err).__name__}: "
-                         f"{err}")
-    expected = tuple(getattr(model.observation_space, "shape", ()))
+    try:
+        ros = _ros_or_fail()  # before the slow part
+    except RosUnavailable as err:
+        return _fail(str(err))
+    try:  # the rules of smartcar-eval, its errors
+        policy = Policy.load(args.model or args.pretrained, algo=args.algo,
+                             env_id=args.env_id, env_kwargs=dict(args.env_kwargs),
+                             normalizer=args.vecnormalize, device=args.device)
+    except PolicyError as err:
+        parser.error(str(err))
+    env_id, env_kwargs = policy.env_id, policy.env_kwargs
+    try:
+        settings = policy.settings
+    except (ModelError, OSError, ValueError) as err:
+        parser.error(f"{env_id} with {env_kwargs or 'no env kwargs'}: {err}")
+    expected = tuple(getattr(policy.observation_space, "shape", ()))
     observed = settings.observation.space.shape
     if expected != observed:
-        parser.error(f"{files.model} expects observations of shape {expected} but {env_id} "
-                     f"gives {observed}: the env changed since the model was trained")
+        parser.error(f"{policy.model_path} expects observations of shape {expected} but "
+                     f"{env_id} gives {observed}: the env changed since the model was trained")
     stop = _init_node(ros, "smartcar_policy", ros_args)
     rospy = ros.rospy
-    rospy.loginfo(f"policy {files.model} ({algo.upper()}, {env_id}); normaliser: {normaliser}")
-    if warning:
-        rospy.logwarn(warning)
-
-    def act(obs: Any) -> Any:
-        return _predict(model, obs, normalizer, deterministic=True)
-
-    driver = GoalDriver(settings, act, args.stale_after, args.stop_on)
+    rospy.loginfo(f"policy {policy.model_path} ({policy.algo.upper()}, {env_id}); normaliser: "
+                  f"{policy.normalizer_source}")
+    if policy.warning:
+        rospy.logwarn(policy.warning)
+    driver = GoalDriver(settings, policy.act, args.stale_after, args.stop_on)
     try:
         PolicyNode(ros, driver).spin(stop)
     finally:

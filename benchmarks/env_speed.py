@@ -269,6 +269,9 @@ def robots(args: argparse.Namespace) -> None:
     for name, values in rates.items():
         ratio = statistics.median(x / y for x, y in zip(values, rates["smartcar"], strict=True))
         print(f"| {name} | {drives[name]} | {statistics.median(values):,.0f} | {ratio:.2f} |")
+    guards = statistics.median(x / y for x, y in zip(
+        rates["casterbot"], rates["casterbot unguarded"], strict=True))
+    print(f"\ncasterbot / casterbot unguarded (what the guards cost): {guards:.2f}")
 
 
 def report(rates: dict[str, list[float]], args: argparse.Namespace) -> None:

@@ -35,9 +35,9 @@ from smartcar_gym.sim.simulator import NS_PER_S, Simulator, seconds_to_ns
 
 GEAR_MAX_FORCE_NM = 100.0  # the chain between a side's wheels: far above any motor torque
 SETTLE_S = 0.1  # wheels onto the ground before the controller starts
-# A differential-drive robot's encoders start mid-tick: on the edge, the sign of a 1e-12 m creep
-# of each wheel at rest decided whether it counted -1, and one count split the sides' PWM
-# for good (docs/stepping.md, "Driving straight").
+# A differential-drive robot's encoders start mid-tick: on the edge, the sign of each standing
+# wheel's rounding-sized creep decided whether it counted -1, and one count split the sides'
+# PWM for good (docs/stepping.md, "Driving straight").
 DIFFERENTIAL_ENCODER_PHASE_TICKS = 0.5
 
 

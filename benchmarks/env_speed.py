@@ -1,6 +1,7 @@
 """SmartCar-v0 stepping speed as ratios, measured interleaved in one run.
 
     python benchmarks/env_speed.py [--steps 1500] [--rounds 3] [--baseline-ref 1103dff]
+    python benchmarks/env_speed.py --robots [--steps 1500] [--rounds 3]
 
 Each round measures every variant once, in turn, each in a fresh subprocess (random actions,
 seeded, timed after a warm-up, episode resets included: what a rollout costs); a ratio is taken
@@ -17,6 +18,12 @@ only ratios measured side by side mean anything. Variants, for each wheel contac
 - ``racecar``: bullet3's ``RacecarGymEnv`` (pybullet_envs, which needs the old ``gym`` API: a
   shim maps it to gymnasium in the worker only) at 10 physics steps of 10 ms per action, the
   same 0.1 s as one SmartCar-v0 step. Compared by real-time factor (simulated s per wall s).
+
+``--robots`` instead compares what the default stepping costs for users' robots (the test
+fixtures ``casterbot``, differential drive, and ``heavybot``, skid steer) against the smartcar,
+each ``gym.make("SmartCar-v0", model=..., controller_config=...)`` at its defaults, plus the
+casterbot without the differential-drive guards (taken for a skid base: 10 solver iterations,
+encoders on an edge), which shows what the guards cost.
 """
 
 from __future__ import annotations
@@ -37,6 +44,17 @@ HERE = Path(__file__).resolve()
 REPO = HERE.parent.parent
 CONTROL_PERIOD_S = 0.1
 WARMUP = 100
+FIXTURES = REPO / "tests" / "fixtures"
+#: --robots: name -> (model, controller YAML) relative to FIXTURES; None: the shipped smartcar
+ROBOTS = {
+    "smartcar": None,
+    "casterbot": ("casterbot_description/urdf/casterbot.urdf.xacro",
+                  "casterbot_description/config/casterbot_arbotix.yaml"),
+    "casterbot unguarded": ("casterbot_description/urdf/casterbot.urdf.xacro",
+                            "casterbot_description/config/casterbot_arbotix.yaml"),
+    "heavybot": ("heavybot_description/urdf/heavybot.urdf.xacro",
+                 "heavybot_description/config/heavybot_arbotix.yaml"),
+}
 
 
 # -- workers (run in a subprocess: python env_speed.py --worker NAME ...) ----------------------
@@ -46,13 +64,20 @@ def _random_actions(n: int):
     return np.random.default_rng(0).uniform(-1, 1, size=(n, 2)).astype(np.float32)
 
 
-def worker_env(steps: int, contact: str) -> float:
+def worker_env(steps: int, contact: str, robot: str = "smartcar") -> float:
     """Env steps per second of ``gym.make("SmartCar-v0")`` (whichever smartcar_gym imports)."""
     import gymnasium as gym
 
     import smartcar_gym  # noqa: F401
 
-    env = gym.make("SmartCar-v0", wheel_contact=contact)
+    files = ROBOTS[robot]
+    kwargs = {} if files is None else {"model": str(FIXTURES / files[0]),
+                                       "controller_config": str(FIXTURES / files[1])}
+    if robot.endswith("unguarded"):
+        from smartcar_gym.model import RobotModel
+
+        RobotModel.drive_kind = property(lambda self: "skid")
+    env = gym.make("SmartCar-v0", wheel_contact=contact, **kwargs)
     env.reset(seed=0)
     start = 0.0
     for i, action in enumerate(_random_actions(steps + WARMUP)):
@@ -66,7 +91,7 @@ def worker_env(steps: int, contact: str) -> float:
     return steps / elapsed
 
 
-def worker_raw(steps: int, contact: str) -> float:
+def worker_raw(steps: int, contact: str, robot: str = "smartcar") -> float:
     """Env-step equivalents per second of bare 500 Hz stepping of the same robot."""
     import numpy as np
 
@@ -131,9 +156,9 @@ def _old_gym_shim() -> None:
         sys.modules["pkg_resources"] = types.SimpleNamespace(parse_version=parse)
 
 
-def worker_racecar(steps: int, contact: str) -> float:
+def worker_racecar(steps: int, contact: str, robot: str = "smartcar") -> float:
     """Actions per second of bullet3's RacecarGymEnv at 10 physics steps of 10 ms per action."""
-    del contact
+    del contact, robot
     import contextlib
     import io
 
@@ -172,11 +197,12 @@ def extract_baseline(ref: str, into: Path) -> Path | None:
     return into / "baseline"
 
 
-def measure(worker: str, steps: int, contact: str, pythonpath: Path | None = None) -> float:
+def measure(worker: str, steps: int, contact: str, pythonpath: Path | None = None,
+            robot: str = "smartcar") -> float:
     env = {**os.environ, "PYTHONPATH": str(pythonpath or REPO)}
     out = subprocess.run(
         [sys.executable, str(HERE), "--worker", worker, "--steps", str(steps),
-         "--wheel-contact", contact],
+         "--wheel-contact", contact, "--robot", robot],
         capture_output=True, text=True, env=env, timeout=1800, check=False,
     )
     if out.returncode != 0:
@@ -191,11 +217,19 @@ def main() -> None:
     parser.add_argument("--baseline-ref", default="1103dff",
                         help="git ref of the round-1 code (fixed 2 ms stepping)")
     parser.add_argument("--no-racecar", action="store_true")
+    parser.add_argument("--robots", action="store_true",
+                        help="compare users' robots (test fixtures) with the smartcar instead")
     parser.add_argument("--worker", choices=sorted(WORKERS), help=argparse.SUPPRESS)
     parser.add_argument("--wheel-contact", default="sphere", help=argparse.SUPPRESS)
+    parser.add_argument("--robot", default="smartcar", choices=sorted(ROBOTS),
+                        help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.worker:
-        print(json.dumps({"rate": WORKERS[args.worker](args.steps, args.wheel_contact)}))
+        rate = WORKERS[args.worker](args.steps, args.wheel_contact, args.robot)
+        print(json.dumps({"rate": rate}))
+        return
+    if args.robots:
+        robots(args)
         return
 
     with tempfile.TemporaryDirectory(prefix="smartcar_bench_") as tmp:
@@ -215,6 +249,29 @@ def main() -> None:
                 print(f"round {round_ + 1}: {name}: {rates[name][-1]:,.0f} steps/s",
                       file=sys.stderr, flush=True)
     report(rates, args)
+
+
+def robots(args: argparse.Namespace) -> None:
+    """Each robot of ROBOTS at its default stepping, interleaved; ratios to the smartcar."""
+    rates: dict[str, list[float]] = {name: [] for name in ROBOTS}
+    for round_ in range(args.rounds):
+        for name in ROBOTS:
+            rates[name].append(measure("env", args.steps, "sphere", robot=name))
+            print(f"round {round_ + 1}: {name}: {rates[name][-1]:,.0f} steps/s",
+                  file=sys.stderr, flush=True)
+    print(f"SmartCar-v0 at its defaults, random actions, {args.steps} steps per measurement, "
+          f"median of {args.rounds} interleaved rounds")
+    print("| robot | drive | env steps/s | / smartcar |")
+    print("|---|---|---:|---:|")
+    drives = {"smartcar": "skid, 4 wheels", "casterbot": "differential, guarded",
+              "casterbot unguarded": "differential, taken for skid",
+              "heavybot": "skid, 4 wheels"}
+    for name, values in rates.items():
+        ratio = statistics.median(x / y for x, y in zip(values, rates["smartcar"], strict=True))
+        print(f"| {name} | {drives[name]} | {statistics.median(values):,.0f} | {ratio:.2f} |")
+    guards = statistics.median(x / y for x, y in zip(
+        rates["casterbot"], rates["casterbot unguarded"], strict=True))
+    print(f"\ncasterbot / casterbot unguarded (what the guards cost): {guards:.2f}")
 
 
 def report(rates: dict[str, list[float]], args: argparse.Namespace) -> None:

@@ -66,6 +66,7 @@ class ArbotixBase:
         mode: Mode,
         wheel_radius_m: float,
         drive: WheelDrive | None = None,
+        encoder_phase_ticks: float = 0.0,
     ) -> None:
         if mode not in MODES:
             raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
@@ -74,6 +75,8 @@ class ArbotixBase:
         self.config = config
         self.mode: Mode = mode
         self.drive = drive
+        #: where each wheel stands within its first encoder tick at ``reset`` (see WheelEncoder)
+        self.encoder_phase_ticks = encoder_phase_ticks
         self.motor = DCMotor(config.motor)
         self.encoders = (
             WheelEncoder(wheel_radius_m, config.ticks_meter),
@@ -95,8 +98,8 @@ class ArbotixBase:
         if self.mode == HARDWARE:
             drive = self._wheel_drive()
             left, right = drive.encoder_angles()
-            self.encoders[0].reset(left)
-            self.encoders[1].reset(right)
+            self.encoders[0].reset(left, self.encoder_phase_ticks)
+            self.encoders[1].reset(right, self.encoder_phase_ticks)
             self.board.setup(*self.config.gains)
             drive.set_motor_output(self.motor.output(0), self.motor.output(0))
         self._ready = True

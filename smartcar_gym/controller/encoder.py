@@ -31,9 +31,17 @@ class WheelEncoder:
         self.ticks_meter = float(ticks_meter)
         self.zero_angle_rad = 0.0
 
-    def reset(self, angle_rad: float) -> None:
-        """Zero the count at the wheel's current angle (the firmware's counters start at 0)."""
-        self.zero_angle_rad = float(angle_rad)
+    def reset(self, angle_rad: float, phase_ticks: float = 0.0) -> None:
+        """Zero the count at the wheel's current angle (the firmware's counters start at 0).
+
+        ``phase_ticks``: where the wheel stands within its first tick, in ticks past the edge
+        that counts it backwards: 0 on that edge (the least creep back counts -1), 0.5 in the
+        middle (half a tick either way before the count changes).
+        """
+        if not 0.0 <= phase_ticks < 1.0:
+            raise ValueError(f"encoder phase_ticks must be in [0, 1), got {phase_ticks!r}")
+        self.zero_angle_rad = float(angle_rad) - phase_ticks / (
+            self.wheel_radius_m * self.ticks_meter)
 
     def count(self, angle_rad: float) -> int:
         """Ticks since ``reset`` for the wheel's current forward-positive angle."""

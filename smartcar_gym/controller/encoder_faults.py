@@ -50,10 +50,9 @@ class FaultyEncoder(WheelEncoder):
         self._travel = 0.0  # true ticks at the last reading (float)
         self._counted = 0.0  # ticks counted so far, slip included (float)
 
-    def reset(self, angle_rad: float) -> None:
-        super().reset(angle_rad)
-        self._travel = 0.0
-        self._counted = 0.0
+    def reset(self, angle_rad: float, phase_ticks: float = 0.0) -> None:
+        super().reset(angle_rad, phase_ticks)
+        self._travel = self._counted = phase_ticks * self.scale
 
     def count(self, angle_rad: float) -> int:
         travel = (angle_rad - self.zero_angle_rad) * self.wheel_radius_m * self.ticks_meter

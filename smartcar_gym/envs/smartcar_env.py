@@ -103,7 +103,10 @@ class SmartCarEnv(gym.Env):
     timeout, ramp, write to the board). As on the robot, a command therefore reaches the wheels
     at the next controller update. Within the period the simulator steps pybullet from event to
     event (the board's 34 ms PID frames, the controller update), each interval in the fewest
-    equal substeps no longer than ``max_substep_s``.
+    equal substeps no longer than ``max_substep_s``. A differential-drive ``model`` (one drive
+    wheel per side, e.g. two wheels and a caster: ``robot_model.drive_kind``) has its contacts
+    solved to convergence and its encoders start mid-tick, so that it drives straight; a skid
+    base such as the smartcar is stepped as in 0.2.0 (docs/stepping.md, "Driving straight").
 
     ## Observation Space
 

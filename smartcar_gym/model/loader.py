@@ -14,7 +14,13 @@ from smartcar_gym.model.meshes import Locator, resolve_meshes
 from smartcar_gym.model.packages import SHIPPED_DESCRIPTIONS, PackagePath, check_package_path
 from smartcar_gym.model.repair import Repair, repair_urdf
 from smartcar_gym.model.urdf import Joint, Link, UrdfRobot, parse_urdf
-from smartcar_gym.model.wheels import Wheel, check_wheel_overrides, find_wheels
+from smartcar_gym.model.wheels import (
+    DriveKind,
+    Wheel,
+    check_wheel_overrides,
+    drive_kind,
+    find_wheels,
+)
 from smartcar_gym.model.xacro_runner import Expansion, expand_xacro, locate_line
 
 SHIPPED_MODEL = SHIPPED_DESCRIPTIONS / "smartcar_description" / "urdf" / "smartcar.urdf.xacro"
@@ -67,6 +73,11 @@ class RobotModel:
             raise ModelError(f"drive wheels have different radii ({listed}); expected one "
                              "common radius within 1 %", file=self.source)
         return sum(radii) / len(radii)
+
+    @property
+    def drive_kind(self) -> DriveKind:
+        """``"differential"`` (one drive wheel per side) or ``"skid"`` (see ``drive_kind``)."""
+        return drive_kind(self.wheels)
 
     @property
     def track_width_m(self) -> float:

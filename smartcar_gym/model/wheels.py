@@ -13,6 +13,7 @@ from smartcar_gym.model.kinematics import link_frames
 from smartcar_gym.model.urdf import Joint, UrdfRobot, Vec3
 
 Side = Literal["left", "right"]
+DriveKind = Literal["differential", "skid"]
 LATERAL_MIN = 0.9  # |axis_y| in base_link above which a wheel axle counts as lateral
 
 
@@ -147,3 +148,16 @@ def find_wheels(robot: UrdfRobot, overrides: Mapping[str, Sequence[str]] | None 
             line=lines[0] if len(lines) == 1 else None,
         )
     return tuple(wheels)
+
+
+def drive_kind(wheels: Sequence[Wheel]) -> DriveKind:
+    """``"differential"``: one drive wheel per side (casters or skids carry the rest), so the
+    robot turns freely with any speed difference between its sides; ``"skid"``: a side with two
+    or more chained wheels, whose yaw the wheels' sideways friction resists (the smartcar).
+
+    Engine-free, so every physics engine can act on it: a differential base feels a difference
+    between its sides that a skid base shrugs off (docs/stepping.md, "Driving straight").
+    """
+    left = sum(w.side == "left" for w in wheels)
+    right = len(wheels) - left
+    return "differential" if left == 1 and right == 1 else "skid"

@@ -35,6 +35,10 @@ from smartcar_gym.sim.simulator import NS_PER_S, Simulator, seconds_to_ns
 
 GEAR_MAX_FORCE_NM = 100.0  # the chain between a side's wheels: far above any motor torque
 SETTLE_S = 0.1  # wheels onto the ground before the controller starts
+# A differential-drive robot's encoders start mid-tick: on the edge, the sign of each standing
+# wheel's rounding-sized creep decided whether it counted -1, and one count split the sides'
+# PWM for good (docs/stepping.md, "Driving straight").
+DIFFERENTIAL_ENCODER_PHASE_TICKS = 0.5
 
 
 @dataclass(frozen=True)
@@ -83,6 +87,11 @@ class SmartCarRobot:
     Use: ``spawn`` into a freshly reset world, then ``cmd_vel`` and ``sim.run_until``; read
     ``odometry``, ``joint_states()`` and ``pose()``. ``vary`` before ``spawn`` makes the robot
     differ from its model and YAML (domain randomisation).
+
+    A differential-drive model (one drive wheel per side, ``model.drive_kind``) spawns with its
+    contacts solved to convergence (``Simulator.converge_contacts``) and its encoders starting
+    mid-tick, so that a mirror-symmetric robot drives straight; a skid base (the smartcar)
+    steps exactly as before.
     """
 
     def __init__(
@@ -114,7 +123,10 @@ class SmartCarRobot:
             self._encoder_wheel("left", config.encoder_left),
             self._encoder_wheel("right", config.encoder_right),
         )
-        self.base = ArbotixBase(config, mode, model.wheel_radius_m, drive=self)
+        #: where the encoders start within their first tick (0 for a skid base, as ever)
+        self.encoder_phase_ticks = (DIFFERENTIAL_ENCODER_PHASE_TICKS
+                                    if model.drive_kind == "differential" else 0.0)
+        self.base = self._new_base(config)
         #: the controller's period (ns): it fires at every whole multiple of it after spawn
         self.update_period_ns = seconds_to_ns(1.0 / config.rate_hz)
         # Height of base_link above the ground when every wheel touches it.
@@ -156,10 +168,14 @@ class SmartCarRobot:
                 self._delay = CommandDelay(variation.latency, self.update_period_ns)
         self.variation = variation
         self.config, self._urdf, self.spawn_z = config, urdf, spawn_z
-        self.base = ArbotixBase(config, self.mode, self.model.wheel_radius_m, drive=self)
+        self.base = self._new_base(config)
         if variation is not None:
             self.base.encoders = variation.encoders(self.model.wheel_radius_m,
                                                     config.ticks_meter)
+
+    def _new_base(self, config: ArbotixConfig) -> ArbotixBase:
+        return ArbotixBase(config, self.mode, self.model.wheel_radius_m, drive=self,
+                           encoder_phase_ticks=self.encoder_phase_ticks)
 
     @property
     def wheel_joint_indices(self) -> list[int]:
@@ -197,6 +213,8 @@ class SmartCarRobot:
         urdf_path = self.model.write_urdf(sim.scratch_dir, self._urdf)
         body = sim.load_urdf(self.name, urdf_path, (x, y, self.spawn_z), yaw)
         self.body = body
+        if self.model.drive_kind == "differential":  # its yaw feels any lopsided solve
+            sim.converge_contacts()
         self._wheel_idx = [body.joint_index(w.joint) for w in self.wheels]
         self._encoder_idx = [body.joint_index(w.joint) for w in self.encoder_wheels]
         if self.variation is not None:

@@ -58,6 +58,11 @@ def _all(mask: np.ndarray | None, n: int) -> np.ndarray:
     return np.ones(n, dtype=bool) if mask is None else np.asarray(mask, dtype=bool)
 
 
+def _sel(mask: np.ndarray | None) -> slice | np.ndarray:
+    """The cars to act on as an index: every car (a slice, no copies) or a boolean mask."""
+    return slice(None) if mask is None else np.asarray(mask, dtype=bool)
+
+
 class BatchedArbotix:
     """N emulated ArbotiX bases (``ArbotixBase``) in arrays, one ``mode`` for all.
 
@@ -166,7 +171,7 @@ class BatchedArbotix:
     def cmd_vel(self, linear_x: np.ndarray, angular_z: np.ndarray, now_s: np.ndarray | float,
                 mask: np.ndarray | None = None) -> None:
         """``cmd_vel`` for the masked cars at ``now_s`` (m/s, rad/s; finite)."""
-        m = _all(mask, self.n)
+        m = _sel(mask)
         shape = (self.n,)
         lx = np.broadcast_to(np.asarray(linear_x, dtype=np.float64), shape)
         az = np.broadcast_to(np.asarray(angular_z, dtype=np.float64), shape)
@@ -186,7 +191,7 @@ class BatchedArbotix:
                mask: np.ndarray | None = None) -> None:
         """One controller firing of the masked cars (``ArbotixBase.update``): odometry, timeout,
         ramp and (hardware) the write to the board; ``angles`` (N, 2) in hardware mode."""
-        m = _all(mask, self.n)
+        m = _sel(mask)
         if not np.all(self.ready[m]):
             raise RuntimeError("BatchedArbotix.reset() must be called before use in hardware mode")
         now = np.broadcast_to(np.asarray(now_s, dtype=np.float64), (self.n,))
@@ -202,9 +207,12 @@ class BatchedArbotix:
             self._integrate_encoders(m, ticks, elapsed)
         self.stamp[m] = now[m]
         self.odom_v[m], self.odom_w[m] = self.dx[m], self.dr[m]
-        timed_out = m & (seconds_to_ns(now) > seconds_to_ns(self.last_cmd) + self.timeout_ns)
+        timed_out = seconds_to_ns(now) > seconds_to_ns(self.last_cmd) + self.timeout_ns
+        if mask is not None:
+            timed_out &= m
         self.v_des[timed_out] = 0
         if self.mode == HARDWARE:
+            m = _all(mask, self.n)
             v, v_des, a = self.v[m], self.v_des[m], self.max_accel[m, None]
             self.v[m] = np.where(v < v_des, np.minimum(v + a, v_des), np.maximum(v - a, v_des))
             self.wrote[m] = True

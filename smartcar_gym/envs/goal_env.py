@@ -95,9 +95,8 @@ class SmartCarGoalEnv(SmartCarEnv):
     ## Vector envs
 
     ``gym.make_vec("SmartCarGoal-v0", num_envs=N, vectorization_mode="vector_entry_point")``:
-    N single
-    envs stepped in a loop (``SmartCarLoopVectorEnv``; pybullet is not batched), with the
-    smartcar vector conventions (docs/vector.md).
+    N single envs stepped in a loop (``SmartCarLoopVectorEnv``; pybullet is not batched), with
+    the smartcar vector conventions (docs/vector.md).
 
     ## Version History
 

@@ -9,8 +9,8 @@ from gymnasium.vector import AutoresetMode, SyncVectorEnv
 
 from smartcar_gym.envs.vector.common import check_autoreset_mode, check_num_envs
 
-#: measured: one pybullet SmartCar-v0 world holds about 6 MiB; the margin covers Nav's scene
-BYTES_PER_CAR = 16 * 2**20
+#: measured: each SmartCar-v0 env adds about 30 MiB (benchmarks/batched_speed.py)
+BYTES_PER_CAR = 32 * 2**20
 
 
 class SmartCarLoopVectorEnv(SyncVectorEnv):

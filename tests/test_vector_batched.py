@@ -171,8 +171,9 @@ def test_num_envs_too_large_for_memory_is_one_line(env_id):
         gym.make_vec(env_id, num_envs=10**12, vectorization_mode="vector_entry_point")
 
 
-def test_bad_action_batches_name_the_expected_shape():
-    envs = gym.make_vec("SmartCarSim-v0", num_envs=3, vectorization_mode="vector_entry_point")
+@pytest.mark.parametrize("env_id", ["SmartCarSim-v0", "SmartCar-v0"])
+def test_bad_action_batches_name_the_expected_shape(env_id):
+    envs = gym.make_vec(env_id, num_envs=3, vectorization_mode="vector_entry_point")
     envs.reset(seed=0)
     with pytest.raises(ValueError, match=r"shape \(3, 2\).*mixed batch"):
         envs.step([np.zeros(2), np.zeros(3), np.zeros(2)])

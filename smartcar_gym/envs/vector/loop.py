@@ -7,7 +7,7 @@ from typing import Any
 import gymnasium as gym
 from gymnasium.vector import AutoresetMode, SyncVectorEnv
 
-from smartcar_gym.envs.vector.common import check_autoreset_mode, check_num_envs
+from smartcar_gym.envs.vector.common import check_actions, check_autoreset_mode, check_num_envs
 
 #: measured: each SmartCar-v0 env adds about 30 MiB (benchmarks/batched_speed.py)
 BYTES_PER_CAR = 32 * 2**20
@@ -38,6 +38,11 @@ class SmartCarLoopVectorEnv(SyncVectorEnv):
             return gym.make(env_id, **kwargs)
 
         super().__init__([make] * num_envs, autoreset_mode=mode)
+
+    def step(self, actions: Any) -> tuple[Any, Any, Any, Any, dict[str, Any]]:
+        """``SyncVectorEnv.step``, after a one-line error for a batch not of shape (N, 2)."""
+        check_actions(actions, self.num_envs)
+        return super().step(actions)
 
     def render(self) -> Any:
         """The first car's frame (``render_mode="rgb_array"``: an image; None otherwise)."""

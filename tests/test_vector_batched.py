@@ -184,3 +184,17 @@ def test_bad_action_batches_name_the_expected_shape(env_id):
     with pytest.raises(ValueError, match="autoreset_mode must be one of"):
         gym.make_vec("SmartCarSim-v0", num_envs=2, vectorization_mode="vector_entry_point",
                      autoreset_mode="Disabled")
+
+
+def test_reset_goal_option_for_all_cars_or_each():
+    envs = gym.make_vec("SmartCarSim-v0", num_envs=3, vectorization_mode="vector_entry_point")
+    obs, _ = envs.reset(seed=0, options={"goal": (1.0, -0.5)})
+    assert np.array_equal(obs[:, -2:], np.tile(np.float32([1.0, -0.5]), (3, 1)))
+    goals = np.array([[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0]])
+    obs, info = envs.reset(options={"goal": goals})
+    assert np.array_equal(obs[:, -2:], goals.astype(np.float32))
+    assert np.allclose(info["distance"], 1.0)
+    with pytest.raises(ValueError, match=r"\(3, 2\) array"):
+        envs.reset(options={"goal": np.zeros((2, 2))})
+    with pytest.raises(ValueError, match="outside the arena"):
+        envs.reset(options={"goal": (9.0, 0.0)})

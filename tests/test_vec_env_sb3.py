@@ -14,20 +14,19 @@ import smartcar_gym  # noqa: F401
 from smartcar_gym.agents.env_factory import EnvSetupError
 from smartcar_gym.agents.vec_env import GymVectorVecEnv, make_batched_vec_env
 
-N = 4
 
-
-def test_batched_vec_env_equals_sb3_dummy_vec_env_of_single_envs():
-    batched = make_batched_vec_env("SmartCarSim-v0", N, seed=3,
-                                   env_kwargs={"max_episode_steps": 30})
-    single = DummyVecEnv([lambda: gym.make("SmartCarSim-v0", max_episode_steps=30)] * N)
+@pytest.mark.parametrize(("env_id", "n", "limit", "steps"),
+                         [("SmartCarSim-v0", 4, 30, 70), ("SmartCar-v0", 2, 5, 12)])
+def test_batched_vec_env_equals_sb3_dummy_vec_env_of_single_envs(env_id, n, limit, steps):
+    batched = make_batched_vec_env(env_id, n, seed=3, env_kwargs={"max_episode_steps": limit})
+    single = DummyVecEnv([lambda: gym.make(env_id, max_episode_steps=limit)] * n)
     single.seed(3)
     rng = np.random.default_rng(0)
     try:
         assert np.array_equal(batched.reset(), single.reset())
         ends = 0
-        for _ in range(70):
-            actions = rng.uniform(-1, 1, (N, 2)).astype(np.float32)
+        for _ in range(steps):
+            actions = rng.uniform(-1, 1, (n, 2)).astype(np.float32)
             obs, rewards, dones, infos = batched.step(actions)
             want_obs, want_rewards, want_dones, want_infos = single.step(actions)
             assert np.array_equal(obs, want_obs) and np.array_equal(rewards, want_rewards)
@@ -38,8 +37,8 @@ def test_batched_vec_env_equals_sb3_dummy_vec_env_of_single_envs():
                 assert np.array_equal(got["terminal_observation"], want["terminal_observation"])
                 assert got["is_success"] is want["is_success"]
                 assert got["TimeLimit.truncated"] == want["TimeLimit.truncated"]
-                assert got["episode"]["l"] == 30 and "is_success" in got  # VecMonitor's record
-        assert ends >= 2 * N
+                assert got["episode"]["l"] == limit and "is_success" in got  # VecMonitor's
+        assert ends >= 2 * n
     finally:
         batched.close()
         single.close()

@@ -96,6 +96,7 @@ def run_both(seed: int, n: int, mode: str, duration_ms: int) -> None:
     period_ns = np.array([round(1e9 / c.rate_hz) for c in configs])
     next_ns = period_ns.copy()
     start_ms = np.zeros(n, dtype=np.int64)
+    cmd_rate = rng.choice([0.02, 0.001], n)  # the rare talkers time out between commands
 
     def push_angles() -> None:
         for i, d in enumerate(drives):
@@ -122,7 +123,7 @@ def run_both(seed: int, n: int, mode: str, duration_ms: int) -> None:
             start_ms[i] = t_ms
         batch.reset(now_s, angles, again)
         # cmd_vel now and then: slow, fast, huge (16-bit target wrap), zero (stop)
-        cmd = rng.random(n) < 0.02
+        cmd = rng.random(n) < cmd_rate
         speed = rng.choice([0.0, 0.3, 5.0, 100.0], n)
         lx = np.where(rng.random(n) < 0.2, 0.0, rng.uniform(-1, 1, n) * speed)
         az = np.where(rng.random(n) < 0.2, 0.0, rng.uniform(-1, 1, n) * speed * 4)
@@ -173,6 +174,10 @@ def test_the_board_really_runs_frames_and_wraps():
     assert abs(batch.output[0, 0]) == 255
     assert batch.velocity[1, 0] == wrap16(int(2000.0 * 9e5 / 30.0))
     assert batch.velocity[1, 0] != int(2000.0 * 9e5 / 30.0)
+    assert batch.v_des[1, 0] != 0
+    for t_ms in range(400, 1500, 100):  # no cmd_vel for over the 1 s timeout
+        batch.update(t_ms / 1000, angles)
+    assert np.all(batch.v_des == 0) and np.all(batch.v == 0)
 
 
 @settings(max_examples=200, deadline=None)

@@ -13,6 +13,7 @@ from gymnasium.envs.registration import register, registry
 ENTRY_POINT = "smartcar_gym.envs.smartcar_env:SmartCarEnv"
 NAV_ENTRY_POINT = "smartcar_gym.envs.nav_env:SmartCarNavEnv"
 GOAL_ENTRY_POINT = "smartcar_gym.envs.goal_env:SmartCarGoalEnv"
+VECTOR = "smartcar_gym.envs.vector:"  # each id's vector_entry_point (docs/vector.md)
 MAX_EPISODE_STEPS = 200
 # Mean return of a policy that reaches the goal reliably (see docs/results.md).
 REWARD_THRESHOLD = 15.0
@@ -20,22 +21,28 @@ REWARD_THRESHOLD = 15.0
 
 @dataclass(frozen=True)
 class EnvSpec:
-    """How one id is registered: entry point, episode limit, reward threshold, kwargs."""
+    """How one id is registered: entry point, episode limit, reward threshold, kwargs, and the
+    ``vector_entry_point`` of ``gym.make_vec(..., vectorization_mode="vector_entry_point")``."""
 
     entry_point: str
     max_episode_steps: int
     reward_threshold: float | None
     kwargs: dict[str, Any] = field(default_factory=dict)
+    vector_entry_point: str | None = None
 
 
 SPECS: dict[str, EnvSpec] = {
-    "SmartCar-v0": EnvSpec(ENTRY_POINT, MAX_EPISODE_STEPS, REWARD_THRESHOLD),
+    "SmartCar-v0": EnvSpec(ENTRY_POINT, MAX_EPISODE_STEPS, REWARD_THRESHOLD,
+                           vector_entry_point=VECTOR + "smartcar_v0"),
     "SmartCarSim-v0": EnvSpec(ENTRY_POINT, MAX_EPISODE_STEPS, REWARD_THRESHOLD,
-                              {"controller_mode": "sim"}),
+                              {"controller_mode": "sim"},
+                              vector_entry_point=VECTOR + "smartcar_sim_v0"),
     # 20 s, as SmartCar-v0: goals up to 2 m away and a detour take at most 10 s
-    "SmartCarNav-v0": EnvSpec(NAV_ENTRY_POINT, 200, None),
+    "SmartCarNav-v0": EnvSpec(NAV_ENTRY_POINT, 200, None,
+                              vector_entry_point=VECTOR + "smartcar_nav_v0"),
     # 10 s: HER learns from short episodes; goals 0.5-1.5 m away take 3-5 s
-    "SmartCarGoal-v0": EnvSpec(GOAL_ENTRY_POINT, 100, None),
+    "SmartCarGoal-v0": EnvSpec(GOAL_ENTRY_POINT, 100, None,
+                               vector_entry_point=VECTOR + "smartcar_goal_v0"),
 }
 
 #: every registered id
@@ -51,6 +58,7 @@ def register_envs() -> None:
         register(
             id=env_id,
             entry_point=spec.entry_point,
+            vector_entry_point=spec.vector_entry_point,
             max_episode_steps=spec.max_episode_steps,
             reward_threshold=spec.reward_threshold,
             kwargs=dict(spec.kwargs),

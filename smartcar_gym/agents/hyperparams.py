@@ -75,9 +75,12 @@ def default_hyperparams_file(algo: str) -> Path:
     return Path(str(resources.files("smartcar_gym") / "config" / f"{algo}.yaml"))
 
 
-def load_hyperparams(algo: str, env_id: str, path: str | Path | None = None) -> dict[str, Any]:
+def load_hyperparams(algo: str, env_id: str, path: str | Path | None = None,
+                     variant: str | None = None) -> dict[str, Any]:
     """The hyperparameters for ``env_id`` from ``path`` (default: the shipped ``<algo>.yaml``);
-    its ``default`` entry if it has none for ``env_id``, as in rl-baselines3-zoo."""
+    its ``default`` entry if it has none for ``env_id``, as in rl-baselines3-zoo. A
+    ``variant`` (``"batched"``) picks the entry ``<env_id>-<variant>`` where the file has one
+    (rl-baselines3-zoo never reads those)."""
     path = Path(path) if path is not None else default_hyperparams_file(algo)
     try:
         data = yaml.safe_load(path.read_text())
@@ -86,6 +89,8 @@ def load_hyperparams(algo: str, env_id: str, path: str | Path | None = None) -> 
     if not isinstance(data, dict):
         raise HyperparamsError(f"{path}: expected a mapping of env id -> hyperparameters")
     key = env_id if env_id in data else DEFAULT_ENTRY
+    if variant is not None and f"{env_id}-{variant}" in data:
+        key = f"{env_id}-{variant}"
     if key not in data:
         raise HyperparamsError(
             f"{path}: no hyperparameters for env {env_id!r} and no {DEFAULT_ENTRY!r} entry; it "

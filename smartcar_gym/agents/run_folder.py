@@ -34,7 +34,7 @@ from smartcar_gym.agents.hyperparams import (
 DEFAULT_ENV_ID = "SmartCar-v0"
 # Settings that come from the run's config.yaml when resuming and cannot be changed then.
 FIXED_ON_RESUME = ("algo", "env_id", "n_envs", "seed", "hyperparams", "env_kwargs",
-                   "hyperparams_file", "run_dir")
+                   "hyperparams_file", "run_dir", "vectorization")
 # Keys of config.yaml that --resume needs.
 REQUIRED_KEYS = ("algo", "env", "seed", "n_envs", "n_timesteps", "hyperparams", "eval_freq",
                  "eval_episodes", "checkpoint_freq")
@@ -67,7 +67,9 @@ def new_config(args: argparse.Namespace, command: str) -> dict[str, Any]:
     """The config of a new run from parsed arguments; raises ``HyperparamsError``."""
     algo = args.algo or "ppo"
     env_id = args.env_id or DEFAULT_ENV_ID
-    hyperparams = load_hyperparams(algo, env_id, args.hyperparams_file)
+    vectorization = getattr(args, "vectorization", None) or "subproc"
+    hyperparams = load_hyperparams(algo, env_id, args.hyperparams_file,
+                                   variant="batched" if vectorization == "batched" else None)
     hyperparams.update(dict(args.hyperparams or []))
     file_n_envs, file_timesteps = run_int(hyperparams, "n_envs"), run_int(hyperparams,
                                                                        "n_timesteps")
@@ -92,6 +94,7 @@ def new_config(args: argparse.Namespace, command: str) -> dict[str, Any]:
         "env_kwargs": env_kwargs,
         "seed": seed,
         "n_envs": int(n_envs),
+        "vectorization": vectorization,
         "n_timesteps": int(timesteps),
         "hyperparams": hyperparams,
         "hyperparams_file": str(args.hyperparams_file or f"smartcar_gym/config/{algo}.yaml"),

@@ -242,16 +242,36 @@ def _make_envs(config: dict[str, Any], run_dir: Path, seed: int, segment: int,
         env = wrap_normalize(env, normalize, gamma, **normalize_args)
         return env if n_stack is None else VecFrameStack(env, n_stack)
 
-    venv = make_vec_env(env_id, n_envs, seed=seed, env_kwargs=env_kwargs,
-                        monitor_dir=run_dir / "monitor", monitor_prefix=f"seg{segment}_",
-                        env_wrapper=wrapper, monitor_kwargs=monitor_kwargs)
+    batched = config.get("vectorization", "subproc") == "batched"
+    if batched:
+        from smartcar_gym.agents.vec_env import make_batched_vec_env
+
+        if wrapper is not None:
+            raise RunSetupError("env_wrapper wraps single envs; --vectorization batched has "
+                                "none (use vec_env_wrapper, or --vectorization subproc)")
+        try:
+            venv = make_batched_vec_env(env_id, n_envs, seed=seed, env_kwargs=env_kwargs,
+                                        monitor_dir=run_dir / "monitor",
+                                        monitor_prefix=f"seg{segment}_",
+                                        monitor_kwargs=monitor_kwargs)
+        except EnvSetupError as err:
+            raise RunSetupError(str(err)) from err
+    else:
+        venv = make_vec_env(env_id, n_envs, seed=seed, env_kwargs=env_kwargs,
+                            monitor_dir=run_dir / "monitor", monitor_prefix=f"seg{segment}_",
+                            env_wrapper=wrapper, monitor_kwargs=monitor_kwargs)
     eval_env = None
     try:
         venv = wrap(venv, load_path=stats)
         if config["eval_freq"] > 0:
-            n_eval_envs = min(n_envs, int(config["eval_episodes"]), os.cpu_count() or 1)
-            eval_env = make_vec_env(env_id, n_eval_envs, env_kwargs=env_kwargs,
-                                    env_wrapper=wrapper, monitor_kwargs=monitor_kwargs)
+            if batched:  # evaluated in the same engine, wrapped as the training env
+                eval_env = make_batched_vec_env(env_id, min(n_envs, int(config["eval_episodes"])),
+                                                env_kwargs=env_kwargs,
+                                                monitor_kwargs=monitor_kwargs)
+            else:
+                n_eval_envs = min(n_envs, int(config["eval_episodes"]), os.cpu_count() or 1)
+                eval_env = make_vec_env(env_id, n_eval_envs, env_kwargs=env_kwargs,
+                                        env_wrapper=wrapper, monitor_kwargs=monitor_kwargs)
             eval_env = wrap(eval_env, training=False)
     except BaseException:
         for env in (venv, eval_env):

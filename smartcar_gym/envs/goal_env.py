@@ -92,6 +92,12 @@ class SmartCarGoalEnv(SmartCarEnv):
 
     SmartCar-v0's, plus ``reward_type`` ("sparse" or "dense", default "sparse").
 
+    ## Vector envs
+
+    ``gym.make_vec("SmartCarGoal-v0", num_envs=N, vectorization_mode="vector_entry_point")``:
+    N single envs stepped in a loop (``SmartCarLoopVectorEnv``; pybullet is not batched), with
+    the smartcar vector conventions (docs/vector.md).
+
     ## Version History
 
     * v0 (0.2.0): initial version.

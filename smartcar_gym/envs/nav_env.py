@@ -135,6 +135,12 @@ class SmartCarNavEnv(SmartCarEnv):
     0.12 to 3.5 m, 10 Hz, no noise (a TurtleBot3 LDS-01-class lidar at the controller's
     rate). With noise, its generator is seeded from ``self.np_random`` at every reset.
 
+    ## Vector envs
+
+    ``gym.make_vec("SmartCarNav-v0", num_envs=N, vectorization_mode="vector_entry_point")``:
+    N single envs stepped in a loop (``SmartCarLoopVectorEnv``; pybullet is not batched), with
+    the smartcar vector conventions (docs/vector.md).
+
     ## Version History
 
     * v0 (0.2.0): initial version.

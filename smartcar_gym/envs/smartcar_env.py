@@ -175,6 +175,14 @@ class SmartCarEnv(gym.Env):
     |                   |                | ``{factor: [low, high]}`` or a YAML file of one;     |
     |                   |                | drawn per episode (docs/sim2real.md)                 |
 
+    ## Vector envs
+
+    ``gym.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point", **kwargs)`` makes N
+    cars in one process (docs/vector.md): SmartCarSim-v0 in numpy arrays
+    (``SmartCarSimVectorEnv``, bit for bit N single envs), SmartCar-v0 as N single envs in a
+    loop (``SmartCarLoopVectorEnv``). Gymnasium 1.x autoreset (``"NextStep"``, or
+    ``autoreset_mode="SameStep"``), car i seeded ``s + i``, ``info["is_success"]`` per car.
+
     ## Version History
 
     * v0 (0.2.0): event-driven stepping (``max_substep_s``, default 0.01 s); ``physics_hz``

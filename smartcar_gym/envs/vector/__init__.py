@@ -1,0 +1,53 @@
+"""Vector envs: many cars per process through Gymnasium's vector API.
+
+``gym.make_vec(env_id, num_envs=N, vectorization_mode="vector_entry_point", **kwargs)`` calls
+the entry point of ``env_id`` here. SmartCarSim-v0 (kinematic, no engine) is batched in numpy
+arrays (``SmartCarSimVectorEnv``); the pybullet ids, and SmartCarSim-v0 with options only a
+pybullet world has (``randomize``, the GUI), step N single envs in a loop
+(``SmartCarLoopVectorEnv``). Both follow the same conventions (docs/vector.md).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+
+from smartcar_gym.envs.vector.kinematic import SmartCarSimVectorEnv, supports
+from smartcar_gym.envs.vector.loop import SmartCarLoopVectorEnv
+
+__all__ = ["SmartCarLoopVectorEnv", "SmartCarSimVectorEnv", "make_vector_env",
+           "smartcar_goal_v0", "smartcar_nav_v0", "smartcar_sim_v0", "smartcar_v0"]
+
+
+def make_vector_env(env_id: str, num_envs: int = 1, **kwargs: Any) -> gym.vector.VectorEnv:
+    """The fastest faithful vector env of ``env_id`` for ``num_envs`` cars.
+
+    SmartCarSim-v0 in the kinematic mode: ``SmartCarSimVectorEnv`` (numpy); anything else:
+    ``SmartCarLoopVectorEnv``. ``kwargs`` are the single env's, plus ``max_episode_steps`` and
+    ``autoreset_mode``.
+    """
+    if env_id == "SmartCarSim-v0" and supports(kwargs) is None \
+            and kwargs.get("controller_mode", "sim") == "sim":
+        return SmartCarSimVectorEnv(num_envs=num_envs, **kwargs)
+    return SmartCarLoopVectorEnv(env_id, num_envs=num_envs, **kwargs)
+
+
+def smartcar_v0(num_envs: int = 1, **kwargs: Any) -> gym.vector.VectorEnv:
+    """SmartCar-v0's ``vector_entry_point`` (pybullet: a loop of single envs)."""
+    return make_vector_env("SmartCar-v0", num_envs, **kwargs)
+
+
+def smartcar_sim_v0(num_envs: int = 1, **kwargs: Any) -> gym.vector.VectorEnv:
+    """SmartCarSim-v0's ``vector_entry_point`` (numpy arrays)."""
+    return make_vector_env("SmartCarSim-v0", num_envs, **kwargs)
+
+
+def smartcar_nav_v0(num_envs: int = 1, **kwargs: Any) -> gym.vector.VectorEnv:
+    """SmartCarNav-v0's ``vector_entry_point`` (pybullet: a loop of single envs)."""
+    return make_vector_env("SmartCarNav-v0", num_envs, **kwargs)
+
+
+def smartcar_goal_v0(num_envs: int = 1, **kwargs: Any) -> gym.vector.VectorEnv:
+    """SmartCarGoal-v0's ``vector_entry_point`` (pybullet: a loop of single envs)."""
+    return make_vector_env("SmartCarGoal-v0", num_envs, **kwargs)

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 
-pytest.importorskip("mujoco", reason="engine='mujoco' needs the mujoco extra")
+pytest.importorskip("smartcar_gym.sim.mujoco", reason="engine='mujoco' needs the mujoco extra")
 
 import smartcar_gym  # noqa: E402, F401
 from smartcar_gym.envs.smartcar_env import SmartCarEnv  # noqa: E402

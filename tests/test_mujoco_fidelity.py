@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-pytest.importorskip("mujoco", reason="engine='mujoco' needs the mujoco extra")
+pytest.importorskip("smartcar_gym.sim.mujoco", reason="engine='mujoco' needs the mujoco extra")
 
 from smartcar_gym.envs.robots.engines_compared import (  # noqa: E402
     coast_down,

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-pytest.importorskip("mujoco", reason="engine='mujoco' needs the mujoco extra")
+pytest.importorskip("smartcar_gym.sim.mujoco", reason="engine='mujoco' needs the mujoco extra")
 
 from smartcar_gym.envs.robots import SmartCarRobot, drive  # noqa: E402
 from smartcar_gym.model import ModelError  # noqa: E402

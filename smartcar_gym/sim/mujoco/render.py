@@ -1,9 +1,9 @@
 """MuJoCo's offscreen renderer as an orbit camera, with the facade's visual-only markers.
 
 Headless, MuJoCo renders through EGL (a GPU's or Mesa's) or OSMesa (software), chosen by the
-``MUJOCO_GL`` environment variable before ``mujoco`` is imported; ``smartcar_gym`` picks
-``egl`` when it is unset and there is no display. A machine that can do neither gets one line
-saying what to install.
+``MUJOCO_GL`` environment variable before ``mujoco`` is imported (``smartcar_gym.sim.mujoco``
+picks one when it is unset and there is no display). A machine that can do neither gets one
+line saying what to install.
 """
 
 from __future__ import annotations
@@ -49,11 +49,11 @@ class OffscreenCamera:
               yaw_deg: float, pitch_deg: float, fov_deg: float,
               markers: Sequence[Marker]) -> np.ndarray:
         """The picture from an orbit camera as pybullet's ``computeViewMatrixFromYawPitchRoll``
-        places it (MuJoCo's azimuth is pybullet's yaw - 90 degrees)."""
+        places it (MuJoCo's azimuth is pybullet's yaw + 90 degrees)."""
         cam = self.camera
         cam.lookat[:] = target
         cam.distance = distance
-        cam.azimuth = yaw_deg - 90.0
+        cam.azimuth = yaw_deg + 90.0
         cam.elevation = pitch_deg
         self.model.vis.global_.fovy = fov_deg
         renderer = self.renderer

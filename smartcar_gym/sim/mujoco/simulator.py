@@ -102,7 +102,7 @@ class MujocoSimulator(EventClock):
         spec.visual.global_.offheight = 480
         checker = spec.add_texture(name="grid", type=mujoco.mjtTexture.mjTEXTURE_2D,
                                    builtin=mujoco.mjtBuiltin.mjBUILTIN_CHECKER,
-                                   rgb1=[0.85, 0.85, 0.85], rgb2=[0.75, 0.75, 0.75],
+                                   rgb1=[0.94, 0.94, 0.94], rgb2=[0.63, 0.72, 0.86],
                                    width=64, height=64)
         material = spec.add_material(name="grid", texrepeat=[50.0, 50.0])
         material.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = checker.name

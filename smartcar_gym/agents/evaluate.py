@@ -51,6 +51,7 @@ from smartcar_gym.agents.rollouts import (
     summarize,
 )
 from smartcar_gym.agents.zoo_folder import ZooRunError
+from smartcar_gym.sim.engines import add_engine_argument
 
 __all__ = ["build_parser", "check_outputs", "evaluate_policy_episodes", "load_model", "main",
            "summarize"]
@@ -94,6 +95,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--vecnormalize", type=Path, metavar="FILE", help="VecNormalize "
                         "statistics to load (a pickle: only from a trusted source; default: the "
                         "ones the model's run folder assigns to it)")
+    add_engine_argument(parser, what="the evaluation's")
     parser.add_argument("--episodes", type=positive_int_arg, default=100)
     parser.add_argument("--n-envs", type=positive_int_arg, default=1,
                         help="envs run in parallel (worker processes when > 1)")
@@ -135,6 +137,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             parser.error(f"unknown algorithm {algo!r} in the run's config; pass --algo")
         env_id = args.env_id or run.get("env") or DEFAULT_ENV_ID
         env_kwargs = {**(run.get("env_kwargs") or {}), **dict(args.env_kwargs)}
+        if args.engine is not None:
+            env_kwargs["engine"] = args.engine
         try:
             check_env(env_id, env_kwargs)  # here, not in a worker: a clear error
         except EnvSetupError as err:

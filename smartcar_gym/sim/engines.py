@@ -6,6 +6,7 @@ pybullet is the default and always installed; MuJoCo comes with the ``mujoco`` e
 
 from __future__ import annotations
 
+import argparse
 from typing import Any
 
 ENGINES: tuple[str, ...] = ("pybullet", "mujoco")
@@ -42,3 +43,11 @@ def make_simulator(engine: str = DEFAULT_ENGINE, **options: Any) -> Any:
 
         return Simulator(**options)
     return mujoco_simulator_class()(**options)
+
+
+def add_engine_argument(parser: argparse.ArgumentParser | Any, default: str | None = None,
+                        what: str = "the env's") -> None:
+    """``--engine {pybullet,mujoco}`` on a command line (``args.engine``; None: not given)."""
+    parser.add_argument("--engine", choices=ENGINES, default=default,
+                        help=f"physics engine of {what} simulation (default: {DEFAULT_ENGINE}; "
+                             f"mujoco needs the extra: {MUJOCO_EXTRA})")

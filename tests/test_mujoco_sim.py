@@ -145,3 +145,28 @@ def test_close_frees_the_world_and_is_idempotent(world, car):
     world.close()
     with pytest.raises(RuntimeError, match="closed"):
         world.reset()
+
+
+def test_randomize_factors_reach_the_mujoco_model(world, shipped_model, shipped_config):
+    from smartcar_gym.envs.robots.variation import Variation
+
+    robot = SmartCarRobot(world, shipped_model, shipped_config)
+    robot.vary(Variation(base_mass=2.0, wheel_mass=0.5, wheel_friction=0.4, wheel_radius=1.2))
+    robot.spawn()
+    model = world.model_compiled()
+    ids = robot.body._ids
+    assert model.body_mass[ids.root] == pytest.approx(2.0)
+    wheel_bodies = sorted(ids.link_of_body)
+    assert model.body_mass[wheel_bodies] == pytest.approx([0.05] * 4)
+    wheel_geoms = [g for g in ids.collision_geoms if model.geom_bodyid[g] in ids.link_of_body]
+    assert model.geom_friction[wheel_geoms, 0] == pytest.approx([0.4 * 0.5] * 4)
+    assert model.geom_size[wheel_geoms, 0] == pytest.approx([0.025 * 1.2] * 4)
+    assert robot.pose().z == pytest.approx(robot.spawn_z, abs=5e-4)  # on its bigger wheels
+
+
+def test_human_rendering_is_refused_in_one_line():
+    import gymnasium as gym
+
+    with pytest.raises(RuntimeError, match="^render_mode='human' opens pybullet's GUI; with "
+                                           "engine='mujoco' use render_mode='rgb_array'"):
+        gym.make("SmartCar-v0", engine="mujoco", render_mode="human")

@@ -52,12 +52,13 @@ class MujocoBody:
     """One body of a ``MujocoSimulator``: ``name``, its links and joints (prefixed ``name/``)."""
 
     def __init__(self, sim: MujocoSimulator, name: str, root: str, free: bool,
-                 friction: float = 1.0) -> None:
+                 friction: float = 1.0, spec_root: mujoco.MjsBody | None = None) -> None:
         self.sim = sim
         self.name = name
         self.free = free
         self._root = root  # the root body's full name in the world spec
-        spec_root = sim.spec.body(root)
+        if spec_root is None:
+            spec_root = sim.spec.worldbody if root == "world" else sim.spec.body(root)
         self._spec_bodies = [spec_root, *spec_root.find_all(mujoco.mjtObj.mjOBJ_BODY)]
         self._spec_joints = [j for j in spec_root.find_all(mujoco.mjtObj.mjOBJ_JOINT)
                              if j.type in (mujoco.mjtJoint.mjJNT_HINGE,

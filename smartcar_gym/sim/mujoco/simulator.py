@@ -45,6 +45,7 @@ from smartcar_gym.sim.rays import RayHits
 IMPRATIO = 10.0
 #: the rays' geom groups: the world's and the robots' collision shapes (not hidden, visuals)
 RAY_GROUPS = np.array([1, 1, 0, 0, 0, 0], dtype=np.uint8)
+_RAY_NORMALS = "normal" in (mujoco.mj_multiRay.__doc__ or "")
 _SHAPES = {"box": mujoco.mjtGeom.mjGEOM_BOX, "cylinder": mujoco.mjtGeom.mjGEOM_CYLINDER,
            "sphere": mujoco.mjtGeom.mjGEOM_SPHERE}
 
@@ -123,7 +124,6 @@ class MujocoSimulator(EventClock):
         self._dt = self.max_substep_s
         self._bodies["plane"] = MujocoBody(self, "plane", "world", free=False,
                                            friction=self.ground_friction)
-        self._bodies["plane"]._spec_bodies = [spec.worldbody]
 
     @contextlib.contextmanager
     def building(self) -> Iterator[None]:
@@ -303,7 +303,7 @@ class MujocoSimulator(EventClock):
         size = list(half_extents) if shape == "box" else [half_extents[0], half_extents[2], 0.0]
         spec_body.add_geom(type=_SHAPES[shape], size=size, rgba=list(rgba), group=GROUP_WORLD,
                            condim=3)
-        body = MujocoBody(self, name, name, free=False)
+        body = MujocoBody(self, name, name, free=False, spec_root=spec_body)
         self._bodies[name] = body
         self._changed()
         return body
@@ -351,8 +351,9 @@ class MujocoSimulator(EventClock):
         geom = np.full(count, -1, dtype=np.int32)
         dist = np.full(count, -1.0)
         if np.all(starts == starts[0]):
+            normals = (None,) if _RAY_NORMALS else ()  # an argument since MuJoCo 3.3.x
             mujoco.mj_multiRay(m, d, starts[0], unit.ravel(), RAY_GROUPS, 1, -1, geom, dist,
-                               None, count, float(length.max()))
+                               *normals, count, float(length.max()))
         else:
             one = np.zeros(1, dtype=np.int32)
             for i in range(count):

@@ -145,8 +145,9 @@ class MujocoBody:
 
     def joint_states(self, joints: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
         """Positions (rad) and velocities (rad/s) of joints given by index."""
-        ids, data = self._ids, self.sim.data
-        return data.qpos[ids.qadr[joints]], data.qvel[ids.dadr[joints]]
+        qadr, dadr = self._ids.addresses(joints)
+        data = self.sim.data
+        return data.qpos[qadr], data.qvel[dadr]
 
     def joint_lists(self, joints: Sequence[int]) -> tuple[list[float], list[float]]:
         """Positions (rad) and velocities (rad/s) as lists."""
@@ -155,7 +156,7 @@ class MujocoBody:
 
     def joint_angles(self, joints: Sequence[int]) -> list[float]:
         """Positions (rad) of joints given by index: the cheapest read (encoders)."""
-        return self.sim.data.qpos[self._ids.qadr[joints]].tolist()
+        return self.sim.data.qpos[self._ids.addresses(joints)[0]].tolist()
 
     def reset_joint(self, joint: int, angle: float, speed: float) -> None:
         """Set a joint's position and velocity (kinematic motion)."""
@@ -291,10 +292,21 @@ class _Ids:
                                 and m.geom_group[g] in (GROUP_COLLISION, GROUP_HIDDEN,
                                                         GROUP_WORLD)]
         self.geoms = [g for g in range(m.ngeom) if m.geom_bodyid[g] in bodies]
+        self._addresses: dict[tuple[int, ...], tuple[np.ndarray, np.ndarray]] = {}
         free = [j for j in range(m.njnt) if m.jnt_bodyid[j] == self.root
                 and m.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE]
         self.free_q = int(m.jnt_qposadr[free[0]]) if free else -1
         self.free_v = int(m.jnt_dofadr[free[0]]) if free else -1
+
+
+    def addresses(self, joints: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
+        """The qpos and dof addresses of joints given by index (kept per list of joints: the
+        robot reads the same ones at every PID frame)."""
+        key = tuple(joints)
+        found = self._addresses.get(key)
+        if found is None:
+            found = self._addresses[key] = (self.qadr[list(key)], self.dadr[list(key)])
+        return found
 
 
 def _diagonal(body: mujoco.MjsBody) -> list[float]:

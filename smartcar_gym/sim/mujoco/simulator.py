@@ -194,7 +194,7 @@ class MujocoSimulator(EventClock):
         for (name, joint), value in self._frictionloss.items():
             m.dof_frictionloss[bodies[name]._ids.dadr[joint]] = value
         for body, joints, torques in self._held.values():
-            d.qfrc_applied[body._ids.dadr[joints]] = torques
+            d.qfrc_applied[body._ids.addresses(joints)[1]] = torques
         self._write_friction()
 
     def _friction_changed(self) -> None:
@@ -254,7 +254,7 @@ class MujocoSimulator(EventClock):
               torques: list[float]) -> None:
         self._held[key] = (body, joints, torques)
         if not self._dirty and self.model is not None:
-            self._data.qfrc_applied[body._ids.dadr[joints]] = torques
+            self._data.qfrc_applied[body._ids.addresses(joints)[1]] = torques
 
     def _set_damping(self, body: MujocoBody, joints: Sequence[int],
                      damping: Sequence[float]) -> None:

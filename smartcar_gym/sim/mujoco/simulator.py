@@ -389,9 +389,6 @@ class MujocoSimulator(EventClock):
                          pitch_deg: float) -> None:
         """No GUI on MuJoCo: nothing to point."""
 
-    def body_names(self) -> list[str]:
-        return sorted(self._bodies)
-
     def __del__(self) -> None:
         with contextlib.suppress(Exception):
             self._close_renderer()

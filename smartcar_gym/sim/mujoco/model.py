@@ -52,6 +52,13 @@ def car_spec(urdf_path: str | os.PathLike, free: bool = True) -> mujoco.MjSpec:
         text = path.read_text(encoding="utf-8")
     except OSError as exc:
         raise ModelError(f"cannot read the URDF for MuJoCo: {exc.strerror}", file=path) from None
+    return car_spec_from_text(text, path, free)
+
+
+def car_spec_from_text(text: str, source: str | os.PathLike, free: bool = True) -> mujoco.MjSpec:
+    """``car_spec`` of URDF ``text`` (e.g. ``model.contact.simulated_urdf(model)``); relative
+    mesh paths are read from ``source``'s folder, errors name ``source``."""
+    path = Path(source)
     discard = "true" if _VISUAL_MESH.search(text) else "false"
     text = re.sub(r"(<robot\b[^>]*>)", lambda m: m.group(1) + _COMPILER.format(discard=discard),
                   text, count=1)

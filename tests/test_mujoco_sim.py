@@ -170,3 +170,17 @@ def test_human_rendering_is_refused_in_one_line():
     with pytest.raises(RuntimeError, match="^render_mode='human' opens pybullet's GUI; with "
                                            "engine='mujoco' use render_mode='rgb_array'"):
         gym.make("SmartCar-v0", engine="mujoco", render_mode="human")
+
+
+def test_one_car_s_spec_from_urdf_text_for_batched_worlds(shipped_model):
+    import mujoco
+
+    from smartcar_gym.model.contact import simulated_urdf
+    from smartcar_gym.sim.mujoco.model import GROUP_COLLISION, car_spec_from_text
+
+    model = car_spec_from_text(simulated_urdf(shipped_model), shipped_model.source).compile()
+    assert model.nq == 7 + 4  # a free joint and four wheels
+    assert float(np.sum(model.body_mass)) == pytest.approx(1.5)
+    spheres = [g for g in range(model.ngeom) if model.geom_type[g] == mujoco.mjtGeom.mjGEOM_SPHERE
+               and model.geom_group[g] == GROUP_COLLISION]
+    assert model.geom_size[spheres, 0] == pytest.approx([0.025] * 4)  # sphere wheel contact

@@ -36,7 +36,8 @@ BACKENDS = [b for b, lib in (("egl", "EGL"), ("osmesa", "OSMesa")) if ctypes.uti
 
 
 def _render(backend: str | None) -> dict:
-    env = {k: v for k, v in os.environ.items() if k not in ("MUJOCO_GL", "DISPLAY")}
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("MUJOCO_GL", "PYOPENGL_PLATFORM", "DISPLAY")}  # as a fresh shell
     if backend is not None:
         env["MUJOCO_GL"] = backend
     done = subprocess.run([sys.executable, "-c", RENDER], capture_output=True, text=True,

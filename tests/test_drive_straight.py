@@ -66,6 +66,15 @@ def test_user_robots_drive_straight_at_the_default(robot):
     assert abs(sideways) / forward < DRIFT_PER_M
 
 
+@pytest.mark.parametrize("robot", [CASTERBOT, HEAVYBOT], ids=["casterbot", "heavybot"])
+def test_user_robots_drive_straight_on_mujoco(robot):
+    pytest.importorskip("mujoco", reason="engine='mujoco' needs the mujoco extra")
+    forward, sideways, env = drive_straight(*robot, engine="mujoco")
+    # the caster ball drags more on MuJoCo's elliptic cones (0.49 m for pybullet's 0.59 m)
+    assert forward == pytest.approx(SPEED * 3.0, rel=0.2)
+    assert abs(sideways) / forward < DRIFT_PER_M
+
+
 def test_casterbot_drifts_without_the_guards(monkeypatch):
     """The issue's failure, reproduced: taken for a skid base (no guards), the casterbot turns."""
     monkeypatch.setattr(RobotModel, "drive_kind", property(lambda self: "skid"))

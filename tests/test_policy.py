@@ -177,7 +177,8 @@ def test_bad_sources_are_one_line_errors(lonely, tmp_path):
     missing = tmp_path / "missing.zip"
     assert _error(missing) == f"--model: no such file: {missing}"
     assert _error("defualt") == ("--model: no such file: defualt (nor the name of a shipped "
-                                 "policy: default, robust, nav)")
+                                 f"policy: {', '.join(PRETRAINED_POLICIES)})")
+    assert list(PRETRAINED_POLICIES)[:3] == ["default", "robust", "nav"]
     text = tmp_path / "text.zip"
     text.write_text("not a zip")
     assert _error(text, algo="ppo") == (f"--model: {text} is not a model (SB3 models are .zip "

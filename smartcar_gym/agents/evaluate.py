@@ -40,6 +40,7 @@ from smartcar_gym.agents.rollouts import (
     summarize,
 )
 from smartcar_gym.policy import Policy, PolicyError
+from smartcar_gym.sim.engines import add_engine_argument
 
 __all__ = ["build_parser", "check_outputs", "evaluate_policy_episodes", "load_model", "main",
            "summarize"]
@@ -70,7 +71,8 @@ def build_parser() -> argparse.ArgumentParser:
     source.add_argument("--pretrained", nargs="?", const="default", metavar="NAME",
                         choices=tuple(PRETRAINED_POLICIES), help="a policy shipped with the "
                         "package: default (the one --pretrained alone names), robust "
-                        "(trained with randomize=default) or nav (SAC on SmartCarNav-v0)")
+                        "(trained with randomize=default), nav (SAC on SmartCarNav-v0) or "
+                        "mujoco (trained with engine=mujoco)")
     source.add_argument("--random", action="store_true", help="uniform random actions, seeded "
                         "with --seed (a baseline)")
     parser.add_argument("--algo", choices=ALGOS, help="algorithm of --model (default: from the "
@@ -83,6 +85,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--vecnormalize", type=Path, metavar="FILE", help="VecNormalize "
                         "statistics to load (a pickle: only from a trusted source; default: the "
                         "ones the model's run folder assigns to it)")
+    add_engine_argument(parser, what="the evaluation's")
     parser.add_argument("--episodes", type=positive_int_arg, default=100)
     parser.add_argument("--n-envs", type=positive_int_arg, default=1,
                         help="envs run in parallel (worker processes when > 1)")
@@ -111,15 +114,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     require_train_extra("smartcar-eval", EVAL_MODULES)
     check_outputs(parser, args)
+    env_kwargs = dict(args.env_kwargs)
+    if args.engine is not None:
+        env_kwargs["engine"] = args.engine
     if args.random:
         env_id = args.env_id or DEFAULT_ENV_ID
         policy = Policy(RandomPolicy(args.seed), algo="random", env_id=env_id,
-                        env_kwargs=dict(args.env_kwargs),
+                        env_kwargs=env_kwargs,
                         normalizer_source="none (random actions)")
     else:
         try:
             policy = Policy.load(args.model or args.pretrained, algo=args.algo,
-                                 env_id=args.env_id, env_kwargs=dict(args.env_kwargs),
+                                 env_id=args.env_id, env_kwargs=env_kwargs,
                                  normalizer=args.vecnormalize, device=args.device)
         except PolicyError as err:
             parser.error(str(err))

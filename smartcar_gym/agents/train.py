@@ -31,6 +31,7 @@ from smartcar_gym.agents.hyperparams import (
 )
 from smartcar_gym.agents.run_folder import DEFAULT_ENV_ID, new_run, resume_config
 from smartcar_gym.agents.training import RunSetupError, TrainResult, train
+from smartcar_gym.sim.engines import add_engine_argument
 
 FAILED_EXIT_CODE = 1  # the run stopped on an error (a full disk...)
 INTERRUPTED_EXIT_CODE = 130  # 128 + SIGINT
@@ -72,6 +73,7 @@ def build_parser() -> argparse.ArgumentParser:
                         help="a zoo-format YAML instead of the shipped one")
     parser.add_argument("--env-kwargs", nargs="+", default=None, type=key_value_arg,
                         metavar="KEY=VALUE", help="keyword arguments for gym.make (YAML values)")
+    add_engine_argument(parser)
     parser.add_argument("--run-dir", type=Path, default=None,
                         help="default: runs/<algo>_<env>_s<seed>")
     parser.add_argument("--eval-freq", type=non_negative_int_arg, default=None,
@@ -108,6 +110,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     require_train_extra("smartcar-train")
     command = shlex.join(["smartcar-train", *(sys.argv[1:] if argv is None else argv)])
+    if args.engine is not None:  # one of the env's kwargs, stored with the run
+        if args.resume is not None:
+            parser.error("--resume reloads the run's config.yaml (its engine); --engine cannot "
+                         "be given with it")
+        args.env_kwargs = [*(args.env_kwargs or []), ("engine", args.engine)]
     if args.resume is not None:
         config, run_dir, checkpoint = resume_config(parser, args)
     else:

@@ -41,7 +41,8 @@ from smartcar_gym.controller.config_yaml import read_config_file
 from smartcar_gym.envs.randomization import FACTORS, Randomization
 from smartcar_gym.model import ModelError, load_model
 from smartcar_gym.model.contact import WHEEL_CONTACTS
-from smartcar_gym.sim.simulator import check_max_substep
+from smartcar_gym.sim.clock import check_max_substep
+from smartcar_gym.sim.engines import add_engine_argument
 
 PROG = "smartcar-calibrate"
 
@@ -74,6 +75,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--wheel-contact", choices=WHEEL_CONTACTS, default="sphere")
     parser.add_argument("--max-substep-s", type=float, default=0.01,
                         help="longest physics substep (s), as the env's max_substep_s")
+    add_engine_argument(parser, default="pybullet", what="the calibration drives'")
     parser.add_argument("--randomize", metavar="SPEC", help="how the simulated car differs "
                         "from the YAML: a preset (default), a YAML file or a mapping such as "
                         "\"{track: 1.1}\"; drawn once")
@@ -133,8 +135,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             model, config, plan, args.fit,
             variation=None if draw is None else draw.variation,
             ground_friction=1.0 if draw is None else draw.values["ground_friction"],
-            wheel_contact=args.wheel_contact, max_substep_s=args.max_substep_s)
-    except (DriveError, CalibrationError, ModelError) as err:
+            wheel_contact=args.wheel_contact, max_substep_s=args.max_substep_s,
+            engine=args.engine)
+    except (DriveError, CalibrationError, ModelError, ImportError) as err:
         parser.error(f"calibration failed: {err}")
     report = _report(result, args, draw)
     print(report)

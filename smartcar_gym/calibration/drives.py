@@ -20,7 +20,7 @@ from smartcar_gym.controller import ArbotixConfig
 from smartcar_gym.envs.robots.smartcar import SmartCarRobot, drive
 from smartcar_gym.envs.robots.variation import Variation
 from smartcar_gym.model import RobotModel
-from smartcar_gym.sim import Simulator
+from smartcar_gym.sim.engines import DEFAULT_ENGINE, make_simulator
 
 REST_S = 1.0  # standing still after each leg and at the end: the car coasts to rest
 MAX_LEG_S = 60.0  # a leg that takes longer means the car does not move as commanded
@@ -64,8 +64,10 @@ class Driver:
 
     def __init__(self, model: RobotModel, config: ArbotixConfig,
                  variation: Variation | None = None, wheel_contact: str = "sphere",
-                 max_substep_s: float = 0.01, ground_friction: float = 1.0) -> None:
+                 max_substep_s: float = 0.01, ground_friction: float = 1.0,
+                 engine: str = DEFAULT_ENGINE) -> None:
         self.model = model
+        self.engine = engine
         self.config = config
         self.variation = variation
         self.wheel_contact = wheel_contact
@@ -82,7 +84,8 @@ class Driver:
 
     def run(self, name: str, steer: Callable[[_Leg], list[tuple[float, float, str]]]) -> Run:
         """Spawn afresh, drive the legs ``steer`` lists, come to rest, record."""
-        sim = Simulator(max_substep_s=self.max_substep_s, ground_friction=self.ground_friction)
+        sim = make_simulator(self.engine, max_substep_s=self.max_substep_s,
+                             ground_friction=self.ground_friction)
         try:
             robot = SmartCarRobot(sim, self.model, self.config, wheel_contact=self.wheel_contact)
             if self.variation is not None:  # each drive its own noise

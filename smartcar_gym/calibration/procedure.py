@@ -53,7 +53,7 @@ def drive_all(driver: Driver, plan: Plan) -> tuple[Run, ...]:
 def calibrate(model: RobotModel, config: ArbotixConfig, plan: Plan | None = None,
               fit_name: str = "spin", variation: Variation | None = None,
               ground_friction: float = 1.0, wheel_contact: str = "sphere",
-              max_substep_s: float = 0.01) -> Calibration:
+              max_substep_s: float = 0.01, engine: str = "pybullet") -> Calibration:
     """Calibrate ``config``'s odometry for ``model`` (on a plant ``variation``, if given).
 
     The plant stays the same for the runs after calibration: its encoders count the same
@@ -62,7 +62,7 @@ def calibrate(model: RobotModel, config: ArbotixConfig, plan: Plan | None = None
     plan = plan or Plan()
     if fit_name not in FITS:
         raise ValueError(f"fit must be one of {tuple(FITS)}, got {fit_name!r}")
-    common = dict(wheel_contact=wheel_contact, max_substep_s=max_substep_s,
+    common = dict(wheel_contact=wheel_contact, max_substep_s=max_substep_s, engine=engine,
                   ground_friction=ground_friction)
     driver = Driver(model, config, variation, **common)
     before = drive_all(driver, plan)

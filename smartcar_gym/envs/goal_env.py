@@ -100,6 +100,7 @@ class SmartCarGoalEnv(SmartCarEnv):
 
     ## Version History
 
+    * v0 (0.3.0): ``engine="mujoco"`` (SmartCar-v0's argument; docs/engines.md).
     * v0 (0.2.0): initial version.
     """
 

@@ -143,6 +143,7 @@ class SmartCarNavEnv(SmartCarEnv):
 
     ## Version History
 
+    * v0 (0.3.0): ``engine="mujoco"`` (SmartCar-v0's argument; docs/engines.md).
     * v0 (0.2.0): initial version.
     """
 

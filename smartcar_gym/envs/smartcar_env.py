@@ -30,8 +30,9 @@ from smartcar_gym.envs.robots.smartcar import Pose2D, SmartCarRobot
 from smartcar_gym.envs.tasks.reach import GoalReachingTask
 from smartcar_gym.model import RobotModel, load_model
 from smartcar_gym.model.contact import check_wheel_contact
+from smartcar_gym.sim.clock import DEFAULT_MAX_SUBSTEP_S, EventClock, check_max_substep
+from smartcar_gym.sim.engines import DEFAULT_ENGINE, check_engine, make_simulator
 from smartcar_gym.sim.markers import SceneMarkers
-from smartcar_gym.sim.simulator import DEFAULT_MAX_SUBSTEP_S, Simulator, check_max_substep
 
 MAX_RENDER_PX = 4096  # 8000 x 8000 took 2.4 GB and minutes per frame
 #: the rows of SmartCar-v0's observation, in order (entries come from robot, task and env)
@@ -174,6 +175,9 @@ class SmartCarEnv(gym.Env):
     |                   |                | "default" (the shipped preset), a dict               |
     |                   |                | ``{factor: [low, high]}`` or a YAML file of one;     |
     |                   |                | drawn per episode (docs/sim2real.md)                 |
+    | engine            | "pybullet"     | physics engine: "pybullet" or "mujoco" (the          |
+    |                   |                | ``mujoco`` extra; docs/engines.md). SmartCarSim-v0   |
+    |                   |                | steps no physics: its engine only holds the body     |
 
     ## Vector envs
 
@@ -184,6 +188,9 @@ class SmartCarEnv(gym.Env):
     ``autoreset_mode="SameStep"``), car i seeded ``s + i``, ``info["is_success"]`` per car.
 
     ## Version History
+
+    * v0 (0.3.0): ``engine="mujoco"``: the same car, controller and tasks on MuJoCo
+      (docs/engines.md); pybullet stays the default, its rollouts unchanged bit for bit.
 
     * v0 (0.2.0): event-driven stepping (``max_substep_s``, default 0.01 s); ``physics_hz``
       deprecated. ``max_substep_s=0.002`` reproduces 0.1.0's fixed 500 Hz stepping bit for bit.
@@ -214,9 +221,11 @@ class SmartCarEnv(gym.Env):
         render_height: int = 360,
         wheel_contact: str = "sphere",
         randomize: str | os.PathLike | dict | Randomization | None = None,
+        engine: str | None = None,
     ) -> None:
         checks.one_of("render_mode", render_mode, list(self.metadata["render_modes"]),
                       none_ok=True)
+        self.engine = DEFAULT_ENGINE if engine is None else check_engine(engine)
         checks.one_of("controller_mode", controller_mode, MODES, none_ok=True)
         self.render_mode = render_mode
         self.wheel_contact = check_wheel_contact(wheel_contact)
@@ -249,9 +258,12 @@ class SmartCarEnv(gym.Env):
         if controller_mode is None:  # as the driver: its `sim` parameter picks the mode
             controller_mode = KINEMATIC if self.controller_config.kinematic else HARDWARE
         self.controller_mode = controller_mode
+        if engine is not None and controller_mode == KINEMATIC:
+            gym.logger.warn(f"controller_mode='sim' (SmartCarSim-v0) steps no physics: "
+                            f"engine={engine!r} only holds the kinematically moved body")
         self.metadata = {**self.metadata, "render_fps": self.controller_config.rate_hz}
 
-        self.sim: Simulator | None = None
+        self.sim: EventClock | None = None
         self._open()
         self.observation = self._declare_observation()
         #: what each observation entry is, in order (wheels as found: left then right)
@@ -298,8 +310,9 @@ class SmartCarEnv(gym.Env):
             )
 
     def _open(self) -> None:
-        """Connect a fresh simulator (its own BulletClient) with the robot and the markers."""
-        self.sim = Simulator(max_substep_s=self.max_substep_s, gui=self.render_mode == "human")
+        """Connect a fresh simulator (its own world) with the robot and the markers."""
+        self.sim = make_simulator(self.engine, max_substep_s=self.max_substep_s,
+                                  gui=self.render_mode == "human")
         self.robot = SmartCarRobot(
             self.sim, self.robot_model, self.controller_config, mode=self.controller_mode,
             wheel_contact=self.wheel_contact,

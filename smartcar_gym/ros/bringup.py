@@ -21,7 +21,8 @@ from smartcar_gym.controller import ArbotixConfig
 from smartcar_gym.envs.robots.smartcar import SmartCarRobot
 from smartcar_gym.ros import messages as m
 from smartcar_gym.ros.timing import Pacer, Schedule, Stream, period_ns
-from smartcar_gym.sim.simulator import NS_PER_S, Simulator
+from smartcar_gym.sim.clock import NS_PER_S
+from smartcar_gym.sim.engines import DEFAULT_ENGINE, make_simulator
 
 CLOCK_RATE_HZ = 100.0  # /clock, and how often received commands are handed to the controller
 LAG_REPORT_S = 5.0  # at most one "behind real time" line per this many wall seconds
@@ -152,9 +153,11 @@ class Bringup:
                 m.joint_state_message(self.types, self.robot.joint_states(), stamp))
 
 
-def start_robot(model: Any, config: ArbotixConfig, mode: str) -> SmartCarRobot:
-    """A fresh world with the robot spawned at the origin, its controller started at t = 0."""
-    sim = Simulator()
+def start_robot(model: Any, config: ArbotixConfig, mode: str,
+                engine: str = DEFAULT_ENGINE) -> SmartCarRobot:
+    """A fresh world of ``engine`` with the robot spawned at the origin, its controller started
+    at t = 0."""
+    sim = make_simulator(engine)
     robot = SmartCarRobot(sim, model, config, mode=mode)
     sim.reset()
     robot.spawn(0.0, 0.0, 0.0)

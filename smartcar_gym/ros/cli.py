@@ -3,6 +3,7 @@
 ::
 
     smartcar-ros bringup [--model URDF|XACRO] [--controller-config YAML] [--speed N]
+                         [--engine pybullet|mujoco]
     smartcar-ros policy (--pretrained [NAME] | --model ZIP) [--vecnormalize FILE]
     smartcar-ros package        # the ROS package folder, for ROS_PACKAGE_PATH
 
@@ -27,6 +28,7 @@ from smartcar_gym.agents.model_files import PRETRAINED_POLICIES
 from smartcar_gym.ros.debian import RosUnavailable, import_ros
 from smartcar_gym.ros.driving import STOP_ON
 from smartcar_gym.ros.package import package_folder
+from smartcar_gym.sim.engines import add_engine_argument
 
 PROG = "smartcar-ros"
 STALE_AFTER_S = 0.5  # five controller periods of the shipped config
@@ -70,6 +72,7 @@ def build_parser() -> argparse.ArgumentParser:
     bringup.add_argument("--mode", choices=("hardware", "sim"),
                          help="hardware (PID, encoders, motors) or sim (kinematic, the "
                               "driver's sim: true); default: the config's sim parameter")
+    add_engine_argument(bringup, default="pybullet", what="the robot's")
     bringup.add_argument("--speed", type=_positive, default=1.0, metavar="N",
                          help="simulated seconds per wall-clock second (default 1); other "
                               "than 1 needs /use_sim_time true")
@@ -193,7 +196,8 @@ def _run_bringup(ros: Any, args: argparse.Namespace, stop: threading.Event) -> i
             raise ValueError(f"--speed {args.speed:g} needs /use_sim_time true (set it before "
                              "the nodes start, e.g. <param name=\"/use_sim_time\" value=\"true\"/>"
                              "): without it other nodes stamp and wait in wall-clock time")
-    except (ControllerConfigError, ModelError, OSError, ValueError) as err:
+        robot = start_robot(model, config, mode, args.engine)
+    except (ControllerConfigError, ModelError, OSError, ValueError, ImportError) as err:
         rospy.logfatal(" ".join(str(err).split()))
         return 2
     for warning in caught:
@@ -201,8 +205,8 @@ def _run_bringup(ros: Any, args: argparse.Namespace, stop: threading.Event) -> i
     if not rospy.has_param("robot_description"):
         rospy.set_param("robot_description", model.urdf)
         rospy.loginfo(f"set {rospy.resolve_name('robot_description')} from {model.source}")
-    robot = start_robot(model, config, mode)
-    rospy.loginfo(f"simulating {model.source.name} in {mode} mode, {describe(config)} (from "
+    rospy.loginfo(f"simulating {model.source.name} on {args.engine} in {mode} mode, "
+                  f"{describe(config)} (from "
                   f"{source}); speed {args.speed:g}, "
                   f"{'/use_sim_time: publishing /clock' if sim_time else 'wall-clock time'}")
     try:

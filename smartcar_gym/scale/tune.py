@@ -41,13 +41,14 @@ from smartcar_gym.scale.space import (
     load_space,
 )
 from smartcar_gym.scale.trial import TRIAL_KEY
+from smartcar_gym.sim.engines import add_engine_argument
 
 PROG = "smartcar-tune"
 EXPERIMENT = "tune"  # Ray Tune's folder in <out>
 INTERRUPTED_EXIT_CODE = 130
 # What --resume reads from <out>; the options that would change it.
 SWEEP_OPTIONS = ("space", "hyperparams", "seeds", "num_samples", "timesteps", "cpus_per_trial",
-                 "no_early_stopping")
+                 "no_early_stopping", "engine")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -73,6 +74,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--cpus-per-trial", type=positive_int_arg, default=None,
                         help="CPUs Ray reserves per trial (default: the space's, else 1; a "
                              "trial runs n_envs env processes)")
+    add_engine_argument(parser, what="every trial's")
     parser.add_argument("--no-early-stopping", action="store_true",
                         help="run every trial to the end (no ASHA)")
     parser.add_argument("--num-cpus", type=positive_int_arg, default=None,
@@ -146,6 +148,8 @@ def new_sweep(args: argparse.Namespace) -> tuple[Sweep, Path]:
                            timesteps=args.timesteps, cpus_per_trial=args.cpus_per_trial)
     if args.no_early_stopping:
         data["early_stopping"] = None
+    if args.engine is not None:
+        data["env_kwargs"] = {**(data.get("env_kwargs") or {}), "engine": args.engine}
     sweep = build_sweep(data, path, base_dir=path.parent,
                         fit_early_stopping=args.timesteps is not None)
     _check_env_kwargs(sweep)

@@ -130,8 +130,29 @@ class Body:
         info = self.sim.client.getDynamicsInfo(self.uid, link)
         return LinkDynamics(info[0], tuple(info[2]), info[1])
 
-    def change_dynamics(self, link: int, **values: object) -> None:
-        """``changeDynamics`` of a link (``BASE`` or a joint index), pybullet's keywords."""
+    def set_mass(self, link: int, mass_kg: float, inertia_diagonal: Sequence[float]) -> None:
+        """Set a link's mass (kg) and its inertia diagonal (kg m^2, the link's inertial frame)."""
+        self.sim.client.changeDynamics(self.uid, link, mass=mass_kg,
+                                       localInertiaDiagonal=list(inertia_diagonal))
+
+    def set_friction(self, link: int, friction: float) -> None:
+        """Set a link's lateral (Coulomb) friction coefficient; a contact multiplies the two
+        bodies' coefficients."""
+        self.sim.client.changeDynamics(self.uid, link, lateralFriction=friction)
+
+    def add_axle_inertia(self, link: int, axis: Sequence[float], inertia_kg_m2: float) -> None:
+        """Add ``inertia_kg_m2`` about a joint's ``axis`` (a gearmotor's rotor as the wheel sees
+        it): to the component of the link's inertia diagonal the axis points along."""
+        values = list(self.dynamics(link).inertia_diagonal)
+        values[int(np.argmax(np.abs(axis)))] += inertia_kg_m2
+        self.sim.client.changeDynamics(self.uid, link, localInertiaDiagonal=values)
+
+    def clear_damping(self, link: int) -> None:
+        """No damping on a link but what is set on purpose: pybullet's default linear and
+        angular damping (0.04) off, and the joint's damping (not the base's) 0."""
+        values = {"linearDamping": 0.0, "angularDamping": 0.0}
+        if link != BASE:
+            values["jointDamping"] = 0.0
         self.sim.client.changeDynamics(self.uid, link, **values)
 
     def set_joint_damping(self, joints: Sequence[int], damping: Sequence[float]) -> None:
@@ -139,6 +160,23 @@ class Body:
         c = self.sim.client
         for joint, value in zip(joints, damping, strict=True):
             c.changeDynamics(self.uid, joint, jointDamping=float(value))
+
+    # -- queries -------------------------------------------------------------------------------
+    def hide_from_rays(self) -> None:
+        """Let ray casts pass through every link of this body; its collisions are unchanged."""
+        from smartcar_gym.sim.rays import ALL_GROUPS, HIDDEN_GROUP
+
+        client = self.sim.client
+        for link in [BASE, *range(client.getNumJoints(self.uid))]:
+            client.setCollisionFilterGroupMask(self.uid, link, HIDDEN_GROUP, ALL_GROUPS)
+
+    def distance_to(self, other: Body, max_distance_m: float) -> float:
+        """The smallest distance (m) between this body's collision shapes and ``other``'s at
+        their current poses (< 0: overlapping), or ``max_distance_m`` if none is nearer."""
+        nearest = max_distance_m
+        for point in self.sim.client.getClosestPoints(self.uid, other.uid, max_distance_m):
+            nearest = min(nearest, point[8])
+        return nearest
 
     # -- actuation -----------------------------------------------------------------------------
     def hold_torques(self, joints: list[int], torques: list[float], key: str = "") -> None:

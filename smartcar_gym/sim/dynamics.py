@@ -29,22 +29,22 @@ def scale_mass(body: Body, links: Iterable[int], factor: float) -> None:
     factor = _check_factor("mass factor", factor)
     for link in links:
         now = body.dynamics(link)
-        body.change_dynamics(link, mass=now.mass_kg * factor,
-                             localInertiaDiagonal=[i * factor for i in now.inertia_diagonal])
+        body.set_mass(link, now.mass_kg * factor, [i * factor for i in now.inertia_diagonal])
 
 
 def set_lateral_friction(body: Body, links: Iterable[int], friction: float) -> None:
     """Set each link's lateral (Coulomb) friction coefficient.
 
-    pybullet combines the two bodies of a contact by multiplying their coefficients.
+    A contact multiplies the two bodies' coefficients (pybullet's rule; the MuJoCo facade
+    gives its contacts the same product).
     """
     friction = _check_factor("lateral friction", friction)
     for link in links:
-        body.change_dynamics(link, lateralFriction=friction)
+        body.set_friction(link, friction)
 
 
 def scale_lateral_friction(body: Body, links: Iterable[int], factor: float) -> None:
     """Multiply each link's lateral friction coefficient by ``factor``."""
     factor = _check_factor("friction factor", factor)
     for link in links:
-        body.change_dynamics(link, lateralFriction=body.dynamics(link).lateral_friction * factor)
+        body.set_friction(link, body.dynamics(link).lateral_friction * factor)

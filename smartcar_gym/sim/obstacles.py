@@ -1,27 +1,25 @@
 """Static obstacles: boxes and upright cylinders that stand on the ground and collide.
 
-``add_obstacle`` creates one fixed body (mass 0: pybullet never moves it) with a collision shape
-and a visual of the same shape. ``nearest_distance`` measures how close a body is to some others
+``add_obstacle`` creates one fixed body (the engine never moves it) with a collision shape and a
+visual of the same shape. ``nearest_distance`` measures how close a body is to some others
 (<= 0: touching), from the bodies' current poses: it works whether or not the physics was
 stepped since they last moved (a kinematically moved robot, ``controller_mode="sim"``, gets no
-contact points from pybullet).
+contact points from the engine).
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
+from typing import Any
 
-from smartcar_gym.sim.body import Body
-from smartcar_gym.sim.bullet import pybullet
-from smartcar_gym.sim.simulator import Simulator
+from smartcar_gym.sim.clock import EventClock
 
 SHAPES = ("box", "cylinder")
 OBSTACLE_COLOR = (0.55, 0.55, 0.6, 1.0)
 
 
 def add_obstacle(
-    sim: Simulator,
+    sim: EventClock,
     name: str,
     shape: str,
     size: Sequence[float],
@@ -29,7 +27,7 @@ def add_obstacle(
     yaw: float = 0.0,
     height: float = 0.3,
     rgba: Sequence[float] = OBSTACLE_COLOR,
-) -> Body:
+) -> Any:
     """A static obstacle standing on the ground, centred on ``position`` (x, y), turned by ``yaw``.
 
     ``size`` is (length along x, width along y) of a box before the turn, or (diameter,) of a
@@ -39,32 +37,18 @@ def add_obstacle(
         raise ValueError(f"obstacle shape must be one of {SHAPES}, got {shape!r}")
     if sim.has_body(name):
         raise ValueError(f"a body named {name!r} already exists")
-    c = sim.client
     if shape == "box":
-        half = [size[0] / 2.0, size[1] / 2.0, height / 2.0]
-        collision = c.createCollisionShape(pybullet.GEOM_BOX, halfExtents=half)
-        visual = c.createVisualShape(pybullet.GEOM_BOX, halfExtents=half, rgbaColor=list(rgba))
+        half = (size[0] / 2.0, size[1] / 2.0, height / 2.0)
     else:
-        radius = size[0] / 2.0
-        collision = c.createCollisionShape(pybullet.GEOM_CYLINDER, radius=radius, height=height)
-        visual = c.createVisualShape(pybullet.GEOM_CYLINDER, radius=radius, length=height,
-                                     rgbaColor=list(rgba))
-    uid = c.createMultiBody(
-        baseMass=0.0, baseCollisionShapeIndex=collision, baseVisualShapeIndex=visual,
-        basePosition=[float(position[0]), float(position[1]), height / 2.0],
-        baseOrientation=[0.0, 0.0, math.sin(yaw / 2.0), math.cos(yaw / 2.0)],
-    )
-    body = Body(sim, name, uid)
-    sim._bodies[name] = body  # the simulator's registry of names (cleared by its reset)
-    return body
+        half = (size[0] / 2.0, size[0] / 2.0, height / 2.0)
+    return sim.add_static(name, shape, half, (float(position[0]), float(position[1]),
+                                              height / 2.0), yaw, rgba)
 
 
-def nearest_distance(body: Body, others: Sequence[Body], max_distance_m: float) -> float:
+def nearest_distance(body: Any, others: Sequence[Any], max_distance_m: float) -> float:
     """The smallest distance (m) between ``body``'s collision shapes and those of ``others``
     at their current poses (< 0: overlapping), or ``max_distance_m`` if none is nearer."""
-    closest = body.sim.client.getClosestPoints
     nearest = max_distance_m
     for other in others:
-        for point in closest(body.uid, other.uid, max_distance_m):
-            nearest = min(nearest, point[8])
+        nearest = min(nearest, body.distance_to(other, max_distance_m))
     return float(nearest)

@@ -12,9 +12,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from smartcar_gym.sim.body import BASE, Body
+from smartcar_gym.sim.body import Body
 from smartcar_gym.sim.bullet import pybullet
-from smartcar_gym.sim.simulator import Simulator
+from smartcar_gym.sim.clock import EventClock
 
 #: the collision filter group of bodies hidden from rays (bit 10: unused by Bullet's own groups)
 HIDDEN_GROUP = 1 << 10
@@ -40,12 +40,10 @@ class RayHits:
 
 def hide_from_rays(body: Body) -> None:
     """Let ``cast_rays`` pass through every link of ``body``; its collisions are unchanged."""
-    client = body.sim.client
-    for link in [BASE, *range(client.getNumJoints(body.uid))]:
-        client.setCollisionFilterGroupMask(body.uid, link, HIDDEN_GROUP, ALL_GROUPS)
+    body.hide_from_rays()
 
 
-def cast_rays(sim: Simulator, starts: np.ndarray, ends: np.ndarray) -> RayHits:
+def cast_rays(sim: EventClock, starts: np.ndarray, ends: np.ndarray) -> RayHits:
     """Cast rays from ``starts`` to ``ends`` (``(N, 3)``, world frame, m) in one batch.
 
     Bodies passed to ``hide_from_rays`` are not hit. A ray that starts inside a convex shape
@@ -59,8 +57,13 @@ def cast_rays(sim: Simulator, starts: np.ndarray, ends: np.ndarray) -> RayHits:
     if not 1 <= len(starts) <= MAX_RAYS:
         raise ValueError(f"one batch casts 1 to {MAX_RAYS} rays (pybullet's limit), "
                          f"got {len(starts)}")
-    results = sim.client.rayTestBatch(starts, ends, numThreads=1,
-                                      collisionFilterMask=ALL_GROUPS ^ HIDDEN_GROUP)
+    return sim.ray_batch(starts, ends)
+
+
+def bullet_rays(client, starts: np.ndarray, ends: np.ndarray) -> RayHits:
+    """pybullet's ``rayTestBatch`` of checked rays, single-threaded, hidden bodies left out."""
+    results = client.rayTestBatch(starts, ends, numThreads=1,
+                                  collisionFilterMask=ALL_GROUPS ^ HIDDEN_GROUP)
     body, _, fraction, point, _ = zip(*results, strict=True)
     return RayHits(fraction=np.array(fraction, dtype=float), body=np.array(body, dtype=int),
                    point=np.array(point, dtype=float))

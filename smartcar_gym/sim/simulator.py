@@ -22,25 +22,27 @@ import contextlib
 import math
 import os
 import sys
-import tempfile
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
-from typing import Protocol
 
 import numpy as np
 
 from smartcar_gym.sim import camera
 from smartcar_gym.sim.body import Body
 from smartcar_gym.sim.bullet import connect, pybullet, silenced_output
+from smartcar_gym.sim.clock import (  # noqa: F401 (the clock's names, as they were here)
+    DEFAULT_MAX_SUBSTEP_S,
+    MAX_FIRINGS_PER_INSTANT,
+    MAX_SUBSTEP_RANGE_S,
+    NS_PER_S,
+    EventClock,
+    EventSource,
+    check_max_substep,
+    seconds_to_ns,
+)
 
 Vec3 = tuple[float, float, float]
 Quat = tuple[float, float, float, float]
-NS_PER_S = 1_000_000_000
-DEFAULT_MAX_SUBSTEP_S = 0.01
-# A substep below 0.1 ms only burns time (1e7 Hz made one env step take 17 s); above 20 ms the
-# car's contacts jitter (they start to between 10 and 16 ms).
-MAX_SUBSTEP_RANGE_S = (1e-4, 0.02)
-MAX_FIRINGS_PER_INSTANT = 100
 # A differential-drive robot's contacts solved to convergence: the solver iterates until its
 # residual is below 1e-14 (pybullet's default stops at 1e-7), at most 100 times (a light robot
 # needed more than 50). The casterbot's two wheels then roll 1e-4 ticks apart in 0.5 s under
@@ -50,41 +52,7 @@ CONVERGED_SOLVER_ITERATIONS = 100
 CONVERGED_SOLVER_RESIDUAL = 1e-14
 
 
-class EventSource(Protocol):
-    """Something that acts at instants of simulated time (a board's PID frames, a controller)."""
-
-    def next_event_ns(self, now_ns: int) -> int | None:
-        """The earliest time (ns, >= ``now_ns``) at which it must act; None: nothing pending."""
-        ...
-
-    def on_event(self, now_ns: int) -> None:
-        """Act at ``now_ns`` (everything due by then)."""
-        ...
-
-
-def seconds_to_ns(seconds: float) -> int:
-    """Seconds to the clock's integer nanoseconds (rounded to the nearest)."""
-    return round(seconds * NS_PER_S)
-
-
-def check_max_substep(value: object, name: str = "max_substep_s") -> float:
-    """``value`` as a float in ``MAX_SUBSTEP_RANGE_S``; ValueError naming ``name`` otherwise."""
-    low, high = MAX_SUBSTEP_RANGE_S
-    if (
-        isinstance(value, bool)
-        or not isinstance(value, int | float | np.floating | np.integer)
-        or not math.isfinite(value)
-        or not low <= value <= high
-    ):
-        raise ValueError(
-            f"{name} must be a number of seconds in [{low:g}, {high:g}] (the longest physics "
-            f"substep; default {DEFAULT_MAX_SUBSTEP_S}, 0.002 steps at a fixed 500 Hz), "
-            f"got {value!r}"
-        )
-    return float(value)
-
-
-class Simulator:
+class Simulator(EventClock):
     """A pybullet world (gravity, a ground plane) with an event-driven clock.
 
     Args:
@@ -97,6 +65,8 @@ class Simulator:
         solver_iterations: constraint solver iterations per physics step (10: 5 jitters at
             10 ms substeps, 20 costs 15 % for nothing).
     """
+
+    engine = "pybullet"
 
     def __init__(
         self,
@@ -127,14 +97,11 @@ class Simulator:
         self._step_simulation = self.client.stepSimulation
         self._set_joint_motors = self.client.setJointMotorControlArray
         self._set_time_step_raw = self.client.setTimeStep
-        self.now_ns = 0
-        self.physics_steps = 0  # stepSimulation calls since the last reset (for benchmarks)
-        self._bodies: dict[str, Body] = {}
-        self._sources: list[EventSource] = []
+        self._restart_clock()
         self._dt = 0.0
         self._held: dict[tuple[str, str], tuple[int, list[int], list[float]]] = {}
         self._motors: dict[tuple[str, str], tuple[int, list[int], list[float], list[float]]] = {}
-        self._scratch: tempfile.TemporaryDirectory[str] | None = None
+        self._scratch = None
         self.reset()
 
     # -- world ---------------------------------------------------------------------------------
@@ -158,16 +125,13 @@ class Simulator:
             numSolverIterations=self.solver_iterations, enableFileCaching=1,
         )
         c.setGravity(0.0, 0.0, -self.gravity_m_s2)
-        self._bodies = {}
-        self._sources = []
+        self._restart_clock()
         self._held = {}
         self._motors = {}
         plane = Body(self, "plane", c.loadURDF("plane.urdf"))  # pybullet_data's, no flags
         c.setPhysicsEngineParameter(enableFileCaching=0)
-        plane.change_dynamics(-1, lateralFriction=self.ground_friction)
+        plane.set_friction(-1, self.ground_friction)
         self._bodies["plane"] = plane
-        self.now_ns = 0
-        self.physics_steps = 0
 
     def converge_contacts(self) -> None:
         """Solve the contacts to convergence until the next ``reset``.
@@ -210,19 +174,7 @@ class Simulator:
             with silenced_output(), contextlib.suppress(pybullet.error):
                 client.disconnect()
             self.client = None
-        scratch = getattr(self, "_scratch", None)
-        if scratch is not None:
-            scratch.cleanup()
-            self._scratch = None
-
-    @property
-    def scratch_dir(self) -> Path:
-        """A folder of this simulator's own for the files pybullet must read (a robot's URDF,
-        rewritten at each spawn), made on first use and removed by ``close()`` (or when the
-        simulator is collected)."""
-        if self._scratch is None:
-            self._scratch = tempfile.TemporaryDirectory(prefix="smartcar_gym_")
-        return Path(self._scratch.name)
+        self._remove_scratch()
 
     def __getstate__(self) -> None:
         raise TypeError(
@@ -234,74 +186,7 @@ class Simulator:
     def connected(self) -> bool:
         return self.client is not None and self.client.isConnected()
 
-    # -- clock and stepping --------------------------------------------------------------------
-    @property
-    def time_s(self) -> float:
-        """Simulated time since the last ``reset`` or ``settle`` (s)."""
-        return self.now_ns / NS_PER_S
-
-    def add_event_source(self, source: EventSource) -> None:
-        """Let ``source`` act at the instants it asks for (until the next ``reset``).
-
-        Sources due at the same instant act in the order they were added.
-        """
-        self._sources.append(source)
-
-    def settle(self, seconds: float) -> None:
-        """Let the world come to rest for ``seconds`` before time starts: the clock stays at 0.
-
-        Used once bodies are placed (wheels onto the ground) and before anything is scheduled.
-        """
-        if self.now_ns != 0:
-            raise RuntimeError(f"settle() is for t = 0, before time starts; now {self.time_s} s")
-        self._step_physics(seconds_to_ns(seconds), None)
-        self.now_ns = 0
-
-    def run_for(self, seconds: float, *, physics: bool = True,
-                probe: Callable[[float], None] | None = None) -> None:
-        """``run_until`` the current time plus ``seconds``."""
-        self.run_until(self.now_ns + seconds_to_ns(seconds), physics=physics, probe=probe)
-
-    def run_until(self, end_ns: int, *, physics: bool = True,
-                  probe: Callable[[float], None] | None = None) -> None:
-        """Advance the clock to ``end_ns``, stepping the physics from event to event.
-
-        Every event source acts at each instant it asks for, the last ones at ``end_ns``
-        itself. ``physics=False`` moves the clock without stepping the physics (bodies that
-        are moved kinematically). ``probe(time_s)``, if given, runs after every physics
-        substep (for logging).
-        """
-        if end_ns < self.now_ns:
-            raise ValueError(f"time cannot go back: run_until({end_ns} ns) at {self.now_ns} ns")
-        while True:
-            now = self.now_ns
-            target = end_ns
-            for source in self._sources:  # each acts on what is due, in the order added
-                due = self._fire(source, now)
-                if due is not None and due < target:
-                    target = due
-            if now >= end_ns:
-                return
-            if physics:
-                self._step_physics(target - now, probe)
-            self.now_ns = target
-
-    @staticmethod
-    def _fire(source: EventSource, now: int) -> int | None:
-        """Let ``source`` act while it is due at ``now``; its next event time after that."""
-        due = source.next_event_ns(now)
-        firings = 0
-        while due is not None and due <= now:
-            if firings == MAX_FIRINGS_PER_INSTANT:
-                raise RuntimeError(
-                    f"{type(source).__name__} is still due after {firings} firings at {now} ns: "
-                    "an event source must move its next event past the present"
-                )
-            source.on_event(now)
-            firings += 1
-            due = source.next_event_ns(now)
-        return due
-
+    # -- stepping ------------------------------------------------------------------------------
     def _step_physics(self, interval_ns: int, probe: Callable[[float], None] | None) -> None:
         """Step ``interval_ns`` in the fewest equal substeps no longer than ``max_substep_s``."""
         if interval_ns <= 0:
@@ -375,10 +260,7 @@ class Simulator:
         """
         from smartcar_gym.sim.loading import load_body  # imports the model package (xacro)
 
-        if name in self._bodies:
-            raise ValueError(
-                f"a body named {name!r} already exists; bodies: {sorted(self._bodies)}"
-            )
+        self._check_new_name(name)
         flags = pybullet.URDF_USE_INERTIA_FROM_FILE | pybullet.URDF_USE_IMPLICIT_CYLINDER
         orientation = (0.0, 0.0, math.sin(yaw / 2.0), math.cos(yaw / 2.0))
         uid = load_body(self.client, path, position, orientation, flags=flags,
@@ -413,15 +295,37 @@ class Simulator:
             self._bodies[body.name] = body
         return bodies
 
-    def body(self, name: str) -> Body:
-        """The body called ``name``."""
-        try:
-            return self._bodies[name]
-        except KeyError:
-            raise KeyError(f"no body named {name!r}; bodies: {sorted(self._bodies)}") from None
+    def add_static(self, name: str, shape: str, half_extents: Sequence[float],
+                   position: Sequence[float], yaw: float, rgba: Sequence[float]) -> Body:
+        """A fixed body (mass 0) of one 'box' (``half_extents``) or upright 'cylinder' (radius
+        ``half_extents[0]``, height ``2 * half_extents[2]``) that collides, centred on
+        ``position`` and turned by ``yaw``."""
+        self._check_new_name(name)
+        c = self.client
+        if shape == "box":
+            half = list(half_extents)
+            collision = c.createCollisionShape(pybullet.GEOM_BOX, halfExtents=half)
+            visual = c.createVisualShape(pybullet.GEOM_BOX, halfExtents=half, rgbaColor=list(rgba))
+        else:
+            radius, height = half_extents[0], 2.0 * half_extents[2]
+            collision = c.createCollisionShape(pybullet.GEOM_CYLINDER, radius=radius,
+                                               height=height)
+            visual = c.createVisualShape(pybullet.GEOM_CYLINDER, radius=radius, length=height,
+                                         rgbaColor=list(rgba))
+        uid = c.createMultiBody(
+            baseMass=0.0, baseCollisionShapeIndex=collision, baseVisualShapeIndex=visual,
+            basePosition=list(position),
+            baseOrientation=[0.0, 0.0, math.sin(yaw / 2.0), math.cos(yaw / 2.0)],
+        )
+        body = Body(self, name, uid)
+        self._bodies[name] = body
+        return body
 
-    def has_body(self, name: str) -> bool:
-        return name in self._bodies
+    def ray_batch(self, starts: np.ndarray, ends: np.ndarray):
+        """``smartcar_gym.sim.rays.cast_rays`` of checked (N, 3) arrays: pybullet's batch."""
+        from smartcar_gym.sim.rays import bullet_rays
+
+        return bullet_rays(self.client, starts, ends)
 
     # -- rendering -----------------------------------------------------------------------------
     def render(

@@ -22,7 +22,8 @@ from smartcar_gym.envs.robots.maneuvers import (
 )
 from smartcar_gym.envs.robots.smartcar import SmartCarRobot
 from smartcar_gym.model import RobotModel
-from smartcar_gym.sim import Simulator
+from smartcar_gym.sim.clock import EventClock
+from smartcar_gym.sim.engines import DEFAULT_ENGINE, make_simulator
 
 RANDOM_SEED = 2026
 
@@ -46,22 +47,22 @@ class Figures:
 
 
 def _robot(model: RobotModel, config: ArbotixConfig, contact: str,
-           max_substep_s: float) -> tuple[Simulator, SmartCarRobot]:
-    sim = Simulator(max_substep_s=max_substep_s)
+           max_substep_s: float, engine: str = DEFAULT_ENGINE) -> tuple[EventClock, SmartCarRobot]:
+    sim = make_simulator(engine, max_substep_s=max_substep_s)
     robot = SmartCarRobot(sim, model, config, wheel_contact=contact)
     robot.spawn()
     return sim, robot
 
 
 def measure(model: RobotModel, config: ArbotixConfig, contact: str,
-            max_substep_s: float) -> Figures:
+            max_substep_s: float, engine: str = DEFAULT_ENGINE) -> Figures:
     """Run every scenario with this stepping; a fresh world for each."""
     rate = config.rate_hz
     fig = Figures(max_substep_s, contact)
     ups: list[float] = []
 
     def scenario(commands) -> list[Sample]:
-        sim, robot = _robot(model, config, contact, max_substep_s)
+        sim, robot = _robot(model, config, contact, max_substep_s, engine)
         try:
             samples = run(robot, commands)
         finally:

@@ -229,13 +229,11 @@ class SmartCarRobot:
         for wheel, idx, share in zip(self.wheels, self._wheel_idx, self._share, strict=True):
             # The side's gearmotor rotor, seen through the gearbox, spins with the wheels: add
             # this wheel's share of its inertia about the axle (the joint axis).
-            inertia = list(body.dynamics(idx).inertia_diagonal)
-            axis = int(np.argmax(np.abs(self.model.joints[wheel.joint].axis)))
-            inertia[axis] += share * self.config.motor.reflected_inertia_kg_m2
-            body.change_dynamics(idx, jointDamping=0.0, linearDamping=0.0, angularDamping=0.0,
-                                 localInertiaDiagonal=inertia)
+            body.clear_damping(idx)
+            body.add_axle_inertia(idx, self.model.joints[wheel.joint].axis,
+                                  share * self.config.motor.reflected_inertia_kg_m2)
         self._chain_wheels(body)
-        body.change_dynamics(BASE, linearDamping=0.0, angularDamping=0.0)
+        body.clear_damping(BASE)
         self._torque = [0.0] * len(self.wheels)
         self._damping = [0.0] * len(self.wheels)
         body.hold_torques(self._wheel_idx, self._torque, key="motors")

@@ -1,0 +1,140 @@
+"""One env's steps/s on MuJoCo against pybullet, measured interleaved in one run (the ratio).
+
+    python benchmarks/engine_speed.py [--steps 600] [--rounds 5] [--env SmartCar-v0 ...]
+    python benchmarks/engine_speed.py --levers    # MuJoCo settings that trade fidelity for speed
+
+Each round steps one env of each engine for ``--steps`` seeded random actions (episode resets
+included: what a rollout costs), one engine after the other; a ratio is taken within a round
+and the table shows the median over rounds. The time spent inside the engine's physics stepping
+(``Simulator._step_physics``: pybullet's ``stepSimulation`` loop, MuJoCo's ``mj_step``) is timed
+too, so the table also says how much of a step is physics and how much is the Python around it
+(the emulated board and controller, the observation, the task), which both engines share.
+This machine's speed drifts by up to a half within minutes: only the ratio means anything.
+
+``--levers`` measures SmartCar-v0 on MuJoCo as shipped against two settings it does not use
+(pyramidal friction cones; 20 ms substeps), each and both, against pybullet in the same rounds:
+what they would buy (docs/engines.md says what they cost in fidelity).
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+
+import gymnasium as gym
+import numpy as np
+
+import smartcar_gym  # noqa: F401
+
+ENGINES = ("pybullet", "mujoco")
+
+
+class PhysicsTimer:
+    """Wraps a simulator's ``_step_physics`` to add up the seconds spent in it."""
+
+    def __init__(self, sim) -> None:
+        self.seconds = 0.0
+        inner = sim._step_physics
+
+        def timed(interval_ns, probe):
+            start = time.perf_counter()
+            inner(interval_ns, probe)
+            self.seconds += time.perf_counter() - start
+
+        sim._step_physics = timed
+
+
+def measure(env_id: str, steps: int, rounds: int) -> dict[str, list[tuple[float, float]]]:
+    """For each engine, per round: (steps/s, share of the time in physics)."""
+    envs = {engine: gym.make(env_id, engine=engine) for engine in ENGINES}
+    actions = np.random.default_rng(0).uniform(-1, 1, (steps, 2)).astype(np.float32)
+    results: dict[str, list[tuple[float, float]]] = {engine: [] for engine in ENGINES}
+    for env in envs.values():  # warm up
+        env.reset(seed=0)
+        for action in actions[:50]:
+            env.step(action)
+    for _ in range(rounds):
+        for engine, env in envs.items():
+            env.reset(seed=1)
+            timer = PhysicsTimer(env.unwrapped.sim)  # the reset's world keeps the wrapper
+            start = time.perf_counter()
+            for action in actions:
+                _, _, terminated, truncated, _ = env.step(action)
+                if terminated or truncated:
+                    env.reset()  # the same simulator: the wrapper stays
+            elapsed = time.perf_counter() - start
+            results[engine].append((steps / elapsed, timer.seconds / elapsed))
+    for env in envs.values():
+        env.close()
+    return results
+
+
+LEVERS = {"MuJoCo as shipped": ({}, 0.01), "pyramidal cones": ({"cone": 0}, 0.01),
+          "20 ms substeps": ({}, 0.02), "both": ({"cone": 0}, 0.02)}
+
+
+def levers(steps: int, rounds: int) -> None:
+    """The ``--levers`` table."""
+    from smartcar_gym.sim.mujoco import simulator
+
+    reset = simulator.MujocoSimulator.reset
+    options: dict[str, int] = {}
+
+    def patched(self) -> None:
+        reset(self)
+        for key, value in options.items():
+            setattr(self.spec.option, key, value)
+
+    simulator.MujocoSimulator.reset = patched
+    actions = np.random.default_rng(0).uniform(-1, 1, (steps, 2)).astype(np.float32)
+    speeds: dict[str, list[float]] = {"pybullet": [], **{name: [] for name in LEVERS}}
+    for _ in range(rounds):
+        for name in speeds:
+            if name == "pybullet":
+                env = gym.make("SmartCar-v0")
+            else:
+                options, substep = LEVERS[name]
+                env = gym.make("SmartCar-v0", engine="mujoco", max_substep_s=substep)
+            env.reset(seed=1)
+            start = time.perf_counter()
+            for action in actions:
+                _, _, terminated, truncated, _ = env.step(action)
+                if terminated or truncated:
+                    env.reset()
+            speeds[name].append(steps / (time.perf_counter() - start))
+            env.close()
+    print("| SmartCar-v0 | steps/s | / pybullet |")
+    print("|---|---|---|")
+    for name, values in speeds.items():
+        ratio = statistics.median(v / p for v, p in zip(values, speeds["pybullet"], strict=True))
+        print(f"| {name} | {statistics.median(values):.0f} | x{ratio:.2f} |")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--steps", type=int, default=600)
+    parser.add_argument("--rounds", type=int, default=5)
+    parser.add_argument("--env", nargs="+", default=["SmartCar-v0", "SmartCarNav-v0"])
+    parser.add_argument("--levers", action="store_true",
+                        help="MuJoCo settings it does not use, against pybullet")
+    args = parser.parse_args()
+    if args.levers:
+        levers(args.steps, args.rounds)
+        return
+    print("| env | pybullet steps/s | physics share | MuJoCo steps/s | physics share | "
+          "MuJoCo / pybullet |")
+    print("|---|---|---|---|---|---|")
+    for env_id in args.env:
+        results = measure(env_id, args.steps, args.rounds)
+        ratio = statistics.median(m[0] / p[0] for p, m in zip(results["pybullet"],
+                                                               results["mujoco"], strict=True))
+        cells = []
+        for engine in ENGINES:
+            cells.append(f"{statistics.median(r[0] for r in results[engine]):.0f}")
+            cells.append(f"{statistics.median(r[1] for r in results[engine]):.0%}")
+        print(f"| {env_id} | {' | '.join(cells)} | x{ratio:.2f} |")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,53 @@
+"""Which physics engine runs a world: ``ENGINES`` and ``make_simulator``.
+
+pybullet is the default and always installed; MuJoCo comes with the ``mujoco`` extra
+(``pip install "smartcar-gym[mujoco]"``) and is imported only when a MuJoCo world is made.
+"""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+ENGINES: tuple[str, ...] = ("pybullet", "mujoco")
+DEFAULT_ENGINE = "pybullet"
+MUJOCO_EXTRA = 'pip install "smartcar-gym[mujoco]"'
+
+
+def check_engine(value: object, name: str = "engine") -> str:
+    """``value`` if it names an engine; ValueError listing the engines otherwise."""
+    if not isinstance(value, str) or value not in ENGINES:
+        raise ValueError(f"{name} must be one of {', '.join(map(repr, ENGINES))}, got {value!r}")
+    return value
+
+
+def mujoco_simulator_class() -> type:
+    """The MuJoCo ``Simulator`` class; ImportError naming the extra if mujoco is missing."""
+    try:
+        from smartcar_gym.sim.mujoco.simulator import MujocoSimulator
+    except ModuleNotFoundError as exc:
+        if exc.name != "mujoco":
+            raise
+        raise ImportError(
+            f"engine='mujoco' needs the mujoco package, which is not installed: {MUJOCO_EXTRA}"
+        ) from None
+    return MujocoSimulator
+
+
+def make_simulator(engine: str = DEFAULT_ENGINE, **options: Any) -> Any:
+    """A new simulator of ``engine`` (see ``ENGINES``) with the ``Simulator`` keywords
+    (``max_substep_s``, ``gui``, ``gravity_m_s2``, ``ground_friction``, ...)."""
+    engine = check_engine(engine)
+    if engine == "pybullet":
+        from smartcar_gym.sim.simulator import Simulator
+
+        return Simulator(**options)
+    return mujoco_simulator_class()(**options)
+
+
+def add_engine_argument(parser: argparse.ArgumentParser | Any, default: str | None = None,
+                        what: str = "the env's") -> None:
+    """``--engine {pybullet,mujoco}`` on a command line (``args.engine``; None: not given)."""
+    parser.add_argument("--engine", choices=ENGINES, default=default,
+                        help=f"physics engine of {what} simulation (default: {DEFAULT_ENGINE}; "
+                             f"mujoco needs the extra: {MUJOCO_EXTRA})")

@@ -1,0 +1,74 @@
+"""MuJoCo's offscreen renderer as an orbit camera, with the facade's visual-only markers.
+
+Headless, MuJoCo renders through EGL (a GPU's or Mesa's) or OSMesa (software), chosen by the
+``MUJOCO_GL`` environment variable before ``mujoco`` is imported (``smartcar_gym.sim.mujoco``
+picks one when it is unset and there is no display). A machine that can do neither gets one
+line saying what to install.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import mujoco
+import numpy as np
+
+from smartcar_gym.sim.mujoco.body import Marker, rotation
+from smartcar_gym.sim.mujoco.model import GROUP_COLLISION, GROUP_HIDDEN, GROUP_VISUAL, GROUP_WORLD
+
+INSTALL_HINT = ("install Mesa's EGL (Debian: apt-get install libegl1 libgl1-mesa-dri) and set "
+                "MUJOCO_GL=egl, or OSMesa (apt-get install libosmesa6) and set MUJOCO_GL=osmesa")
+
+
+class OffscreenCamera:
+    """A ``mujoco.Renderer`` of ``width`` x ``height`` pixels for one compiled model."""
+
+    def __init__(self, model: mujoco.MjModel, width: int, height: int,
+                 show_collision: bool = False) -> None:
+        self.size = (width, height)
+        model.vis.global_.offwidth = max(width, model.vis.global_.offwidth)
+        model.vis.global_.offheight = max(height, model.vis.global_.offheight)
+        try:
+            self.renderer = mujoco.Renderer(model, height, width, max_geom=4000)
+        except Exception as exc:  # GL libraries missing: MuJoCo's own error is long
+            reason = " ".join(str(exc).split())[:160]
+            raise RuntimeError(f"MuJoCo cannot render headless here ({reason}): "
+                               f"{INSTALL_HINT}") from None
+        self.model = model
+        self.option = mujoco.MjvOption()
+        self.option.geomgroup[:] = 0
+        self.option.geomgroup[GROUP_WORLD] = 1
+        if show_collision:
+            self.option.geomgroup[GROUP_COLLISION] = self.option.geomgroup[GROUP_HIDDEN] = 1
+        else:
+            self.option.geomgroup[GROUP_VISUAL] = 1
+        self.camera = mujoco.MjvCamera()
+        self.camera.type = mujoco.mjtCamera.mjCAMERA_FREE
+
+    def image(self, data: mujoco.MjData, target: Sequence[float], distance: float,
+              yaw_deg: float, pitch_deg: float, fov_deg: float,
+              markers: Sequence[Marker]) -> np.ndarray:
+        """The picture from an orbit camera as pybullet's ``computeViewMatrixFromYawPitchRoll``
+        places it (MuJoCo's azimuth is pybullet's yaw + 90 degrees)."""
+        cam = self.camera
+        cam.lookat[:] = target
+        cam.distance = distance
+        cam.azimuth = yaw_deg + 90.0
+        cam.elevation = pitch_deg
+        self.model.vis.global_.fovy = fov_deg
+        renderer = self.renderer
+        renderer.update_scene(data, camera=cam, scene_option=self.option)
+        scene = renderer.scene
+        for marker in markers:
+            frame = rotation(marker.orientation)
+            for kind, size, position, quat, rgba in marker.parts:
+                if scene.ngeom >= scene.maxgeom:
+                    break
+                mat = frame @ rotation(quat)
+                mujoco.mjv_initGeom(scene.geoms[scene.ngeom], kind, size,
+                                    marker.position + frame @ position, mat.ravel(), rgba)
+                scene.ngeom += 1
+        return renderer.render().copy()
+
+    def close(self) -> None:
+        self.renderer.close()

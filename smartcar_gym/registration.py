@@ -10,6 +10,8 @@ from typing import Any
 
 from gymnasium.envs.registration import register, registry
 
+from smartcar_gym.controller.config_yaml import calibrated_config_path
+
 ENTRY_POINT = "smartcar_gym.envs.smartcar_env:SmartCarEnv"
 NAV_ENTRY_POINT = "smartcar_gym.envs.nav_env:SmartCarNavEnv"
 GOAL_ENTRY_POINT = "smartcar_gym.envs.goal_env:SmartCarGoalEnv"
@@ -32,6 +34,11 @@ SPECS: dict[str, EnvSpec] = {
     "SmartCar-v0": EnvSpec(ENTRY_POINT, MAX_EPISODE_STEPS, REWARD_THRESHOLD),
     "SmartCarSim-v0": EnvSpec(ENTRY_POINT, MAX_EPISODE_STEPS, REWARD_THRESHOLD,
                               {"controller_mode": "sim"}),
+    # drive to a goal 0.3-2 m away and stop there, on calibrated odometry: what a ROS user
+    # clicking 2D Nav Goals expects (docs/ros.md); the policy `smartcar-ros policy` drives
+    "SmartCarArrive-v0": EnvSpec(ENTRY_POINT, MAX_EPISODE_STEPS, REWARD_THRESHOLD,
+                                 {"controller_config": calibrated_config_path(),
+                                  "goal_range": (0.3, 2.0), "stop_speed": 0.01}),
     # 20 s, as SmartCar-v0: goals up to 2 m away and a detour take at most 10 s
     "SmartCarNav-v0": EnvSpec(NAV_ENTRY_POINT, 200, None),
     # 10 s: HER learns from short episodes; goals 0.5-1.5 m away take 3-5 s

@@ -141,7 +141,8 @@ class GoalDriver:
             odom_distance = math.hypot(goal.x - odom.x, goal.y - odom.y)
             said = (f"odometry says {distance:.3f} m away" if judge is odom else
                     f"ground truth {distance:.3f} m away (odometry says {odom_distance:.3f} m)")
-            said += f", {judge.v:.3f} m/s"
+            if self.settings.task.stop_speed_m_s is not None:
+                said += f", {judge.v:.3f} m/s"
             return Command(STOP, ("info", f"goal ({goal.x:g}, {goal.y:g}) reached: {said}"))
         if self.origin is None:
             self.origin = (odom.x, odom.y, odom.theta)

@@ -5,6 +5,7 @@
     python docs/ros_goals.py sim  --json sim.json    # GoalDriver and the simulated robot, no ROS
     python docs/ros_goals.py live --json live.json   # roscore, bringup and policy nodes
     python docs/ros_goals.py plot sim.json live.json --out docs/ros_goals.png
+    python docs/ros_goals.py slip      # calibrated odometry against the truth, by motion
 
 ``live`` starts its own roscore on a free loopback port, ``smartcar-ros bringup --speed 4``
 on ``/clock`` and ``smartcar-ros policy --pretrained``, then sends each goal on
@@ -159,6 +160,33 @@ def run_live(count: int, seed: int, speed: float) -> list[GoalResult]:
         print(f"node logs in {home}", file=sys.stderr)
 
 
+SLIP_MOTIONS = ((0.25, 0.0, 4.0), (0.5, 0.0, 2.0), (0.0, 1.0, 6.28), (0.0, 2.0, 3.14),
+                (0.25, 0.5, 6.28), (0.5, 1.0, 3.14), (0.2, 2.0, 1.57))
+
+
+def slip() -> None:
+    """cmd_vel (v, w) for T s, then 1.5 s at rest, on the calibrated odometry (hardware mode):
+    the odometry's error in position and heading at the end."""
+    from smartcar_gym.controller import load_controller_config
+    from smartcar_gym.controller.config_yaml import calibrated_config_path
+    from smartcar_gym.model import load_model
+    from smartcar_gym.ros.bringup import start_robot
+
+    config, model = load_controller_config(calibrated_config_path()), load_model(None)
+    print("| cmd_vel (m/s, rad/s) for T s | position error | heading error |\n|---|---|---|")
+    for v, w, seconds in SLIP_MOTIONS:
+        robot = start_robot(model, config, "hardware")
+        sim = robot.sim
+        for i in range(round(seconds * config.rate_hz) + 15):
+            robot.cmd_vel(*((v, w) if i < seconds * config.rate_hz else (0.0, 0.0)))
+            sim.run_until(sim.now_ns + robot.update_period_ns)
+        odom, pose = robot.odometry, robot.pose()
+        sim.close()
+        error = math.hypot(odom.x - pose.x, odom.y - pose.y)
+        turn = abs(math.remainder(odom.theta - pose.yaw, 2 * math.pi))
+        print(f"| ({v:g}, {w:g}) for {seconds:g} s | {error:.3f} m | {turn:.4f} rad |")
+
+
 def describe(r: GoalResult) -> str:
     ok = r.arrived(TOLERANCE_M, REST_M_S)
     return (f"{'ok  ' if ok else 'MISS'} goal ({r.goal[0]:+.2f}, {r.goal[1]:+.2f}) "
@@ -217,7 +245,7 @@ def plot(runs: dict[str, list[GoalResult]], out: Path) -> None:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("mode", choices=("sim", "live", "plot"))
+    parser.add_argument("mode", choices=("sim", "live", "plot", "slip"))
     parser.add_argument("files", nargs="*", type=Path, help="plot: result JSON files")
     parser.add_argument("--count", type=int, default=20)
     parser.add_argument("--seed", type=int, default=0)
@@ -225,6 +253,9 @@ def main() -> None:
     parser.add_argument("--json", type=Path, help="sim/live: write the results here")
     parser.add_argument("--out", type=Path, default=Path("docs/ros_goals.png"))
     args = parser.parse_args()
+    if args.mode == "slip":
+        slip()
+        return
     if args.mode == "plot":
         runs = {}
         for path in args.files:

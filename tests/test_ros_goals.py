@@ -22,6 +22,7 @@ from smartcar_gym.ros.goal_run import GoalResult, drive_goals, meant_goal, next_
 from smartcar_gym.ros.settings import policy_settings
 
 REST_M_S = 0.01
+TOLERANCE_M = 0.1  # SmartCar-v0's goal_tolerance: what a user clicking goals is promised
 
 
 def test_pretrained_alone_names_the_ros_policy_trained_to_stop_on_calibrated_odometry():
@@ -75,8 +76,8 @@ def test_twenty_goals_in_a_row_end_at_rest_within_the_tolerance():
         return _predict(model, obs, normalizer, deterministic=True)
 
     results = drive_goals(settings, act, count=20, seed=0, timeout_s=30.0)
-    tolerance = settings.task.goal_tolerance_m
-    arrived = [r.arrived(tolerance, REST_M_S) for r in results]
+    assert settings.task.goal_tolerance_m <= TOLERANCE_M
+    arrived = [r.arrived(TOLERANCE_M, REST_M_S) for r in results]
     table = "\n".join(
         f"({r.goal[0]:+.2f}, {r.goal[1]:+.2f}) {r.time_s:4.1f} s odom {r.odom_distance:.3f} "
         f"truth {r.truth_distance:.3f} world {r.world_distance:.3f} m" for r in results)

@@ -110,7 +110,7 @@ def build_parser() -> argparse.ArgumentParser:
                         help="what says the goal is reached: odometry (default; all a real "
                              "robot has) or, with smartcar-ros bringup, the simulator's "
                              "base_pose_ground_truth (the env's own success test; see "
-                             "docs/ros.md for why the shipped policy needs it)")
+                             "docs/ros.md for why --pretrained default needs it)")
     policy.add_argument("--device", default="cpu")
     sub.add_parser("package", help="print the folder to add to ROS_PACKAGE_PATH",
                    description="Print the folder holding the smartcar_gym_ros and "

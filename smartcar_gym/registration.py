@@ -10,6 +10,8 @@ from typing import Any
 
 from gymnasium.envs.registration import register, registry
 
+from smartcar_gym.controller.config_yaml import calibrated_config_path
+
 ENTRY_POINT = "smartcar_gym.envs.smartcar_env:SmartCarEnv"
 NAV_ENTRY_POINT = "smartcar_gym.envs.nav_env:SmartCarNavEnv"
 GOAL_ENTRY_POINT = "smartcar_gym.envs.goal_env:SmartCarGoalEnv"
@@ -37,6 +39,12 @@ SPECS: dict[str, EnvSpec] = {
     "SmartCarSim-v0": EnvSpec(ENTRY_POINT, MAX_EPISODE_STEPS, REWARD_THRESHOLD,
                               {"controller_mode": "sim"},
                               vector_entry_point=VECTOR + "smartcar_sim_v0"),
+    # drive to a goal 0.3-2 m away and stop there, on calibrated odometry: what a ROS user
+    # clicking 2D Nav Goals expects (docs/ros.md); the policy `smartcar-ros policy` drives
+    "SmartCarArrive-v0": EnvSpec(ENTRY_POINT, MAX_EPISODE_STEPS, REWARD_THRESHOLD,
+                                 {"controller_config": calibrated_config_path(),
+                                  "goal_range": (0.3, 2.0), "stop_speed": 0.01},
+                                 vector_entry_point=VECTOR + "smartcar_arrive_v0"),
     # 20 s, as SmartCar-v0: goals up to 2 m away and a detour take at most 10 s
     "SmartCarNav-v0": EnvSpec(NAV_ENTRY_POINT, 200, None,
                               vector_entry_point=VECTOR + "smartcar_nav_v0"),

@@ -166,7 +166,8 @@ def test_roslaunch_keeps_the_shipped_model_and_the_tutorials_package_apart(ours_
     params = yaml.safe_load(result.stdout)
     assert params["/where"] == str(tutorial)
     assert params["/robot_description"].strip() == load_model().urdf.strip()
-    assert params["/arbotix/controllers/base_controller/base_width"] == 0.26  # our YAML's
+    # the calibrated YAML, the odometry the ros policy was trained on
+    assert params["/arbotix/controllers/base_controller/base_width"] == 0.33
     assert params["/arbotix/smartcar_gym/board/frame_ms"] == 33
     node = subprocess.run(["roslaunch", "--args", "/arbotix", "smartcar_gym_ros",
                            "smartcar_policy.launch"], capture_output=True, text=True,

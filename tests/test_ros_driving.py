@@ -251,3 +251,39 @@ def test_a_non_finite_action_stops_the_car(settings):
 def test_stop_on_is_checked(settings):
     with pytest.raises(ValueError, match="stop_on must be one of"):
         GoalDriver(settings, lambda obs: obs, 0.5, stop_on="odom")
+
+
+def test_a_goal_sent_from_where_the_car_stands_is_an_episode_from_the_origin(settings):
+    """The car at (1, 1) facing +y by odometry, a goal 1 m ahead of it at (1, 2): the policy
+    sees what the env shows at reset with a goal at (1, 0)."""
+    d = driver(settings)
+    d.on_goal(goal(x=1.0, y=2.0))
+    d.step(ready(d, x=1.0, y=1.0, theta=math.pi / 2))
+    seen = dict(zip(settings.observation.names, d.seen[-1], strict=True))
+    for name, value in [("odom_x", 0.0), ("odom_y", 0.0), ("odom_cos_yaw", 1.0),
+                        ("odom_sin_yaw", 0.0), ("goal_x_base", 1.0), ("goal_y_base", 0.0),
+                        ("goal_distance", 1.0), ("goal_x_odom", 1.0), ("goal_y_odom", 0.0)]:
+        assert seen[name] == pytest.approx(value, abs=1e-6), name
+    # the car moved 0.5 m ahead: half way there, in the frame of the goal's episode
+    d.step(ready(d, now=2 * S, x=1.0, y=1.5, theta=math.pi / 2))
+    seen = dict(zip(settings.observation.names, d.seen[-1], strict=True))
+    assert (seen["odom_x"], seen["goal_x_base"]) == pytest.approx((0.5, 0.5), abs=1e-6)
+    d.on_goal(goal(x=0.0, y=1.5))  # a new goal: a new origin, where the car stands now
+    d.step(ready(d, now=3 * S, x=1.0, y=1.5, theta=math.pi / 2))
+    seen = dict(zip(settings.observation.names, d.seen[-1], strict=True))
+    assert (seen["odom_x"], seen["goal_x_odom"], seen["goal_y_odom"]) == pytest.approx(
+        (0.0, 0.0, 1.0), abs=1e-6)  # 1 m to the left
+
+
+def test_a_policy_trained_to_stop_is_done_only_at_rest():
+    d = driver(policy_settings("SmartCarArrive-v0"))
+    d.on_goal(goal(x=1.0, y=0.5))
+    moving = m.odometry_message(T, Odometry(0.0, "odom", "base_link", 0.95, 0.5, 0.0, 0.05,
+                                            0.0), 1 * S)
+    d.on_odometry(moving)
+    d.on_joint_states(joints(stamp_ns=1 * S))
+    assert d.step(1 * S).twist not in (None, STOP) and d.goal is not None  # 0.05 m/s: driving
+    command = d.step(ready(d, now=2 * S, x=0.95, y=0.5))  # at rest, 0.05 m away
+    assert command.twist == STOP and d.goal is None
+    assert command.log == ("info", "goal (1, 0.5) reached: odometry says 0.050 m away, "
+                                   "0.000 m/s")

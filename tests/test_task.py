@@ -77,3 +77,35 @@ def test_step_outcome_is_the_pure_functions_bit_for_bit():
 def test_bad_task_parameters_are_rejected(kwargs, message):
     with pytest.raises(ValueError, match=message):
         GoalReachingTask(**kwargs)
+
+
+def test_arriving_needs_rest_and_odometry_inside_the_tolerance():
+    """With ``stop_speed_m_s``: success only at rest with truth and odometry inside; inside, the
+    speed costs; every step the odometry's drift from the truth costs (hand-derived)."""
+    task = GoalReachingTask(stop_speed_m_s=0.01, speed_cost=1.0, odometry_cost=20.0)
+    goal, action = np.zeros(2), np.zeros(2)
+    # 0.05 m away at 0.2 m/s, odometry (0.03, 0.04): 0.05 from the goal, 0.05 from the truth
+    out = task.evaluate(0.08, np.array([0.05, 0.0]), 1.0, goal, action, 0.2, (0.03, 0.04), 0.02)
+    assert not out.success
+    assert out.odometry_error == pytest.approx(math.hypot(0.02, 0.04))
+    expected = 10 * 0.03 - 0.01 - 1.0 * 0.2 - 20.0 * (math.hypot(0.02, 0.04) - 0.02)
+    assert out.reward == pytest.approx(expected)
+    # the same at 0.005 m/s: at rest, the bonus
+    out = task.evaluate(0.05, np.array([0.05, 0.0]), 1.0, goal, action, 0.005, (0.05, 0.0),
+                        0.0)
+    assert out.success and out.reward == pytest.approx(-0.01 - 0.005 + 10)
+    # at rest inside in truth, but the odometry 0.12 m from the goal: not arrived, no speed cost
+    out = task.evaluate(0.05, np.array([0.05, 0.0]), 1.0, goal, action, 0.5, (0.12, 0.0), 0.07)
+    assert not out.success and out.reward == pytest.approx(-0.01)
+    assert bool(task.is_success(0.05, 0.005)) and not bool(task.is_success(0.05, -0.02))
+    assert bool(GoalReachingTask().is_success(0.05, 3.0))  # without stop_speed: speed ignored
+    with pytest.raises(ValueError, match="stop_speed must be None or a speed > 0 m/s"):
+        GoalReachingTask(stop_speed_m_s=0.0)
+
+
+def test_without_stop_speed_the_arrival_arguments_change_nothing():
+    task = GoalReachingTask()
+    base = task.evaluate(0.5, np.array([0.3, 0.1]), 1.0, np.zeros(2), np.ones(2))
+    other = task.evaluate(0.5, np.array([0.3, 0.1]), 1.0, np.zeros(2), np.ones(2), 0.7,
+                          (2.0, 2.0), 1.0)
+    assert base == other and base.odometry_error == 0.0

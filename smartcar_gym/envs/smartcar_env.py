@@ -123,7 +123,9 @@ class SmartCarEnv(gym.Env):
 
     ``10 * (d_prev - d) - 0.01 - 0.01 * |a|^2``, plus ``+10`` on reaching the goal and ``-10``
     on flipping over or leaving the arena, where d is the ground-truth distance (m) from
-    base_link to the goal.
+    base_link to the goal. With ``stop_speed`` the +10 needs the car at rest (below), each
+    step within ``goal_tolerance`` also costs ``1.0 * |v|`` (the true speed, m/s) and each
+    step ``20 * (e - e_prev)``, e the odometry's distance (m) from the truth.
 
     ## Starting State
 
@@ -139,7 +141,9 @@ class SmartCarEnv(gym.Env):
 
     ## Episode End
 
-    Terminated when the ground-truth distance is under ``goal_tolerance`` (success), when the
+    Terminated when the ground-truth distance is under ``goal_tolerance`` (success; with
+    ``stop_speed`` the odometry's distance too, and the true speed of base_link under
+    ``stop_speed``: at rest), when the
     car flips over (base_link z axis tilted more than 60 degrees) or when it leaves the square
     arena. Truncated by the ``TimeLimit`` (200 steps = 20 s for SmartCar-v0).
 
@@ -164,6 +168,8 @@ class SmartCarEnv(gym.Env):
     | goal_range        | (0.5, 1.5)     | min, max goal distance from the start (m)            |
     | goal_tolerance    | 0.1            | success radius (m)                                   |
     | arena_size        | 5.0            | side of the square arena centred on the start (m)    |
+    | stop_speed        | None           | m/s: success only at rest (speed under this) inside  |
+    |                   |                | the tolerance; None: on entering it (docs/ros.md)    |
     | max_substep_s     | 0.01           | longest physics substep between events (s), in       |
     |                   |                | [1e-4, 0.02]; 0.002 gives fixed 500 Hz stepping      |
     | physics_hz        | None           | deprecated: ``max_substep_s = 1 / physics_hz``       |
@@ -222,6 +228,7 @@ class SmartCarEnv(gym.Env):
         wheel_contact: str = "sphere",
         randomize: str | os.PathLike | dict | Randomization | None = None,
         engine: str | None = None,
+        stop_speed: float | None = None,
     ) -> None:
         checks.one_of("render_mode", render_mode, list(self.metadata["render_modes"]),
                       none_ok=True)
@@ -243,6 +250,8 @@ class SmartCarEnv(gym.Env):
             goal_range_m=checks.number_pair("goal_range", goal_range),
             goal_tolerance_m=checks.positive_number("goal_tolerance", goal_tolerance),
             arena_half_size_m=half,
+            stop_speed_m_s=(None if stop_speed is None
+                            else checks.positive_number("stop_speed", stop_speed)),
         )
         model = checks.source("model", model, RobotModel)
         controller_config = checks.source("controller_config", controller_config, ArbotixConfig)
@@ -272,6 +281,7 @@ class SmartCarEnv(gym.Env):
         self.action_space = spaces.Box(-1.0, 1.0, (2,), dtype=np.float32)
         self.goal = np.zeros(2)
         self._distance = 0.0
+        self._odometry_error = 0.0
         self._prev_action = np.zeros(2, dtype=np.float32)
 
     def _declare_observation(self) -> Observation:
@@ -346,6 +356,8 @@ class SmartCarEnv(gym.Env):
                 self._prev_action = np.zeros(2, dtype=np.float32)
                 pose = self.robot.pose()
                 self._distance = float(self.task.distance(np.array([pose.x, pose.y]), self.goal))
+                odom = self.robot.odometry
+                self._odometry_error = math.hypot(odom.x - pose.x, odom.y - pose.y)
                 if self.markers is not None:
                     self.markers.create(self.goal)
                     self._mark_odometry()
@@ -383,9 +395,15 @@ class SmartCarEnv(gym.Env):
             self.sim.run_until(self.sim.now_ns + self.robot.update_period_ns,
                                physics=not self.robot.kinematic)
             pose = self.robot.pose()
+            arrival = ()
+            if self.task.stop_speed_m_s is not None:  # true planar speed, odometry
+                (vx, vy, _), _ = self.robot.body.velocity()
+                odom = self.robot.odometry
+                arrival = (math.hypot(vx, vy), (odom.x, odom.y), self._odometry_error)
             outcome = self.task.evaluate(self._distance, np.array([pose.x, pose.y]), pose.up_z,
-                                         self.goal, action)
+                                         self.goal, action, *arrival)
             self._distance = outcome.distance
+            self._odometry_error = outcome.odometry_error
             self._prev_action = action.astype(np.float32)
             if self.markers is not None:
                 self._mark_odometry()

@@ -7,6 +7,9 @@
     smartcar-ros policy (--pretrained [NAME] | --model ZIP) [--vecnormalize FILE]
     smartcar-ros package        # the ROS package folder, for ROS_PACKAGE_PATH
 
+``--pretrained`` alone is the ``ros`` policy (SmartCarArrive-v0: it drives to a goal and
+stops there, on the calibrated odometry that bringup publishes by default).
+
 Arguments with ``:=`` are ROS's (``__name:=``, remappings, ``_param:=value``) and go to rospy,
 so the commands run as nodes under ``roslaunch`` (see the ``smartcar_gym_ros`` package).
 Bad arguments, a missing rospy or no ROS master: one line on stderr and exit code 2.
@@ -32,6 +35,8 @@ from smartcar_gym.sim.engines import add_engine_argument
 
 PROG = "smartcar-ros"
 STALE_AFTER_S = 0.5  # five controller periods of the shipped config
+#: the shipped policy ``--pretrained`` alone names: trained on SmartCarArrive-v0 (docs/ros.md)
+ROS_POLICY = "ros"
 POLICY_MODULES = ("stable_baselines3", "torch")
 
 
@@ -68,7 +73,9 @@ def build_parser() -> argparse.ArgumentParser:
                          help="folder searched for $(find pkg) and package:// (repeatable)")
     bringup.add_argument("--controller-config", type=Path, metavar="YAML",
                          help="ArbotiX driver YAML used when the parameter server has no "
-                              "~controllers (default: the shipped smartcar_arbotix.yaml)")
+                              "~controllers (default: the shipped "
+                              "smartcar_arbotix_calibrated.yaml, base_width 0.33: the "
+                              "odometry smartcar-ros policy --pretrained was trained on)")
     bringup.add_argument("--mode", choices=("hardware", "sim"),
                          help="hardware (PID, encoders, motors) or sim (kinematic, the "
                               "driver's sim: true); default: the config's sim parameter")
@@ -86,10 +93,11 @@ def build_parser() -> argparse.ArgumentParser:
     source = policy.add_mutually_exclusive_group(required=True)
     source.add_argument("--model", type=Path, help="a model .zip, or a run folder of "
                         "smartcar-train or rl-baselines3-zoo")
-    source.add_argument("--pretrained", nargs="?", const="default", metavar="NAME",
+    source.add_argument("--pretrained", nargs="?", const=ROS_POLICY, metavar="NAME",
                         choices=tuple(PRETRAINED_POLICIES), help="a policy shipped with the "
-                        "package: default (the one --pretrained alone names) or another of "
-                        f"{', '.join(PRETRAINED_POLICIES)}")
+                        f"package: {ROS_POLICY} (the one --pretrained alone names: it drives "
+                        "to a goal and stops there, on bringup's default calibrated "
+                        f"odometry) or another of {', '.join(PRETRAINED_POLICIES)}")
     policy.add_argument("--algo", help="algorithm of --model (default: from its run)")
     policy.add_argument("--env", dest="env_id", help="the env the policy was trained in "
                         "(default: the run's, else SmartCar-v0)")
@@ -104,7 +112,7 @@ def build_parser() -> argparse.ArgumentParser:
                         help="what says the goal is reached: odometry (default; all a real "
                              "robot has) or, with smartcar-ros bringup, the simulator's "
                              "base_pose_ground_truth (the env's own success test; see "
-                             "docs/ros.md for why the shipped policy needs it)")
+                             "docs/ros.md for why --pretrained default needs it)")
     policy.add_argument("--device", default="cpu")
     sub.add_parser("package", help="print the folder to add to ROS_PACKAGE_PATH",
                    description="Print the folder holding the smartcar_gym_ros and "
@@ -178,6 +186,7 @@ def _bringup(args: argparse.Namespace, ros_args: list[str]) -> int:
 
 def _run_bringup(ros: Any, args: argparse.Namespace, stop: threading.Event) -> int:
     from smartcar_gym.controller.config_values import ControllerConfigError
+    from smartcar_gym.controller.config_yaml import calibrated_config_path
     from smartcar_gym.model import ModelError, load_model
     from smartcar_gym.ros.bringup import Bringup, BringupOptions, start_robot
     from smartcar_gym.ros.params import controller_config, describe
@@ -188,7 +197,8 @@ def _run_bringup(ros: Any, args: argparse.Namespace, stop: threading.Event) -> i
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             params = rospy.get_param("~") if rospy.has_param("~") else {}
-            config, source = controller_config(params, name, args.controller_config)
+            config, source = controller_config(params, name, args.controller_config
+                                               or calibrated_config_path())
             model = load_model(args.model, package_path=args.package_path)
         mode = args.mode or ("sim" if config.kinematic else "hardware")
         sim_time = bool(rospy.get_param("/use_sim_time", False))

@@ -7,13 +7,20 @@ drives blind: no goal, a goal in another frame than the odometry's, a malformed 
 odometry or joint states, or a car outside the arena the policy was trained in give a zero
 twist (or nothing at all when there is no goal) and one log line saying why.
 
+Each goal starts an episode as the env's ``reset`` does: the policy sees the odometry pose
+the car had when the goal came as the origin facing +x (odometry and goal are rewritten in
+that frame; the identity for a goal sent at the odometry origin), so that a goal sent from
+wherever the car stands looks like one of the episodes the policy was trained on.
+
 The goal is reached when the odometry says so (``stop_on="odometry"``: all a real robot
 knows), or, with a simulated robot, when its true pose does (``"ground_truth"``, from
-``base_pose_ground_truth``), which is the env's own success test.
+``base_pose_ground_truth``), which is the env's own success test; for a policy trained with
+``stop_speed`` (SmartCarArrive-v0) only at rest: with the speed of the same reading under it.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -61,6 +68,7 @@ class GoalDriver:
         self.wheels: m.WheelReading | None = None
         self.ground_truth: m.OdometryReading | None = None
         self.previous_action = np.zeros(2, dtype=np.float32)
+        self.origin: tuple[float, float, float] | None = None  # the episode's (x, y, theta)
         self.last_observation: np.ndarray | None = None  # what the policy was last given
         self._odometry_error: str | None = None
         self._wheels_error: str | None = None
@@ -81,6 +89,7 @@ class GoalDriver:
                 f"trained in (|x|, |y| <= {half:g} m around the odometry origin)")
         self.goal = goal
         self.previous_action = np.zeros(2, dtype=np.float32)  # as the env's reset
+        self.origin = None  # taken from the odometry of the first decision
         self._last_key = None
         return Command(None, ("info", f"new goal ({goal.x:g}, {goal.y:g}) in frame "
                                       f"{goal.frame_id or '(none)'}"))
@@ -126,15 +135,28 @@ class GoalDriver:
                 f"policy was trained in (|x|, |y| <= {half:g} m around the odometry origin)")
         judge = odom if self.stop_on == "odometry" else self.ground_truth
         distance = math.hypot(goal.x - judge.x, goal.y - judge.y)
-        if bool(self.settings.task.is_success(distance)):
+        if bool(self.settings.task.is_success(distance, judge.v)):
             self.goal = None
             self._last_key = None
             odom_distance = math.hypot(goal.x - odom.x, goal.y - odom.y)
             said = (f"odometry says {distance:.3f} m away" if judge is odom else
                     f"ground truth {distance:.3f} m away (odometry says {odom_distance:.3f} m)")
+            if self.settings.task.stop_speed_m_s is not None:
+                said += f", {judge.v:.3f} m/s"
             return Command(STOP, ("info", f"goal ({goal.x:g}, {goal.y:g}) reached: {said}"))
-        readings = Readings(odom, self.wheels.position, self.wheels.velocity,
-                            [goal.x, goal.y], self.previous_action.tolist())
+        if self.origin is None:
+            self.origin = (odom.x, odom.y, odom.theta)
+        ox, oy, otheta = self.origin
+        c, s = math.cos(otheta), math.sin(otheta)
+
+        def local(x: float, y: float) -> tuple[float, float]:
+            dx, dy = x - ox, y - oy
+            return c * dx + s * dy, -s * dx + c * dy
+
+        x, y = local(odom.x, odom.y)
+        readings = Readings(dataclasses.replace(odom, x=x, y=y, theta=odom.theta - otheta),
+                            self.wheels.position, self.wheels.velocity,
+                            list(local(goal.x, goal.y)), self.previous_action.tolist())
         self.last_observation = self.observation.build(readings)
         action = np.asarray(self.act(self.last_observation), dtype=np.float64)
         if action.shape != (2,) or not np.all(np.isfinite(action)):

@@ -33,6 +33,8 @@ class PolicySettings:
     max_linear: float
     max_angular: float
     rate_hz: float
+    #: the controller configuration the policy was trained with (its odometry)
+    controller_config: ArbotixConfig | None = None
 
     @property
     def observation(self) -> Observation:
@@ -74,6 +76,8 @@ def policy_settings(env_id: str, env_kwargs: dict[str, Any] | None = None) -> Po
         goal_range_m=checks.number_pair("goal_range", kw["goal_range"]),
         goal_tolerance_m=checks.positive_number("goal_tolerance", kw["goal_tolerance"]),
         arena_half_size_m=checks.positive_number("arena_size", kw["arena_size"]) / 2.0,
+        stop_speed_m_s=(None if kw["stop_speed"] is None
+                        else checks.positive_number("stop_speed", kw["stop_speed"])),
     )
     return PolicySettings(
         env_id=env_id,
@@ -82,4 +86,5 @@ def policy_settings(env_id: str, env_kwargs: dict[str, Any] | None = None) -> Po
         max_linear=checks.positive_number("max_linear", kw["max_linear"]),
         max_angular=checks.positive_number("max_angular", kw["max_angular"]),
         rate_hz=config.rate_hz,
+        controller_config=config,
     )

@@ -31,6 +31,7 @@ class Outcome:
     success: bool
     failure: bool
     distance: float
+    odometry_error: float = 0.0  # m between odometry and truth (with ``stop_speed_m_s``)
 
 
 @dataclass(frozen=True)
@@ -40,6 +41,14 @@ class GoalReachingTask:
     Reward per step: ``progress_weight`` x (metres the robot got closer to the goal)
     - ``time_cost`` - ``action_cost`` x |action|^2, plus ``success_bonus`` on reaching the goal
     and minus ``failure_penalty`` on flipping over or leaving the arena.
+
+    With ``stop_speed_m_s`` (None: not asked) the goal is reached only at rest and where the
+    odometry says so too: within the tolerance in ground truth and by odometry, the base's true
+    speed under ``stop_speed_m_s``. While within it each step also costs ``speed_cost`` x speed
+    (m/s), so that stopping there pays before the bonus is ever found, and every step costs
+    ``odometry_cost`` x (metres the odometry drifted further from the truth): an episode pays
+    ``odometry_cost`` x its final odometry error, so that it is driven the way the odometry
+    follows (the car turns in place with little error, on arcs its wheels slip).
     """
 
     goal_range_m: tuple[float, float] = (0.5, 1.5)
@@ -50,8 +59,15 @@ class GoalReachingTask:
     failure_penalty: float = 10.0
     time_cost: float = 0.01
     action_cost: float = 0.01
+    stop_speed_m_s: float | None = None
+    speed_cost: float = 1.0
+    odometry_cost: float = 20.0
 
     def __post_init__(self) -> None:
+        if self.stop_speed_m_s is not None and not (
+                math.isfinite(self.stop_speed_m_s) and self.stop_speed_m_s > 0):
+            raise ValueError(f"stop_speed must be None or a speed > 0 m/s, got "
+                             f"{self.stop_speed_m_s!r}")
         lo, hi = self.goal_range_m
         if not (0.0 <= lo <= hi and math.isfinite(hi)):
             raise ValueError(
@@ -103,9 +119,13 @@ class GoalReachingTask:
         d = np.asarray(position, dtype=float) - np.asarray(goal, dtype=float)
         return np.sqrt(np.add.reduce(d * d, axis=-1))  # np.linalg.norm's own sum, without it
 
-    def is_success(self, distance: np.ndarray) -> np.ndarray:
-        """True where the distance to the goal is under the tolerance."""
-        return np.asarray(distance) < self.goal_tolerance_m
+    def is_success(self, distance: np.ndarray, speed: np.ndarray | float = 0.0) -> np.ndarray:
+        """True where the distance to the goal is under the tolerance (and, with
+        ``stop_speed_m_s``, the speed (m/s) under it)."""
+        inside = np.asarray(distance) < self.goal_tolerance_m
+        if self.stop_speed_m_s is None:
+            return inside
+        return inside & (np.abs(np.asarray(speed)) < self.stop_speed_m_s)
 
     def is_outside(self, position: np.ndarray) -> np.ndarray:
         """True where a ``(..., 2)`` position has left the square arena."""
@@ -128,7 +148,8 @@ class GoalReachingTask:
         success: np.ndarray,
         failure: np.ndarray,
     ) -> np.ndarray:
-        """Dense reward: progress, minus time and action costs, plus success/failure terms."""
+        """Dense reward: progress, minus time and action costs, plus success/failure terms
+        (the arrival terms of ``stop_speed_m_s`` are ``evaluate``'s)."""
         action = np.asarray(action, dtype=float)
         return (
             self.progress_weight * (np.asarray(previous_distance) - np.asarray(distance))
@@ -139,8 +160,12 @@ class GoalReachingTask:
         )
 
     def evaluate(self, previous_distance: float, position: np.ndarray, up_z: float,
-                 goal: np.ndarray, action: np.ndarray) -> Outcome:
-        """One step's outcome from the ground-truth position and uprightness.
+                 goal: np.ndarray, action: np.ndarray, speed: float = 0.0,
+                 odometry: tuple[float, float] = (0.0, 0.0),
+                 previous_odometry_error: float = 0.0) -> Outcome:
+        """One step's outcome from the ground-truth position and uprightness (and with
+        ``stop_speed_m_s`` the true speed (m/s), the odometry's (x, y) and the odometry error of
+        the step before).
 
         The per-step path: the same arithmetic as ``distance``, ``is_success``, ``is_failure``
         and ``reward``, in the same order on Python floats (bit for bit the same, tested),
@@ -150,6 +175,16 @@ class GoalReachingTask:
         dx, dy = x - float(goal[0]), y - float(goal[1])
         distance = math.sqrt(dx * dx + dy * dy)
         success = distance < self.goal_tolerance_m
+        arrival, odometry_error = 0.0, 0.0
+        if self.stop_speed_m_s is not None:
+            ox, oy = float(odometry[0]), float(odometry[1])
+            odometry_error = math.hypot(ox - x, oy - y)
+            inside = success and math.hypot(ox - float(goal[0]),
+                                             oy - float(goal[1])) < self.goal_tolerance_m
+            speed = abs(float(speed))
+            success = inside and speed < self.stop_speed_m_s
+            arrival = (self.speed_cost * speed * float(inside) + self.odometry_cost
+                       * (odometry_error - float(previous_odometry_error)))
         half = self.arena_half_size_m
         failure = float(up_z) < FLIP_UP_Z or abs(x) > half or abs(y) > half
         a0, a1 = float(action[0]), float(action[1])
@@ -160,7 +195,9 @@ class GoalReachingTask:
             + self.success_bonus * float(success)
             - self.failure_penalty * float(failure)
         )
-        return Outcome(reward, success, failure, distance)
+        if self.stop_speed_m_s is not None:
+            reward -= arrival
+        return Outcome(reward, success, failure, distance, odometry_error)
 
     # -- observation ---------------------------------------------------------------------------
     def observation_entries(self) -> list[Entry]:

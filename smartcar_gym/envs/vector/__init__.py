@@ -17,7 +17,8 @@ from smartcar_gym.envs.vector.kinematic import SmartCarSimVectorEnv, supports
 from smartcar_gym.envs.vector.loop import SmartCarLoopVectorEnv
 
 __all__ = ["SmartCarLoopVectorEnv", "SmartCarSimVectorEnv", "make_vector_env",
-           "smartcar_goal_v0", "smartcar_nav_v0", "smartcar_sim_v0", "smartcar_v0"]
+           "smartcar_arrive_v0", "smartcar_goal_v0", "smartcar_nav_v0", "smartcar_sim_v0",
+           "smartcar_v0"]
 
 
 def make_vector_env(env_id: str, num_envs: int = 1, **kwargs: Any) -> gym.vector.VectorEnv:
@@ -46,6 +47,11 @@ def smartcar_sim_v0(num_envs: int = 1, **kwargs: Any) -> gym.vector.VectorEnv:
 def smartcar_nav_v0(num_envs: int = 1, **kwargs: Any) -> gym.vector.VectorEnv:
     """SmartCarNav-v0's ``vector_entry_point`` (pybullet: a loop of single envs)."""
     return make_vector_env("SmartCarNav-v0", num_envs, **kwargs)
+
+
+def smartcar_arrive_v0(num_envs: int = 1, **kwargs: Any) -> gym.vector.VectorEnv:
+    """SmartCarArrive-v0's ``vector_entry_point`` (pybullet: a loop of single envs)."""
+    return make_vector_env("SmartCarArrive-v0", num_envs, **kwargs)
 
 
 def smartcar_goal_v0(num_envs: int = 1, **kwargs: Any) -> gym.vector.VectorEnv:

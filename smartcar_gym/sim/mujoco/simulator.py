@@ -102,6 +102,10 @@ class MujocoSimulator(EventClock):
         # then slips as on pybullet (pyramidal cones at impratio 1 spun 17 % faster at 1 rad/s)
         spec.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
         spec.option.impratio = IMPRATIO
+        # no island discovery: a world of one robot on static ground has one island, which
+        # MuJoCo would find again at every step (a tenth of a step here); the solution is the
+        # same bit for bit (tests/test_mujoco_rollout.py)
+        spec.option.disableflags |= mujoco.mjtDisableBit.mjDSBL_ISLAND
         spec.visual.global_.offwidth = 640
         spec.visual.global_.offheight = 480
         checker = spec.add_texture(name="grid", type=mujoco.mjtTexture.mjTEXTURE_2D,

@@ -10,6 +10,9 @@ and the table shows the median over rounds. The time spent inside the engine's p
 too, so the table also says how much of a step is physics and how much is the Python around it
 (the emulated board and controller, the observation, the task), which both engines share.
 This machine's speed drifts by up to a half within minutes: only the ratio means anything.
+The ratio cell gives the median over rounds and, in brackets, the lowest and highest round;
+the CPU ratio is the same from process CPU time, which counts no time spent waiting for a core
+on a shared machine.
 
 ``--levers`` measures SmartCar-v0 on MuJoCo as shipped against two settings it does not use
 (pyramidal friction cones; 20 ms substeps), each and both, against pybullet in the same rounds:
@@ -45,11 +48,11 @@ class PhysicsTimer:
         sim._step_physics = timed
 
 
-def measure(env_id: str, steps: int, rounds: int) -> dict[str, list[tuple[float, float]]]:
-    """For each engine, per round: (steps/s, share of the time in physics)."""
+def measure(env_id: str, steps: int, rounds: int) -> dict[str, list[tuple[float, float, float]]]:
+    """For each engine, per round: (steps/s, share of the time in physics, steps per CPU s)."""
     envs = {engine: gym.make(env_id, engine=engine) for engine in ENGINES}
     actions = np.random.default_rng(0).uniform(-1, 1, (steps, 2)).astype(np.float32)
-    results: dict[str, list[tuple[float, float]]] = {engine: [] for engine in ENGINES}
+    results: dict[str, list[tuple[float, float, float]]] = {engine: [] for engine in ENGINES}
     for env in envs.values():  # warm up
         env.reset(seed=0)
         for action in actions[:50]:
@@ -58,13 +61,13 @@ def measure(env_id: str, steps: int, rounds: int) -> dict[str, list[tuple[float,
         for engine, env in envs.items():
             env.reset(seed=1)
             timer = PhysicsTimer(env.unwrapped.sim)  # the reset's world keeps the wrapper
-            start = time.perf_counter()
+            start, cpu = time.perf_counter(), time.process_time()
             for action in actions:
                 _, _, terminated, truncated, _ = env.step(action)
                 if terminated or truncated:
                     env.reset()  # the same simulator: the wrapper stays
-            elapsed = time.perf_counter() - start
-            results[engine].append((steps / elapsed, timer.seconds / elapsed))
+            elapsed, cpu = time.perf_counter() - start, time.process_time() - cpu
+            results[engine].append((steps / elapsed, timer.seconds / elapsed, steps / cpu))
     for env in envs.values():
         env.close()
     return results
@@ -123,17 +126,19 @@ def main() -> None:
         levers(args.steps, args.rounds)
         return
     print("| env | pybullet steps/s | physics share | MuJoCo steps/s | physics share | "
-          "MuJoCo / pybullet |")
-    print("|---|---|---|---|---|---|")
+          "MuJoCo / pybullet | CPU ratio |")
+    print("|---|---|---|---|---|---|---|")
     for env_id in args.env:
         results = measure(env_id, args.steps, args.rounds)
-        ratio = statistics.median(m[0] / p[0] for p, m in zip(results["pybullet"],
-                                                               results["mujoco"], strict=True))
         cells = []
         for engine in ENGINES:
             cells.append(f"{statistics.median(r[0] for r in results[engine]):.0f}")
             cells.append(f"{statistics.median(r[1] for r in results[engine]):.0%}")
-        print(f"| {env_id} | {' | '.join(cells)} | x{ratio:.2f} |")
+        for column in (0, 2):  # wall clock, CPU time
+            ratios = [m[column] / p[column] for p, m in zip(results["pybullet"],
+                                                            results["mujoco"], strict=True)]
+            cells.append(f"x{statistics.median(ratios):.2f} ({min(ratios):.2f}-{max(ratios):.2f})")
+        print(f"| {env_id} | {' | '.join(cells)} |")
 
 
 if __name__ == "__main__":

@@ -92,6 +92,7 @@ def levers(steps: int, rounds: int) -> None:
     simulator.MujocoSimulator.reset = patched
     actions = np.random.default_rng(0).uniform(-1, 1, (steps, 2)).astype(np.float32)
     speeds: dict[str, list[float]] = {"pybullet": [], **{name: [] for name in LEVERS}}
+    cpu_speeds: dict[str, list[float]] = {name: [] for name in speeds}
     for _ in range(rounds):
         for name in speeds:
             if name == "pybullet":
@@ -100,18 +101,22 @@ def levers(steps: int, rounds: int) -> None:
                 options, substep = LEVERS[name]
                 env = gym.make("SmartCar-v0", engine="mujoco", max_substep_s=substep)
             env.reset(seed=1)
-            start = time.perf_counter()
+            start, cpu = time.perf_counter(), time.process_time()
             for action in actions:
                 _, _, terminated, truncated, _ = env.step(action)
                 if terminated or truncated:
                     env.reset()
             speeds[name].append(steps / (time.perf_counter() - start))
+            cpu_speeds[name].append(steps / (time.process_time() - cpu))
             env.close()
-    print("| SmartCar-v0 | steps/s | / pybullet |")
-    print("|---|---|---|")
+    print("| SmartCar-v0 | steps/s | / pybullet | CPU ratio |")
+    print("|---|---|---|---|")
     for name, values in speeds.items():
-        ratio = statistics.median(v / p for v, p in zip(values, speeds["pybullet"], strict=True))
-        print(f"| {name} | {statistics.median(values):.0f} | x{ratio:.2f} |")
+        cells = []
+        for table in (speeds, cpu_speeds):
+            ratios = [v / p for v, p in zip(table[name], table["pybullet"], strict=True)]
+            cells.append(f"x{statistics.median(ratios):.2f} ({min(ratios):.2f}-{max(ratios):.2f})")
+        print(f"| {name} | {statistics.median(values):.0f} | {' | '.join(cells)} |")
 
 
 def main() -> None:

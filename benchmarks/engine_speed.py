@@ -16,7 +16,8 @@ on a shared machine.
 
 ``--levers`` measures SmartCar-v0 on MuJoCo as shipped against two settings it does not use
 (pyramidal friction cones; 20 ms substeps), each and both, against pybullet in the same rounds:
-what they would buy (docs/engines.md says what they cost in fidelity).
+what they would buy. ``--lever-fidelity`` says what they cost: the fidelity table's spin rates
+and coast-down under each setting, against pybullet's (at its shipped 10 ms substeps).
 """
 
 from __future__ import annotations
@@ -119,6 +120,37 @@ def levers(steps: int, rounds: int) -> None:
         print(f"| {name} | {statistics.median(values):.0f} | {' | '.join(cells)} |")
 
 
+def lever_fidelity() -> None:
+    """The ``--lever-fidelity`` table."""
+    from smartcar_gym.controller import load_controller_config
+    from smartcar_gym.envs.robots import engines_compared
+    from smartcar_gym.model import load_model
+    from smartcar_gym.sim.mujoco import simulator
+
+    model, config = load_model(), load_controller_config()
+    rows = [m for m in engines_compared.MANEUVERS
+            if m.name.startswith("spin rate") or m.name.startswith("coast-down")]
+    reference = {m.name: m.measure(model, config, "pybullet") for m in rows}
+    reset, shipped_substep = simulator.MujocoSimulator.reset, engines_compared.DEFAULT_MAX_SUBSTEP_S
+    print(f"| setting | {' | '.join(m.name for m in rows)} |")
+    print(f"|---|{'---|' * len(rows)}")
+    try:
+        for name, (options, substep) in LEVERS.items():
+            def patched(self, options=options) -> None:
+                reset(self)
+                for key, value in options.items():
+                    setattr(self.spec.option, key, value)
+
+            simulator.MujocoSimulator.reset = patched
+            engines_compared.DEFAULT_MAX_SUBSTEP_S = substep
+            cells = [engines_compared.relative_difference(m.measure(model, config, "mujoco"),
+                                                          reference[m.name]) for m in rows]
+            print(f"| {name} | {' | '.join(f'{c:+.1%}' for c in cells)} |", flush=True)
+    finally:
+        simulator.MujocoSimulator.reset = reset
+        engines_compared.DEFAULT_MAX_SUBSTEP_S = shipped_substep
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--steps", type=int, default=600)
@@ -126,7 +158,12 @@ def main() -> None:
     parser.add_argument("--env", nargs="+", default=["SmartCar-v0", "SmartCarNav-v0"])
     parser.add_argument("--levers", action="store_true",
                         help="MuJoCo settings it does not use, against pybullet")
+    parser.add_argument("--lever-fidelity", action="store_true",
+                        help="what those settings change in the fidelity table")
     args = parser.parse_args()
+    if args.lever_fidelity:
+        lever_fidelity()
+        return
     if args.levers:
         levers(args.steps, args.rounds)
         return

@@ -10,10 +10,14 @@ and the table shows the median over rounds. The time spent inside the engine's p
 too, so the table also says how much of a step is physics and how much is the Python around it
 (the emulated board and controller, the observation, the task), which both engines share.
 This machine's speed drifts by up to a half within minutes: only the ratio means anything.
+The ratio cell gives the median over rounds and, in brackets, the lowest and highest round;
+the CPU ratio is the same from process CPU time, which counts no time spent waiting for a core
+on a shared machine.
 
 ``--levers`` measures SmartCar-v0 on MuJoCo as shipped against two settings it does not use
 (pyramidal friction cones; 20 ms substeps), each and both, against pybullet in the same rounds:
-what they would buy (docs/engines.md says what they cost in fidelity).
+what they would buy. ``--lever-fidelity`` says what they cost: the fidelity table's spin rates
+and coast-down under each setting, against pybullet's (at its shipped 10 ms substeps).
 """
 
 from __future__ import annotations
@@ -45,11 +49,11 @@ class PhysicsTimer:
         sim._step_physics = timed
 
 
-def measure(env_id: str, steps: int, rounds: int) -> dict[str, list[tuple[float, float]]]:
-    """For each engine, per round: (steps/s, share of the time in physics)."""
+def measure(env_id: str, steps: int, rounds: int) -> dict[str, list[tuple[float, float, float]]]:
+    """For each engine, per round: (steps/s, share of the time in physics, steps per CPU s)."""
     envs = {engine: gym.make(env_id, engine=engine) for engine in ENGINES}
     actions = np.random.default_rng(0).uniform(-1, 1, (steps, 2)).astype(np.float32)
-    results: dict[str, list[tuple[float, float]]] = {engine: [] for engine in ENGINES}
+    results: dict[str, list[tuple[float, float, float]]] = {engine: [] for engine in ENGINES}
     for env in envs.values():  # warm up
         env.reset(seed=0)
         for action in actions[:50]:
@@ -58,13 +62,13 @@ def measure(env_id: str, steps: int, rounds: int) -> dict[str, list[tuple[float,
         for engine, env in envs.items():
             env.reset(seed=1)
             timer = PhysicsTimer(env.unwrapped.sim)  # the reset's world keeps the wrapper
-            start = time.perf_counter()
+            start, cpu = time.perf_counter(), time.process_time()
             for action in actions:
                 _, _, terminated, truncated, _ = env.step(action)
                 if terminated or truncated:
                     env.reset()  # the same simulator: the wrapper stays
-            elapsed = time.perf_counter() - start
-            results[engine].append((steps / elapsed, timer.seconds / elapsed))
+            elapsed, cpu = time.perf_counter() - start, time.process_time() - cpu
+            results[engine].append((steps / elapsed, timer.seconds / elapsed, steps / cpu))
     for env in envs.values():
         env.close()
     return results
@@ -89,6 +93,7 @@ def levers(steps: int, rounds: int) -> None:
     simulator.MujocoSimulator.reset = patched
     actions = np.random.default_rng(0).uniform(-1, 1, (steps, 2)).astype(np.float32)
     speeds: dict[str, list[float]] = {"pybullet": [], **{name: [] for name in LEVERS}}
+    cpu_speeds: dict[str, list[float]] = {name: [] for name in speeds}
     for _ in range(rounds):
         for name in speeds:
             if name == "pybullet":
@@ -97,18 +102,53 @@ def levers(steps: int, rounds: int) -> None:
                 options, substep = LEVERS[name]
                 env = gym.make("SmartCar-v0", engine="mujoco", max_substep_s=substep)
             env.reset(seed=1)
-            start = time.perf_counter()
+            start, cpu = time.perf_counter(), time.process_time()
             for action in actions:
                 _, _, terminated, truncated, _ = env.step(action)
                 if terminated or truncated:
                     env.reset()
             speeds[name].append(steps / (time.perf_counter() - start))
+            cpu_speeds[name].append(steps / (time.process_time() - cpu))
             env.close()
-    print("| SmartCar-v0 | steps/s | / pybullet |")
-    print("|---|---|---|")
+    print("| SmartCar-v0 | steps/s | / pybullet | CPU ratio |")
+    print("|---|---|---|---|")
     for name, values in speeds.items():
-        ratio = statistics.median(v / p for v, p in zip(values, speeds["pybullet"], strict=True))
-        print(f"| {name} | {statistics.median(values):.0f} | x{ratio:.2f} |")
+        cells = []
+        for table in (speeds, cpu_speeds):
+            ratios = [v / p for v, p in zip(table[name], table["pybullet"], strict=True)]
+            cells.append(f"x{statistics.median(ratios):.2f} ({min(ratios):.2f}-{max(ratios):.2f})")
+        print(f"| {name} | {statistics.median(values):.0f} | {' | '.join(cells)} |")
+
+
+def lever_fidelity() -> None:
+    """The ``--lever-fidelity`` table."""
+    from smartcar_gym.controller import load_controller_config
+    from smartcar_gym.envs.robots import engines_compared
+    from smartcar_gym.model import load_model
+    from smartcar_gym.sim.mujoco import simulator
+
+    model, config = load_model(), load_controller_config()
+    rows = [m for m in engines_compared.MANEUVERS
+            if m.name.startswith("spin rate") or m.name.startswith("coast-down")]
+    reference = {m.name: m.measure(model, config, "pybullet") for m in rows}
+    reset, shipped_substep = simulator.MujocoSimulator.reset, engines_compared.DEFAULT_MAX_SUBSTEP_S
+    print(f"| setting | {' | '.join(m.name for m in rows)} |")
+    print(f"|---|{'---|' * len(rows)}")
+    try:
+        for name, (options, substep) in LEVERS.items():
+            def patched(self, options=options) -> None:
+                reset(self)
+                for key, value in options.items():
+                    setattr(self.spec.option, key, value)
+
+            simulator.MujocoSimulator.reset = patched
+            engines_compared.DEFAULT_MAX_SUBSTEP_S = substep
+            cells = [engines_compared.relative_difference(m.measure(model, config, "mujoco"),
+                                                          reference[m.name]) for m in rows]
+            print(f"| {name} | {' | '.join(f'{c:+.1%}' for c in cells)} |", flush=True)
+    finally:
+        simulator.MujocoSimulator.reset = reset
+        engines_compared.DEFAULT_MAX_SUBSTEP_S = shipped_substep
 
 
 def main() -> None:
@@ -118,22 +158,29 @@ def main() -> None:
     parser.add_argument("--env", nargs="+", default=["SmartCar-v0", "SmartCarNav-v0"])
     parser.add_argument("--levers", action="store_true",
                         help="MuJoCo settings it does not use, against pybullet")
+    parser.add_argument("--lever-fidelity", action="store_true",
+                        help="what those settings change in the fidelity table")
     args = parser.parse_args()
+    if args.lever_fidelity:
+        lever_fidelity()
+        return
     if args.levers:
         levers(args.steps, args.rounds)
         return
     print("| env | pybullet steps/s | physics share | MuJoCo steps/s | physics share | "
-          "MuJoCo / pybullet |")
-    print("|---|---|---|---|---|---|")
+          "MuJoCo / pybullet | CPU ratio |")
+    print("|---|---|---|---|---|---|---|")
     for env_id in args.env:
         results = measure(env_id, args.steps, args.rounds)
-        ratio = statistics.median(m[0] / p[0] for p, m in zip(results["pybullet"],
-                                                               results["mujoco"], strict=True))
         cells = []
         for engine in ENGINES:
             cells.append(f"{statistics.median(r[0] for r in results[engine]):.0f}")
             cells.append(f"{statistics.median(r[1] for r in results[engine]):.0%}")
-        print(f"| {env_id} | {' | '.join(cells)} | x{ratio:.2f} |")
+        for column in (0, 2):  # wall clock, CPU time
+            ratios = [m[column] / p[column] for p, m in zip(results["pybullet"],
+                                                            results["mujoco"], strict=True)]
+            cells.append(f"x{statistics.median(ratios):.2f} ({min(ratios):.2f}-{max(ratios):.2f})")
+        print(f"| {env_id} | {' | '.join(cells)} |")
 
 
 if __name__ == "__main__":

@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
-from smartcar_gym.controller import ArbotixBoard
+from smartcar_gym.controller import ArbotixBoard, WheelPID
 from smartcar_gym.controller._cint import c_div, wrap_int16, wrap_int32
 
 
@@ -162,3 +163,39 @@ def test_state_exposes_internals():
     assert state["left"] == {"velocity": 27, "encoder": 0, "prev_enc": 0, "prev_err": 27,
                              "ierror": 27, "output": 12}
     assert state["moving"] and state["f_time_ms"] == 34
+
+
+def _reference_do_pid(board: ArbotixBoard, p: WheelPID) -> None:
+    """``DoPid`` through ``_cint``'s calls, as it was written before it was inlined."""
+    perror = wrap_int32(p.velocity - wrap_int32(p.encoder - p.prev_enc))
+    numerator = wrap_int32(wrap_int32(board.kp * perror)
+                           + wrap_int32(board.kd * wrap_int32(perror - p.prev_err))
+                           + wrap_int16(board.ki * p.ierror))
+    output = wrap_int32(c_div(numerator, board.ko) + p.output)
+    p.prev_err = wrap_int16(perror)
+    p.prev_enc = p.encoder
+    if output >= 255:
+        output = 255
+    elif output <= -255:
+        output = -255
+    else:
+        p.ierror = wrap_int16(p.ierror + perror)
+    p.output = output
+
+
+def test_the_inlined_pid_is_the_cint_arithmetic_on_random_and_wrapping_states():
+    rng = np.random.default_rng(0)
+    edges = [0, 1, -1, 2**15 - 1, -(2**15), 2**31 - 1, -(2**31), 2**31, 2**40]
+    for _ in range(5000):
+        board = ArbotixBoard()
+        board.kp, board.kd, board.ki = (int(v) for v in rng.integers(0, 256, 3))
+        board.ko = int(rng.integers(1, 256))
+        pick = [int(v) for v in rng.integers(-(2**33), 2**33, 5)]
+        state = [int(rng.choice(edges)) if rng.random() < 0.3 else v for v in pick]
+        fields = dict(velocity=state[0] % 2**16 - 2**15, encoder=state[1], prev_enc=state[2],
+                      prev_err=state[3] % 2**16 - 2**15, ierror=state[4] % 2**16 - 2**15,
+                      output=int(rng.integers(-255, 256)))
+        fast, reference = WheelPID(**fields), WheelPID(**fields)
+        board._do_pid(fast)
+        _reference_do_pid(board, reference)
+        assert fast == reference, fields

@@ -11,11 +11,12 @@ from dataclasses import asdict, dataclass
 from typing import Any
 
 from smartcar_gym import checks
-from smartcar_gym.controller._cint import c_div, wrap_int16, wrap_int32
+from smartcar_gym.controller._cint import wrap_int16, wrap_int32
 
 MAX_OUTPUT = 255  # MAXOUTPUT: PWM limit
 FRAME_RATE_MS = 33  # FRAME_RATE
 BOOT_GAINS = (25, 30, 0, 100)  # setupPID(): Kp, Kd, Ki, Ko until the driver's setup packet
+_B32, _M32, _B16, _M16 = 0x8000_0000, 0xFFFF_FFFF, 0x8000, 0xFFFF  # _cint's wraps, inlined
 
 
 @dataclass
@@ -107,22 +108,31 @@ class ArbotixBoard:
         }
 
     def _do_pid(self, p: WheelPID) -> None:
-        """``DoPid``: velocity-form PID with ``long`` error/output and ``int`` state."""
-        perror = wrap_int32(p.velocity - wrap_int32(p.encoder - p.prev_enc))
-        numerator = wrap_int32(
-            wrap_int32(self.kp * perror)
-            + wrap_int32(self.kd * wrap_int32(perror - p.prev_err))
-            + wrap_int16(self.ki * p.ierror)  # int * int: 16-bit product
-        )
-        output = wrap_int32(c_div(numerator, self.ko) + p.output)
-        p.prev_err = wrap_int16(perror)
+        """``DoPid``: velocity-form PID with ``long`` error/output and ``int`` state.
+
+        ``_cint``'s ``wrap_int32``, ``wrap_int16`` and ``c_div``, written out: this runs for
+        each wheel at every PID frame, and a call costs more than the arithmetic (the same
+        integers, tested against the calls).
+        """
+        delta = ((p.encoder - p.prev_enc + _B32) & _M32) - _B32
+        perror = ((p.velocity - delta + _B32) & _M32) - _B32
+        p_term = ((self.kp * perror + _B32) & _M32) - _B32
+        d_term = ((self.kd * (((perror - p.prev_err + _B32) & _M32) - _B32) + _B32) & _M32) - _B32
+        i_term = ((self.ki * p.ierror + _B16) & _M16) - _B16  # int * int: 16-bit product
+        numerator = ((p_term + d_term + i_term + _B32) & _M32) - _B32
+        ko = self.ko
+        quotient = abs(numerator) // abs(ko)
+        if (numerator >= 0) != (ko > 0):
+            quotient = -quotient
+        output = ((quotient + p.output + _B32) & _M32) - _B32
+        p.prev_err = ((perror + _B16) & _M16) - _B16
         p.prev_enc = p.encoder
         if output >= MAX_OUTPUT:
             output = MAX_OUTPUT
         elif output <= -MAX_OUTPUT:
             output = -MAX_OUTPUT
         else:
-            p.ierror = wrap_int16(p.ierror + perror)  # anti-windup: only while unsaturated
+            p.ierror = ((p.ierror + perror + _B16) & _M16) - _B16  # anti-windup: unsaturated
         p.output = output
 
     def _clear_pid(self) -> None:

@@ -106,9 +106,8 @@ class MujocoBody:
             m = self.sim.model
             return (tuple(float(v) for v in m.body_pos[ids.root]),
                     xyzw(m.body_quat[ids.root]))
-        q = self.sim.data.qpos[ids.free_q:ids.free_q + 7]
-        return (float(q[0]), float(q[1]), float(q[2])), (float(q[4]), float(q[5]),
-                                                         float(q[6]), float(q[3]))
+        q = self.sim._state()[1][ids.free_q:ids.free_q + 7].tolist()
+        return (q[0], q[1], q[2]), (q[4], q[5], q[6], q[3])
 
     def set_link_pose(self, position: Sequence[float], orientation: Sequence[float]) -> None:
         """Teleport the body so that its base link's frame is at ``position``/``orientation``."""
@@ -146,8 +145,8 @@ class MujocoBody:
     def joint_states(self, joints: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
         """Positions (rad) and velocities (rad/s) of joints given by index."""
         qadr, dadr = self._ids.addresses(joints)
-        data = self.sim.data
-        return data.qpos[qadr], data.qvel[dadr]
+        _, qpos, qvel, _ = self.sim._state()
+        return qpos[qadr], qvel[dadr]
 
     def joint_lists(self, joints: Sequence[int]) -> tuple[list[float], list[float]]:
         """Positions (rad) and velocities (rad/s) as lists."""
@@ -156,7 +155,8 @@ class MujocoBody:
 
     def joint_angles(self, joints: Sequence[int]) -> list[float]:
         """Positions (rad) of joints given by index: the cheapest read (encoders)."""
-        return self.sim.data.qpos[self._ids.addresses(joints)[0]].tolist()
+        qadr = self._ids.addresses(joints)[0]
+        return self.sim._state()[1][qadr].tolist()
 
     def reset_joint(self, joint: int, angle: float, speed: float) -> None:
         """Set a joint's position and velocity (kinematic motion)."""

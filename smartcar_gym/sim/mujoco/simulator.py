@@ -102,6 +102,10 @@ class MujocoSimulator(EventClock):
         # then slips as on pybullet (pyramidal cones at impratio 1 spun 17 % faster at 1 rad/s)
         spec.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
         spec.option.impratio = IMPRATIO
+        # no island discovery: a world of one robot on static ground has one island, which
+        # MuJoCo would find again at every step (a tenth of a step here); the solution is the
+        # same bit for bit (tests/test_mujoco_rollout.py)
+        spec.option.disableflags |= mujoco.mjtDisableBit.mjDSBL_ISLAND
         spec.visual.global_.offwidth = 640
         spec.visual.global_.offheight = 480
         checker = spec.add_texture(name="grid", type=mujoco.mjtTexture.mjTEXTURE_2D,
@@ -118,6 +122,7 @@ class MujocoSimulator(EventClock):
         self.spec = spec
         self._close_renderer()
         self.model, self._data = None, None
+        self._views = None
         self._dirty = True
         self._stale = True  # positions of geoms (xpos) older than qpos
         self._held: dict[tuple[str, str], tuple[MujocoBody, list[int], list[float]]] = {}
@@ -147,7 +152,7 @@ class MujocoSimulator(EventClock):
     def close(self) -> None:
         """Free the model, the data, the renderer and the scratch folder (idempotent)."""
         self._close_renderer()
-        self.model, self._data, self.spec = None, None, None
+        self.model, self._data, self.spec, self._views = None, None, None, None
         self._bodies, self._sources, self._held, self._markers = {}, [], {}, []
         self._closed = True
         self._remove_scratch()
@@ -166,6 +171,13 @@ class MujocoSimulator(EventClock):
 
     def _moved(self) -> None:
         self._stale = True
+
+    def _state(self) -> tuple[mujoco.MjOption, np.ndarray, np.ndarray, np.ndarray]:
+        """The model's ``opt`` and the data's ``qpos``, ``qvel`` and ``qfrc_applied`` (compiling
+        the spec first if it changed)."""
+        if self._dirty:
+            self._compile()
+        return self._views
 
     def model_compiled(self) -> mujoco.MjModel:
         """The compiled model (compiling the spec first if it changed)."""
@@ -191,6 +203,9 @@ class MujocoSimulator(EventClock):
         self._dirty = False
         self._stale = True
         self._close_renderer()
+        # the arrays read and written at every PID frame, fetched once per compile (each
+        # attribute of MjModel/MjData makes a new Python object: up to a microsecond a read)
+        self._views = (self.model.opt, self._data.qpos, self._data.qvel, self._data.qfrc_applied)
         self.model.opt.timestep = self._dt
         for body in self._bodies.values():
             if isinstance(body, MujocoBody):
@@ -237,7 +252,7 @@ class MujocoSimulator(EventClock):
             self._compile()
         m, d = self.model, self._data
         if dt != self._dt:
-            m.opt.timestep = dt
+            self._views[0].timestep = dt  # m.opt
             self._dt = dt
         if probe is None:
             mujoco.mj_step(m, d, n)
@@ -268,7 +283,7 @@ class MujocoSimulator(EventClock):
               torques: list[float]) -> None:
         self._held[key] = (body, joints, torques)
         if not self._dirty and self.model is not None:
-            self._data.qfrc_applied[body._ids.addresses(joints)[1]] = torques
+            self._views[3][body._ids.addresses(joints)[1]] = torques  # qfrc_applied
 
     def _set_damping(self, body: MujocoBody, joints: Sequence[int],
                      damping: Sequence[float]) -> None:

@@ -125,8 +125,12 @@ class Ros2BagSink:
             raise FileExistsError(f"{self.path} exists; a ROS 2 bag is a new folder (remove "
                                   "it or pick another name)")
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._partial = self.path.with_name(f".{self.path.name}.partial")
-        shutil.rmtree(self._partial, ignore_errors=True)
+        # written as <parent>/.<name>.partial/<name> (the storage file is named after the
+        # folder), moved to <parent>/<name> when complete
+        self._scratch = self.path.with_name(f".{self.path.name}.partial")
+        shutil.rmtree(self._scratch, ignore_errors=True)
+        self._scratch.mkdir()
+        self._partial = self._scratch / self.path.name
         self.store = typestore()
         self.types = Ros2Types(self.store)
         plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3
@@ -138,6 +142,7 @@ class Ros2BagSink:
         self._moving: list[tuple] = []  # (name, parent, child, xyz, origin quaternion, axis)
         self.count = 0
         self.episodes = 0
+        self._closed = False
 
     def __call__(self, episode: Episode) -> None:
         self.write(episode)
@@ -243,14 +248,18 @@ class Ros2BagSink:
         """Finish the bag: the folder appears at ``path``."""
         self._writer.close()
         os.replace(self._partial, self.path)
+        self._scratch.rmdir()
+        self._closed = True
 
     def discard(self) -> None:
         """Stop without leaving a bag (after an error)."""
+        if self._closed:
+            return
         try:
             self._writer.close()
         except Exception:  # noqa: BLE001 (a half-written bag after the real error)
             pass
-        shutil.rmtree(self._partial, ignore_errors=True)
+        shutil.rmtree(self._scratch, ignore_errors=True)
 
 
 def _multiply(a: tuple[float, ...], b: tuple[float, ...]) -> tuple[float, float, float, float]:

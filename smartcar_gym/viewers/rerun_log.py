@@ -117,7 +117,7 @@ class RerunSink:
                 self._partial = self.path.with_name(f".{self.path.stem}.partial.rrd")
                 sinks.append(rr.FileSink(str(self._partial)))
             if serve:
-                server = rr.GrpcServerSink(port=grpc_port)
+                server = rr.GrpcServerSink(bind_ip="127.0.0.1", port=grpc_port)  # this machine
                 sinks.append(server)
             self.rec.set_sinks(*sinks, default_blueprint=blueprint())
             if serve:

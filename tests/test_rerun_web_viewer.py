@@ -1,0 +1,56 @@
+"""Rerun's web viewer, served from the ``rerun-sdk`` package, opened in headless Chromium
+(Debian's ``chromium``, which ``.ci/run`` installs): a screenshot must show the recording."""
+
+from __future__ import annotations
+
+import importlib.util
+import socket
+
+import numpy as np
+import pytest
+
+from smartcar_gym.agents.rollouts import RandomPolicy, evaluate_policy_episodes
+from smartcar_gym.viewers.chromium import color_pixels, find_chromium
+
+pytestmark = [
+    pytest.mark.slow,
+    pytest.mark.skipif(importlib.util.find_spec("rerun") is None,
+                       reason='rerun-sdk not installed: pip install "smartcar-gym[rerun]"'),
+    pytest.mark.skipif(find_chromium() is None,
+                       reason="chromium not installed (Debian: apt-get install chromium; "
+                              ".ci/run installs it when it runs as root with apt)"),
+]
+
+
+def _free_port():
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _colors(image):
+    return len(np.unique(image[::2, ::2].reshape(-1, 3), axis=0))
+
+
+def test_web_viewer_shows_the_recording(tmp_path):
+    from smartcar_gym.viewers.chromium import screenshot
+    from smartcar_gym.viewers.rerun_log import GOAL_COLOR, TRUTH_COLOR, RerunSink
+
+    sink = RerunSink(serve=True, grpc_port=_free_port(), web_port=_free_port())
+    try:
+        blank = screenshot("about:blank", tmp_path / "blank.png", width=800, height=500)
+        assert _colors(blank) == 1  # what a page without the viewer looks like
+        evaluate_policy_episodes(RandomPolicy(1), "SmartCarSim-v0", n_episodes=1, seed=1,
+                                 recorders=[sink])
+        sink.rec.flush()
+
+        def shows_episode(image):  # the goal (red) and the true path (green) are drawn
+            return (color_pixels(image, GOAL_COLOR) > 200
+                    and color_pixels(image, TRUTH_COLOR) > 200)
+
+        image = screenshot(sink.web_url, tmp_path / "viewer.png", width=1400, height=800,
+                           ready=shows_episode, timeout_s=150)
+    finally:
+        sink.close()
+    assert image.shape == (800, 1400, 3)
+    assert _colors(image) > 500  # panels, plots, text: not a blank or loading page

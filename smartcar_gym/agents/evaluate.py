@@ -123,6 +123,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--rerun-serve", action="store_true", help="stream the episodes to "
                         "Rerun's web viewer, served locally from the rerun-sdk package, and "
                         "keep serving until Ctrl-C")
+    parser.add_argument("--rerun-ports", nargs=2, type=positive_int_arg, default=(9876, 9090),
+                        metavar=("GRPC", "WEB"), help="ports of --rerun-serve's gRPC server "
+                        "and web viewer (default: Rerun's 9876 9090)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     return parser
 
@@ -223,7 +226,9 @@ def _recorders(args: argparse.Namespace, stack: contextlib.ExitStack) -> list[An
     if args.rerun is not None or args.rerun_serve:
         from smartcar_gym.viewers.rerun_log import RerunSink
 
-        sink = RerunSink(args.rerun, serve=args.rerun_serve)
+        grpc_port, web_port = args.rerun_ports
+        sink = RerunSink(args.rerun, serve=args.rerun_serve, grpc_port=grpc_port,
+                         web_port=web_port)
         if sink.web_url:
             print(f"smartcar-eval: Rerun web viewer: {sink.web_url}", file=sys.stderr)
         recorders.append(sink)

@@ -143,7 +143,7 @@ class RerunSink:
         times = rr.TimeColumn(TIMELINE, duration=np.array([f.time_ns for f in frames]) / 1e9)
         truth = np.array([f.position for f in frames])
         rec.log(f"{world}/path/truth", rr.LineStrips3D([truth], colors=[TRUTH_COLOR],
-                                                       radii=0.005), static=True)
+                                                       radii=0.01), static=True)
         rec.send_columns(f"{world}/car", indexes=[times], columns=rr.Transform3D.columns(
             translation=truth, quaternion=np.array([f.orientation for f in frames])))
         start = frames[0]
@@ -154,7 +154,7 @@ class RerunSink:
         odom = np.array([(f.odometry.x, f.odometry.y, f.odometry.theta) for f in frames])
         odom_xyz = np.column_stack([odom[:, 0], odom[:, 1], np.full(len(odom), truth[0, 2])])
         rec.log(f"{world}/odom/path", rr.LineStrips3D([odom_xyz], colors=[ODOM_COLOR],
-                                                      radii=0.005), static=True)
+                                                      radii=0.01), static=True)
         rec.log(f"{world}/odom/base_link", rr.Arrows3D(vectors=[(0.15, 0.0, 0.0)],
                                                        colors=[ODOM_COLOR], radii=0.008),
                 static=True)
@@ -274,7 +274,7 @@ def _log_scans(rec: Any, laser: str, scene: Scene, frames: list, times: Any) -> 
         points.append(np.column_stack([r * np.cos(a), r * np.sin(a), np.zeros_like(r)]))
         lengths.append(len(r))
     positions = np.concatenate(points) if points else np.zeros((0, 3))
-    rec.log(f"{laser}/scan", rr.Points3D.from_fields(colors=[SCAN_COLOR], radii=0.012),
+    rec.log(f"{laser}/scan", rr.Points3D.from_fields(colors=[SCAN_COLOR], radii=0.02),
             static=True)  # static positions would hide the per-step ones
     rec.send_columns(f"{laser}/scan", indexes=[times],
                      columns=rr.Points3D.columns(positions=positions).partition(lengths))

@@ -54,3 +54,32 @@ def test_web_viewer_shows_the_recording(tmp_path):
         sink.close()
     assert image.shape == (800, 1400, 3)
     assert _colors(image) > 500  # panels, plots, text: not a blank or loading page
+
+
+def test_rerun_serve_web_shows_a_recorded_file(tmp_path):
+    """The docs' way: ``rerun --serve-web episodes.rrd`` (the rerun-sdk package's CLI)."""
+    import subprocess
+    import sys
+
+    from smartcar_gym.viewers.chromium import screenshot
+    from smartcar_gym.viewers.rerun_log import GOAL_COLOR, TRUTH_COLOR, RerunSink
+
+    path = tmp_path / "episodes.rrd"
+    sink = RerunSink(path)
+    evaluate_policy_episodes(RandomPolicy(4), "SmartCarSim-v0", n_episodes=2, seed=4,
+                             recorders=[sink])
+    sink.close()
+    grpc, web = _free_port(), _free_port()
+    server = subprocess.Popen([sys.executable, "-m", "rerun", "--serve-web", "--port", str(grpc),
+                               "--web-viewer-port", str(web), str(path)],
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        image = screenshot(f"http://127.0.0.1:{web}/?url=rerun%2Bhttp%3A%2F%2F127.0.0.1%3A"
+                           f"{grpc}%2Fproxy", tmp_path / "file.png",
+                           ready=lambda i: (color_pixels(i, GOAL_COLOR) > 200
+                                            and color_pixels(i, TRUTH_COLOR) > 200),
+                           timeout_s=150)
+    finally:
+        server.terminate()
+        server.wait(timeout=30)
+    assert _colors(image) > 500

@@ -30,14 +30,16 @@ from __future__ import annotations
 import math
 import os
 import shutil
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from smartcar_gym.envs.robots.smartcar import pose_from
-from smartcar_gym.model.kinematics import rpy_matrix
+from smartcar_gym.model.kinematics import quaternion_matrix, rpy_matrix
 from smartcar_gym.model.urdf import UrdfRobot, parse_urdf
+from smartcar_gym.ros import cdr
 from smartcar_gym.ros import messages as m
 from smartcar_gym.ros.bag import EPISODE_GAP_S, ROS_EXTRA, START_S
 from smartcar_gym.viewers.capture import Episode, Frame, Scene
@@ -110,6 +112,16 @@ def _qos(latched: bool) -> Any:
                liveliness_lease_duration=never, avoid_ros_namespace_conventions=False)
 
 
+@dataclass(frozen=True)
+class _Encoders:
+    odom: cdr.OdometryEncoder
+    truth: cdr.OdometryEncoder
+    tf: cdr.TransformsEncoder
+    joints: cdr.JointStateEncoder
+    twist: cdr.TwistEncoder
+    scan: cdr.LaserScanEncoder
+
+
 class Ros2BagSink:
     """Writes ``Episode`` objects, in order, to a rosbag2 folder that appears at ``path``
     complete when ``close`` is called (``discard`` after an error leaves nothing)."""
@@ -117,6 +129,8 @@ class Ros2BagSink:
     def __init__(self, path: str | os.PathLike, storage: str = "mcap") -> None:
         from rosbags.rosbag2 import StoragePlugin, Writer
 
+        if not cdr.AVAILABLE:
+            raise RuntimeError("ROS 2 bags are written on little-endian machines only")
         if storage not in STORAGES:
             raise ValueError(f"bag storage must be one of {', '.join(STORAGES)}, got "
                              f"{storage!r}")
@@ -140,6 +154,7 @@ class Ros2BagSink:
         self._offset_ns = round(START_S * m.NS_PER_S)
         self._robot: UrdfRobot | None = None
         self._moving: list[tuple] = []  # (name, parent, child, xyz, origin quaternion, axis)
+        self._encode: _Encoders | None = None
         self.count = 0
         self.episodes = 0
         self._closed = False
@@ -157,42 +172,70 @@ class Ros2BagSink:
                            bytes(self.store.serialize_cdr(msg, msgtype)))
         self.count += 1
 
+    def _write_cdr(self, topic: str, data: bytes, time_ns: int) -> None:
+        if topic not in self._connections:
+            self._connections[topic] = self._writer.add_connection(
+                topic, TOPICS[topic], typestore=self.store,
+                offered_qos_profiles=[_qos(topic in LATCHED)])
+        self._writer.write(self._connections[topic], time_ns, data)
+        self.count += 1
+
     def write(self, episode: Episode) -> None:
         """Write one whole episode after the ones before it."""
         types, scene, start = self.types, episode.scene, self._offset_ns
         if self._robot is None:
-            self._robot = parse_urdf(scene.urdf, scene.robot_name)
-            self._moving = [
-                (j.name, j.parent, j.child, j.origin.xyz, _quaternion(rpy_matrix(j.origin.rpy)),
-                 tuple(np.asarray(j.axis, dtype=float) / np.linalg.norm(j.axis)))
-                for j in self._robot.joints.values() if j.type in ("continuous", "revolute")]
+            self._start(scene, episode.frames[0])
             self._write("/robot_description", types("std_msgs/String", data=scene.urdf), start)
         self._write("/tf_static", self._static_transforms(scene, episode.frames[0], start),
                     start)
         self._write("/goal_pose", m.goal_message(types, scene.goal, start, m.GROUND_TRUTH_FRAME),
                     start)
+        encode = self._encode
         for i, frame in enumerate(episode.frames):
             now = start + frame.time_ns
             if i > 0:  # the command the step sent, when it was sent
                 sent = start + episode.frames[i - 1].time_ns
-                self._write("/cmd_vel", m.twist_message(types, *frame.command), sent)
-            self._state(scene, frame, now)
-            if frame.scan is not None:
-                self._write("/scan", self._scan(frame, start), now)
+                self._write_cdr("/cmd_vel", encode.twist(*frame.command), sent)
+            odom = frame.odometry
+            quaternion = odom.quaternion
+            self._write_cdr("/odom", encode.odom(now, (odom.x, odom.y, 0.0), quaternion,
+                                                 (odom.v, 0.0, 0.0), (0.0, 0.0, odom.omega)),
+                            now)
+            self._write_cdr("/tf", encode.tf(now, [((odom.x, odom.y, 0.0), quaternion),
+                                                   *self._wheel_poses(frame)]), now)
+            joints = frame.joints
+            self._write_cdr("/joint_states", encode.joints(now, joints.position.tolist(),
+                                                           joints.velocity.tolist(),
+                                                           joints.effort.tolist()), now)
+            rotation = quaternion_matrix(frame.orientation).T  # world -> base_link
+            self._write_cdr(f"/{m.GROUND_TRUTH_TOPIC}", encode.truth(
+                now, frame.position, frame.orientation,
+                (rotation @ np.asarray(frame.linear_velocity)).tolist(),
+                (rotation @ np.asarray(frame.angular_velocity)).tolist()), now)
+            scan = frame.scan
+            if scan is not None:
+                self._write_cdr("/scan", encode.scan(
+                    start + round(scan.stamp_s * m.NS_PER_S), scan.angle_min, scan.angle_max,
+                    scan.angle_increment, scan.time_increment, scan.scan_time, scan.range_min,
+                    scan.range_max, scan.ranges), now)
         self._offset_ns = start + episode.frames[-1].time_ns + round(EPISODE_GAP_S * m.NS_PER_S)
         self.episodes += 1
 
-    def _state(self, scene: Scene, frame: Frame, now: int) -> None:
-        types, odom = self.types, frame.odometry
-        self._write("/odom", m.odometry_message(types, odom, now), now)
-        tf = m.transform_message(types, odom, now)
-        tf.transforms.extend(self._wheel_transforms(frame, now))
-        self._write("/tf", tf, now)
-        self._write("/joint_states", m.joint_state_message(types, frame.joints, now), now)
-        truth = m.ground_truth_message(types, (frame.position, frame.orientation),
-                                       (frame.linear_velocity, frame.angular_velocity), now,
-                                       scene.base_frame)
-        self._write(f"/{m.GROUND_TRUTH_TOPIC}", truth, now)
+    def _start(self, scene: Scene, first: Frame) -> None:
+        """The model's joints and the encoders of the per-step messages (fixed frames)."""
+        self._robot = parse_urdf(scene.urdf, scene.robot_name)
+        self._moving = [
+            (j.name, j.parent, j.child, j.origin.xyz, _quaternion(rpy_matrix(j.origin.rpy)),
+             tuple(np.asarray(j.axis, dtype=float) / np.linalg.norm(j.axis)))
+            for j in self._robot.joints.values() if j.type in ("continuous", "revolute")]
+        edges = [(scene.odom_frame, scene.base_frame)] + [(p, c) for _, p, c, *_ in self._moving]
+        self._encode = _Encoders(
+            odom=cdr.OdometryEncoder(scene.odom_frame, scene.base_frame),
+            truth=cdr.OdometryEncoder(m.GROUND_TRUTH_FRAME, scene.base_frame),
+            tf=cdr.TransformsEncoder(edges), joints=cdr.JointStateEncoder(first.joints.name),
+            twist=cdr.TwistEncoder(),
+            scan=cdr.LaserScanEncoder(first.scan.frame_id if first.scan is not None
+                                      else scene.laser_frame))
 
     def _transform(self, parent: str, child: str, xyz: Any, quaternion: Any,
                    stamp_ns: int) -> Any:
@@ -222,27 +265,16 @@ class Ros2BagSink:
                                                   stamp_ns))
         return self.types("tf2_msgs/TFMessage", transforms=transforms)
 
-    def _wheel_transforms(self, frame: Frame, stamp_ns: int) -> list[Any]:
+    def _wheel_poses(self, frame: Frame) -> list[tuple[Any, tuple[float, ...]]]:
         """The moving joints at their positions (robot_state_publisher's /tf)."""
         positions = dict(zip(frame.joints.name, frame.joints.position.tolist(), strict=True))
         out = []
-        for name, parent, child, xyz, origin, axis in self._moving:
+        for name, _, _, xyz, origin, axis in self._moving:
             half = positions.get(name, 0.0) / 2.0
             s = math.sin(half)
-            turn = (axis[0] * s, axis[1] * s, axis[2] * s, math.cos(half))
-            out.append(self._transform(parent, child, xyz, _multiply(origin, turn), stamp_ns))
+            out.append((xyz, _multiply(origin, (axis[0] * s, axis[1] * s, axis[2] * s,
+                                                 math.cos(half)))))
         return out
-
-    def _scan(self, frame: Frame, start_ns: int) -> Any:
-        scan, types = frame.scan, self.types
-        stamp = start_ns + round(scan.stamp_s * m.NS_PER_S)
-        return types("sensor_msgs/LaserScan", header=m.header(types, stamp, scan.frame_id),
-                     angle_min=float(scan.angle_min), angle_max=float(scan.angle_max),
-                     angle_increment=float(scan.angle_increment),
-                     time_increment=float(scan.time_increment), scan_time=float(scan.scan_time),
-                     range_min=float(scan.range_min), range_max=float(scan.range_max),
-                     ranges=np.asarray(scan.ranges, dtype=np.float32),
-                     intensities=np.asarray(scan.intensities, dtype=np.float32))
 
     def close(self) -> None:
         """Finish the bag: the folder appears at ``path``."""

@@ -109,21 +109,28 @@ class RerunSink:
                 raise ValueError("a Rerun recording needs a path (.rrd), serve=True or both")
             if self.path is not None and self.path.suffix != ".rrd":
                 raise ValueError(f"Rerun recordings end in .rrd, got {self.path.name!r}")
+            hosted = hasattr(rr, "GrpcServerSink")  # rerun-sdk 0.24 serves with serve_grpc
+            if serve and path is not None and not hosted:
+                raise ValueError(f"rerun-sdk {rr.__version__} cannot write a file and serve at "
+                                 "once; upgrade it (pip install -U rerun-sdk) or do one")
             self.rec = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id)
-            sinks = []
             self._partial = None
             if self.path is not None:
                 self.path.parent.mkdir(parents=True, exist_ok=True)
                 self._partial = self.path.with_name(f".{self.path.stem}.partial.rrd")
-                sinks.append(rr.FileSink(str(self._partial)))
-            if serve:
+                sinks = [rr.FileSink(str(self._partial))]
+            if serve and hosted:
                 server = rr.GrpcServerSink(bind_ip="127.0.0.1", port=grpc_port)  # this machine
-                sinks.append(server)
-            self.rec.set_sinks(*sinks, default_blueprint=blueprint())
+                sinks = [*sinks, server] if path is not None else [server]
+                grpc_url = server.uri
+            if serve and not hosted:
+                grpc_url = self.rec.serve_grpc(grpc_port=grpc_port,
+                                               default_blueprint=blueprint())
+            else:
+                self.rec.set_sinks(*sinks, default_blueprint=blueprint())
             if serve:
-                rr.serve_web_viewer(web_port=web_port, open_browser=False,
-                                    connect_to=server.uri)
-                self.web_url = web_viewer_url(server.uri, web_port)
+                rr.serve_web_viewer(web_port=web_port, open_browser=False, connect_to=grpc_url)
+                self.web_url = web_viewer_url(grpc_url, web_port)
         self.rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
 
     def __call__(self, episode: Episode) -> None:

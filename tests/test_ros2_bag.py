@@ -173,3 +173,46 @@ def test_cli_names_the_extra_when_rosbags_is_missing(monkeypatch, capsys):
     assert capsys.readouterr().err.strip().splitlines()[-1].endswith(
         '--bag: rosbags not installed; --bag needs the ros extra: pip install '
         '"smartcar-gym[ros]"')
+
+
+def test_packed_cdr_is_byte_for_byte_what_rosbags_serialises(nav_bag):
+    from smartcar_gym.ros import cdr
+    from smartcar_gym.ros import messages as m
+    from smartcar_gym.ros.bag_ros2 import Ros2Types, typestore
+
+    store = typestore()
+    types = Ros2Types(store)
+    _, episodes, _ = nav_bag
+    frame = episodes[1].frames[7]
+    stamp = 12_345_678_901
+    odom = frame.odometry
+
+    def serialised(msg, msgtype):
+        return bytes(store.serialize_cdr(msg, msgtype))
+
+    assert cdr.OdometryEncoder("odom", "base_link")(
+        stamp, (odom.x, odom.y, 0.0), odom.quaternion, (odom.v, 0.0, 0.0),
+        (0.0, 0.0, odom.omega)) == serialised(m.odometry_message(types, odom, stamp),
+                                             "nav_msgs/msg/Odometry")
+    assert cdr.TwistEncoder()(*frame.command) == serialised(
+        m.twist_message(types, *frame.command), "geometry_msgs/msg/Twist")
+    joints = frame.joints
+    assert cdr.JointStateEncoder(joints.name)(
+        stamp, joints.position.tolist(), joints.velocity.tolist(),
+        joints.effort.tolist()) == serialised(m.joint_state_message(types, joints, stamp),
+                                              "sensor_msgs/msg/JointState")
+    tf = m.transform_message(types, odom, stamp)
+    assert cdr.TransformsEncoder([("odom", "base_link")])(
+        stamp, [((odom.x, odom.y, 0.0), odom.quaternion)]) == serialised(
+        tf, "tf2_msgs/msg/TFMessage")
+    scan = frame.scan
+    expected = types("sensor_msgs/LaserScan", header=m.header(types, stamp, "laser"),
+                     angle_min=scan.angle_min, angle_max=scan.angle_max,
+                     angle_increment=scan.angle_increment,
+                     time_increment=scan.time_increment, scan_time=scan.scan_time,
+                     range_min=scan.range_min, range_max=scan.range_max, ranges=scan.ranges,
+                     intensities=np.zeros(0, dtype=np.float32))
+    assert cdr.LaserScanEncoder("laser")(
+        stamp, scan.angle_min, scan.angle_max, scan.angle_increment, scan.time_increment,
+        scan.scan_time, scan.range_min, scan.range_max, scan.ranges) == serialised(
+        expected, "sensor_msgs/msg/LaserScan")

@@ -65,7 +65,7 @@ def test_recorder_writes_poses_goal_rewards_and_steps(tmp_path):
     from smartcar_gym.wrappers import RerunRecorder
 
     path = tmp_path / "episodes.rrd"
-    env = RerunRecorder(gym.make("SmartCar-v0"), path)
+    env = RerunRecorder(gym.make("SmartCar-v0", max_episode_steps=60), path)
     first = _drive(env, seed=3)
     second = _drive(env, seed=4)
     assert not path.exists()  # written whole on close
@@ -124,14 +124,16 @@ def test_recorder_writes_the_laser_scan_and_obstacles(tmp_path):
         np.testing.assert_allclose(radii, [o.size[0] / 2 for o in cylinders], rtol=1e-6)
 
 
+@pytest.mark.slow
 @needs_reader
 def test_evaluation_records_every_episode_unchanged(tmp_path):
     from smartcar_gym.viewers.rerun_log import RerunSink
 
-    plain = evaluate_policy_episodes(RandomPolicy(2), "SmartCarSim-v0", n_episodes=3, seed=2)
+    plain = evaluate_policy_episodes(RandomPolicy(2), "SmartCar-v0", n_episodes=3, seed=2,
+                                     n_envs=2)
     sink = RerunSink(tmp_path / "eval.rrd")
-    recorded = evaluate_policy_episodes(RandomPolicy(2), "SmartCarSim-v0", n_episodes=3, seed=2,
-                                        recorders=[sink])
+    recorded = evaluate_policy_episodes(RandomPolicy(2), "SmartCar-v0", n_episodes=3, seed=2,
+                                        n_envs=2, recorders=[sink])  # frames from workers
     sink.close()
     store = _store(tmp_path / "eval.rrd")
     for before, after in zip(plain, recorded, strict=True):

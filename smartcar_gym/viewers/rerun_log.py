@@ -34,6 +34,7 @@ from urllib.parse import quote
 import numpy as np
 
 from smartcar_gym.envs.nav_env import OBSTACLE_HEIGHT_M
+from smartcar_gym.envs.robots.smartcar import pose_from
 from smartcar_gym.viewers.capture import Episode, Scene
 
 APPLICATION_ID = "smartcar_gym"
@@ -46,7 +47,6 @@ GOAL_COLOR = (220, 40, 40)
 SCAN_COLOR = (230, 30, 30)
 OBSTACLE_COLOR = (140, 140, 150)
 SHAPE_COLORS = {"box": (60, 110, 200), "cylinder": (40, 40, 40), "sphere": (90, 90, 90)}
-SERIES = ("wheel_speed", "command", "pwm", "reward", "distance", "odom_error", "success")
 
 
 def entity(episode: Episode) -> str:
@@ -115,19 +115,20 @@ class RerunSink:
                                  "once; upgrade it (pip install -U rerun-sdk) or do one")
             self.rec = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id)
             self._partial = None
+            sinks = []
             if self.path is not None:
                 self.path.parent.mkdir(parents=True, exist_ok=True)
                 self._partial = self.path.with_name(f".{self.path.stem}.partial.rrd")
-                sinks = [rr.FileSink(str(self._partial))]
+                sinks.append(rr.FileSink(str(self._partial)))
             if serve and hosted:
                 server = rr.GrpcServerSink(bind_ip="127.0.0.1", port=grpc_port)  # this machine
-                sinks = [*sinks, server] if path is not None else [server]
+                sinks.append(server)
                 grpc_url = server.uri
-            if serve and not hosted:
+            if sinks:
+                self.rec.set_sinks(*sinks, default_blueprint=blueprint())
+            else:  # serving with rerun-sdk 0.24
                 grpc_url = self.rec.serve_grpc(grpc_port=grpc_port,
                                                default_blueprint=blueprint())
-            else:
-                self.rec.set_sinks(*sinks, default_blueprint=blueprint())
             if serve:
                 rr.serve_web_viewer(web_port=web_port, open_browser=False, connect_to=grpc_url)
                 self.web_url = web_viewer_url(grpc_url, web_port)
@@ -154,7 +155,7 @@ class RerunSink:
         rec.send_columns(f"{world}/car", indexes=[times], columns=rr.Transform3D.columns(
             translation=truth, quaternion=np.array([f.orientation for f in frames])))
         start = frames[0]
-        yaw0 = _yaw(start.orientation)
+        yaw0 = pose_from(start.position, start.orientation).yaw
         rec.log(f"{world}/odom", rr.Transform3D(
             translation=(start.position[0], start.position[1], 0.0),
             quaternion=(0.0, 0.0, np.sin(yaw0 / 2), np.cos(yaw0 / 2))), static=True)
@@ -174,30 +175,8 @@ class RerunSink:
                                                          np.cos(half)])))
         if scene.laser_mount is not None and any(f.scan is not None for f in frames):
             _log_scans(rec, f"{world}/car/laser", scene, frames, times)
-        self._log_series(rec, name, scene, frames, times)
+        _log_series(rec, name, scene, frames, times)
         self.episodes += 1
-
-    def _log_series(self, rec: Any, name: str, scene: Scene, frames: list, times: Any) -> None:
-        import rerun as rr
-
-        def series(path: str, values: np.ndarray, names: list[str]) -> None:
-            rec.log(path, rr.SeriesLines(names=names), static=True)
-            rec.send_columns(path, indexes=[times], columns=rr.Scalars.columns(scalars=values))
-
-        series(f"wheel_speed/{name}", np.array([f.joints.velocity for f in frames]),
-               list(scene.wheel_joints))
-        series(f"command/{name}", np.array([f.command for f in frames]),
-               ["linear.x (m/s)", "angular.z (rad/s)"])
-        series(f"pwm/{name}", np.array([f.pwm for f in frames], dtype=float),
-               ["left", "right"])
-        terms = list(frames[-1].reward_terms)
-        rewards = np.array([[f.reward_terms.get(t, 0.0) for t in terms] + [f.reward]
-                            for f in frames])
-        series(f"reward/{name}", rewards, [*terms, "total"])
-        series(f"distance/{name}", np.array([[f.distance_m] for f in frames]), ["distance"])
-        series(f"odom_error/{name}", np.array([[f.odom_error_m] for f in frames]),
-               ["odometry error (m)"])
-        series(f"success/{name}", np.array([[float(f.success)] for f in frames]), ["success"])
 
     def close(self) -> None:
         """Flush; the ``.rrd`` file appears at its path now, complete."""
@@ -215,9 +194,28 @@ class RerunSink:
             self._partial = None
 
 
-def _yaw(q: tuple[float, float, float, float]) -> float:
-    x, y, z, w = q
-    return float(np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z)))
+def _log_series(rec: Any, name: str, scene: Scene, frames: list, times: Any) -> None:
+    """The time series of one episode (wheel speeds, command, PWM, reward terms, ...)."""
+    import rerun as rr
+
+    def series(path: str, values: np.ndarray, names: list[str]) -> None:
+        rec.log(path, rr.SeriesLines(names=names), static=True)
+        rec.send_columns(path, indexes=[times], columns=rr.Scalars.columns(scalars=values))
+
+    series(f"wheel_speed/{name}", np.array([f.joints.velocity for f in frames]),
+           list(scene.wheel_joints))
+    series(f"command/{name}", np.array([f.command for f in frames]),
+           ["linear.x (m/s)", "angular.z (rad/s)"])
+    series(f"pwm/{name}", np.array([f.pwm for f in frames], dtype=float),
+           ["left", "right"])
+    terms = list(frames[-1].reward_terms)
+    rewards = np.array([[f.reward_terms.get(t, 0.0) for t in terms] + [f.reward]
+                        for f in frames])
+    series(f"reward/{name}", rewards, [*terms, "total"])
+    series(f"distance/{name}", np.array([[f.distance_m] for f in frames]), ["distance"])
+    series(f"odom_error/{name}", np.array([[f.odom_error_m] for f in frames]),
+           ["odometry error (m)"])
+    series(f"success/{name}", np.array([[float(f.success)] for f in frames]), ["success"])
 
 
 def _log_scene(rec: Any, world: str, scene: Scene) -> None:

@@ -37,7 +37,7 @@ from typing import Any
 import numpy as np
 
 from smartcar_gym.envs.robots.smartcar import pose_from
-from smartcar_gym.model.kinematics import quaternion_matrix, rpy_matrix
+from smartcar_gym.model.kinematics import matrix_quaternion, quaternion_matrix, rpy_matrix
 from smartcar_gym.model.urdf import UrdfRobot, parse_urdf
 from smartcar_gym.ros import cdr
 from smartcar_gym.ros import messages as m
@@ -225,7 +225,7 @@ class Ros2BagSink:
         """The model's joints and the encoders of the per-step messages (fixed frames)."""
         self._robot = parse_urdf(scene.urdf, scene.robot_name)
         self._moving = [
-            (j.name, j.parent, j.child, j.origin.xyz, _quaternion(rpy_matrix(j.origin.rpy)),
+            (j.name, j.parent, j.child, j.origin.xyz, matrix_quaternion(rpy_matrix(j.origin.rpy)),
              tuple(np.asarray(j.axis, dtype=float) / np.linalg.norm(j.axis)))
             for j in self._robot.joints.values() if j.type in ("continuous", "revolute")]
         edges = [(scene.odom_frame, scene.base_frame)] + [(p, c) for _, p, c, *_ in self._moving]
@@ -261,7 +261,7 @@ class Ros2BagSink:
         for joint in self._robot.joints.values():
             if joint.type == "fixed":
                 transforms.append(self._transform(joint.parent, joint.child, joint.origin.xyz,
-                                                  _quaternion(rpy_matrix(joint.origin.rpy)),
+                                                  matrix_quaternion(rpy_matrix(joint.origin.rpy)),
                                                   stamp_ns))
         return self.types("tf2_msgs/TFMessage", transforms=transforms)
 
@@ -300,15 +300,3 @@ def _multiply(a: tuple[float, ...], b: tuple[float, ...]) -> tuple[float, float,
     bx, by, bz, bw = b
     return (aw * bx + ax * bw + ay * bz - az * by, aw * by - ax * bz + ay * bw + az * bx,
             aw * bz + ax * by - ay * bx + az * bw, aw * bw - ax * bx - ay * by - az * bz)
-
-
-def _quaternion(r: np.ndarray) -> tuple[float, float, float, float]:
-    """(x, y, z, w) of a rotation matrix."""
-    w = np.sqrt(max(0.0, 1.0 + r[0, 0] + r[1, 1] + r[2, 2])) / 2.0
-    x = np.sqrt(max(0.0, 1.0 + r[0, 0] - r[1, 1] - r[2, 2])) / 2.0
-    y = np.sqrt(max(0.0, 1.0 - r[0, 0] + r[1, 1] - r[2, 2])) / 2.0
-    z = np.sqrt(max(0.0, 1.0 - r[0, 0] - r[1, 1] + r[2, 2])) / 2.0
-    x = np.copysign(x, r[2, 1] - r[1, 2])
-    y = np.copysign(y, r[0, 2] - r[2, 0])
-    z = np.copysign(z, r[1, 0] - r[0, 1])
-    return float(x), float(y), float(z), float(w)

@@ -61,7 +61,7 @@ class Scene:
     laser_frame: str = "laser"
 
 
-@dataclass(frozen=True)
+@dataclass
 class Frame:
     """The state after one step (``reward`` 0 and no terms after reset); times in ns since
     the controller started (the episode's simulated clock)."""
@@ -147,21 +147,23 @@ class FrameReader:
 
     def reset(self, info: dict[str, Any]) -> Frame:
         self._distance = float(info["distance"])
-        zero = np.zeros(2)
-        return self._frame(zero, 0.0, {}, info, False, False)
+        position, orientation = self.base.robot.body.link_pose()
+        return self._frame(position, orientation, 0.0, 0.0, 0.0, {}, info, False, False)
 
     def step(self, action: Any, reward: float, terminated: bool, truncated: bool,
              info: dict[str, Any]) -> Frame:
-        used = np.clip(np.asarray(action, dtype=np.float64).reshape(-1)[:2], -1.0, 1.0)
-        frame = self._frame(used, float(reward), self._terms(used, info), info,
+        a0, a1 = min(max(float(action[0]), -1.0), 1.0), min(max(float(action[1]), -1.0), 1.0)
+        position, orientation = self.base.robot.body.link_pose()
+        terms = self._terms(position, orientation, a0, a1, info)
+        frame = self._frame(position, orientation, a0, a1, float(reward), terms, info,
                             bool(terminated), bool(truncated))
         self._distance = float(info["distance"])
         return frame
 
-    def _terms(self, action: np.ndarray, info: dict[str, Any]) -> dict[str, float]:
+    def _terms(self, position: Sequence[float], orientation: Sequence[float], a0: float,
+               a1: float, info: dict[str, Any]) -> dict[str, float]:
         """The reward's terms (their sum is the reward, to rounding)."""
-        task, base = self.base.task, self.base
-        position, orientation = base.robot.body.link_pose()
+        task = self.base.task
         qx, qy = orientation[0], orientation[1]
         up_z = 1.0 - 2.0 * (qx * qx + qy * qy)
         half = task.arena_half_size_m
@@ -169,7 +171,7 @@ class FrameReader:
         terms = {
             "progress": task.progress_weight * (self._distance - float(info["distance"])),
             "time": -task.time_cost,
-            "action": -task.action_cost * float(action @ action),
+            "action": -task.action_cost * (a0 * a0 + a1 * a1),
             "success": task.success_bonus * float(bool(info["is_success"])),
             "failure": -task.failure_penalty * float(failure),
         }
@@ -178,24 +180,19 @@ class FrameReader:
             terms["proximity"] = float(task.proximity_reward(float(info["clearance"])))
         return terms
 
-    def _frame(self, action: np.ndarray, reward: float, terms: dict[str, float],
-               info: dict[str, Any], terminated: bool, truncated: bool) -> Frame:
+    def _frame(self, position: Sequence[float], orientation: Sequence[float], a0: float,
+               a1: float, reward: float, terms: dict[str, float], info: dict[str, Any],
+               terminated: bool, truncated: bool) -> Frame:
         base = self.base
         robot = base.robot
-        position, orientation = robot.body.link_pose()
         linear, angular = robot.body.velocity()
         laser = getattr(base, "laser", None)
         return Frame(
-            time_ns=int(base.sim.now_ns), position=tuple(position),
-            orientation=tuple(orientation), linear_velocity=tuple(linear),
-            angular_velocity=tuple(angular), odometry=robot.odometry,
-            joints=robot.joint_states(), action=(float(action[0]), float(action[1])),
-            command=(float(action[0]) * base.max_linear, float(action[1]) * base.max_angular),
-            pwm=tuple(int(p) for p in robot.base.board.pwm), reward=reward,
-            reward_terms=terms, distance_m=float(info["distance"]),
-            odom_error_m=float(info["odom_error"]), success=bool(info["is_success"]),
-            terminated=terminated, truncated=truncated,
-            scan=None if laser is None else laser.latest,
+            base.sim.now_ns, position, orientation, linear, angular, robot.odometry,
+            robot.joint_states(), (a0, a1), (a0 * base.max_linear, a1 * base.max_angular),
+            robot.base.board.pwm, reward, terms, float(info["distance"]),
+            float(info["odom_error"]), bool(info["is_success"]), terminated, truncated,
+            None if laser is None else laser.latest,
         )
 
 

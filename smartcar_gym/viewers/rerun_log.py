@@ -8,7 +8,7 @@ play side by side. Entity tree (REP 103 axes: x forward, z up; metres, radians):
     world/episode_NNN/obstacles/{boxes,cylinders}                             (static)
     world/episode_NNN/path/truth           the true base_link path             (static)
     world/episode_NNN/car                  true pose of base_link, per step
-    world/episode_NNN/car/shapes/*         the URDF's boxes, cylinders, spheres (static)
+    world/episode_NNN/car/shapes/{boxes,cylinders,spheres}   the URDF's visuals (static)
     world/episode_NNN/car/laser/scan       the laser's points, laser frame (SmartCarNav-v0)
     world/episode_NNN/odom                 the odometry frame: the start pose (static)
     world/episode_NNN/odom/base_link       the controller's odometry pose, per step
@@ -35,6 +35,7 @@ import numpy as np
 
 from smartcar_gym.envs.nav_env import OBSTACLE_HEIGHT_M
 from smartcar_gym.envs.robots.smartcar import pose_from
+from smartcar_gym.model.kinematics import matrix_quaternion
 from smartcar_gym.viewers.capture import Episode, Scene
 
 APPLICATION_ID = "smartcar_gym"
@@ -47,6 +48,8 @@ GOAL_COLOR = (220, 40, 40)
 SCAN_COLOR = (230, 30, 30)
 OBSTACLE_COLOR = (140, 140, 150)
 SHAPE_COLORS = {"box": (60, 110, 200), "cylinder": (40, 40, 40), "sphere": (90, 90, 90)}
+_CAR_SHAPES: dict[tuple, list[tuple[str, Any]]] = {}  # the car's archetypes, by its visuals
+_SERIES_LINES: dict[tuple[str, ...], Any] = {}  # series names: the same for every episode
 
 
 def entity(episode: Episode) -> str:
@@ -199,7 +202,10 @@ def _log_series(rec: Any, name: str, scene: Scene, frames: list, times: Any) -> 
     import rerun as rr
 
     def series(path: str, values: np.ndarray, names: list[str]) -> None:
-        rec.log(path, rr.SeriesLines(names=names), static=True)
+        lines = _SERIES_LINES.get(tuple(names))
+        if lines is None:
+            lines = _SERIES_LINES[tuple(names)] = rr.SeriesLines(names=names)
+        rec.log(path, lines, static=True)
         rec.send_columns(path, indexes=[times], columns=rr.Scalars.columns(scalars=values))
 
     series(f"wheel_speed/{name}", np.array([f.joints.velocity for f in frames]),
@@ -244,20 +250,40 @@ def _log_scene(rec: Any, world: str, scene: Scene) -> None:
             lengths=[height] * len(cylinders), radii=[o.size[0] / 2 for o in cylinders],
             centers=[(*o.position, height / 2) for o in cylinders],
             colors=[OBSTACLE_COLOR], fill_mode="solid"), static=True)
-    for i, shape in enumerate(scene.shapes):
-        path = f"{world}/car/shapes/{i}_{shape.link}"
-        rec.log(path, rr.Transform3D(translation=shape.pose[:3, 3], mat3x3=shape.pose[:3, :3]),
-                static=True)
-        color = [SHAPE_COLORS[shape.type]]
-        if shape.type == "box":
-            archetype = rr.Boxes3D(sizes=[shape.size], colors=color, fill_mode="solid")
-        elif shape.type == "cylinder":
-            archetype = rr.Cylinders3D(radii=[shape.size[0]], lengths=[shape.size[1]],
-                                       colors=color, fill_mode="solid")
+    for kind, archetype in _car_shapes(scene.shapes):
+        rec.log(f"{world}/car/shapes/{kind}", archetype, static=True)
+
+
+def _car_shapes(shapes: tuple) -> list[tuple[str, Any]]:
+    """The car's visuals as one archetype per kind (built once per model: episodes share it)."""
+    key = tuple((s.link, s.type, s.size, s.pose.tobytes()) for s in shapes)
+    cached = _CAR_SHAPES.get(key)
+    if cached is not None:
+        return cached
+    import rerun as rr
+
+    built = []
+    for kind in ("box", "cylinder", "sphere"):
+        chosen = [s for s in shapes if s.type == kind]
+        if not chosen:
+            continue
+        centers = [s.pose[:3, 3] for s in chosen]
+        quaternions = [matrix_quaternion(s.pose[:3, :3]) for s in chosen]
+        colors = [SHAPE_COLORS[kind]] * len(chosen)
+        if kind == "box":
+            archetype = rr.Boxes3D(sizes=[s.size for s in chosen], centers=centers,
+                                   quaternions=quaternions, colors=colors, fill_mode="solid")
+        elif kind == "cylinder":
+            archetype = rr.Cylinders3D(radii=[s.size[0] for s in chosen],
+                                       lengths=[s.size[1] for s in chosen], centers=centers,
+                                       quaternions=quaternions, colors=colors,
+                                       fill_mode="solid")
         else:
-            archetype = rr.Ellipsoids3D(half_sizes=[(shape.size[0],) * 3], colors=color,
-                                        fill_mode="solid")
-        rec.log(path, archetype, static=True)
+            archetype = rr.Ellipsoids3D(half_sizes=[(s.size[0],) * 3 for s in chosen],
+                                        centers=centers, colors=colors, fill_mode="solid")
+        built.append((f"{kind}es" if kind == "box" else f"{kind}s", archetype))
+    _CAR_SHAPES[key] = built
+    return built
 
 
 def _log_scans(rec: Any, laser: str, scene: Scene, frames: list, times: Any) -> None:

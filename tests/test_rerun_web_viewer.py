@@ -4,6 +4,8 @@
 from __future__ import annotations
 
 import importlib.util
+import os
+import signal
 import socket
 
 import numpy as np
@@ -72,14 +74,15 @@ def test_rerun_serve_web_shows_a_recorded_file(tmp_path):
     grpc, web = _free_port(), _free_port()
     server = subprocess.Popen([sys.executable, "-m", "rerun", "--serve-web", "--port", str(grpc),
                                "--web-viewer-port", str(web), str(path)],
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                              start_new_session=True)  # python -m rerun runs rerun_cli/rerun
     try:
         image = screenshot(f"http://127.0.0.1:{web}/?url=rerun%2Bhttp%3A%2F%2F127.0.0.1%3A"
                            f"{grpc}%2Fproxy", tmp_path / "file.png",
                            ready=lambda i: (color_pixels(i, GOAL_COLOR) > 200
                                             and color_pixels(i, TRUTH_COLOR) > 200),
                            timeout_s=150)
-    finally:
-        server.terminate()
+    finally:  # the whole group: the wrapper and the viewer binary it started
+        os.killpg(server.pid, signal.SIGTERM)
         server.wait(timeout=30)
     assert _colors(image) > 500

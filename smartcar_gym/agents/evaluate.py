@@ -16,6 +16,7 @@ loaded with it (``model_files`` says which).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import sys
 from collections.abc import Sequence
@@ -104,6 +105,20 @@ def build_parser() -> argparse.ArgumentParser:
                         help="write the episodes as a ROS 1 bag or MCAP file (odom, tf, "
                              "joint_states, cmd_vel, goal, ground truth; simulated time; "
                              "needs the ros extra, not ROS)")
+    parser.add_argument("--bag-format", choices=("ros1", "ros2"), default="ros1",
+                        help="ros1: FILE.bag or FILE.mcap (ROS 1 messages); ros2: a rosbag2 "
+                             "folder FILE (CDR messages, also /scan and /robot_description) "
+                             "for ros2 bag and Foxglove, written from the evaluated episodes")
+    parser.add_argument("--bag-storage", choices=("mcap", "sqlite3"), default="mcap",
+                        help="storage of a ros2 bag (default: mcap)")
+    parser.add_argument("--rerun", type=Path, metavar="FILE.rrd", help="write every evaluated "
+                        "episode to a Rerun recording (needs the rerun extra)")
+    parser.add_argument("--rerun-serve", action="store_true", help="stream the episodes to "
+                        "Rerun's web viewer, served locally from the rerun-sdk package, and "
+                        "keep serving until Ctrl-C")
+    parser.add_argument("--rerun-ports", nargs=2, type=positive_int_arg, default=(9876, 9090),
+                        metavar=("GRPC", "WEB"), help="ports of --rerun-serve's gRPC server "
+                        "and web viewer (default: Rerun's 9876 9090)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     return parser
 
@@ -144,52 +159,114 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(f"smartcar-eval: warning: {policy.warning}", file=sys.stderr)
     common = dict(env_id=env_id, seed=args.seed, env_kwargs=env_kwargs,
                   deterministic=not args.stochastic)
-    try:
-        records = evaluate_policy_episodes(
-            policy, n_episodes=args.episodes, n_envs=args.n_envs,
-            progress=not args.no_progress, **common,
-        )
-    except ObservationShapeError as err:
-        parser.error(str(err))
-    summary = summarize(records)
-    outputs: dict[str, Any] = {} if args.random else {"normaliser": vecnormalize or source}
-    if args.json is not None:
-        payload = {
-            "model": str(model_path if not args.pretrained else "pretrained:" + (
-                PRETRAINED_MODEL if args.pretrained == "default"
-                else f"{args.pretrained}/{PRETRAINED_MODEL}")),
-            "algo": algo, "env": env_id, "env_kwargs": env_kwargs, "seed": args.seed,
-            "n_envs": args.n_envs, "deterministic": not args.stochastic,
-            "normalizer": None if vecnormalize is None else str(vecnormalize),
-            "normalizer_source": source, "warnings": warnings,
-            **summary,
-            "episode_records": [r.to_dict() for r in records],
-        }
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps(payload, indent=2) + "\n")
-        outputs["json"] = args.json
-    if args.plot is not None:
-        from smartcar_gym.agents.plots import plot_trajectories
+    with contextlib.ExitStack() as stack:
+        recorders = _recorders(args, stack)
+        try:
+            records = evaluate_policy_episodes(
+                policy, n_episodes=args.episodes, n_envs=args.n_envs,
+                progress=not args.no_progress, recorders=recorders, **common,
+            )
+        except ObservationShapeError as err:
+            parser.error(str(err))
+        outputs: dict[str, Any] = {} if args.random else {"normaliser": vecnormalize or source}
+        outputs.update(_close_recorders(recorders))
+        summary = summarize(records)
+        if args.json is not None:
+            payload = {
+                "model": str(model_path if not args.pretrained else "pretrained:" + (
+                    PRETRAINED_MODEL if args.pretrained == "default"
+                    else f"{args.pretrained}/{PRETRAINED_MODEL}")),
+                "algo": algo, "env": env_id, "env_kwargs": env_kwargs, "seed": args.seed,
+                "n_envs": args.n_envs, "deterministic": not args.stochastic,
+                "normalizer": None if vecnormalize is None else str(vecnormalize),
+                "normalizer_source": source, "warnings": warnings,
+                **summary,
+                "episode_records": [r.to_dict() for r in records],
+            }
+            args.json.parent.mkdir(parents=True, exist_ok=True)
+            args.json.write_text(json.dumps(payload, indent=2) + "\n")
+            outputs["json"] = args.json
+        if args.plot is not None:
+            from smartcar_gym.agents.plots import plot_trajectories
 
-        tolerance = float(env_kwargs.get("goal_tolerance", 0.1))
-        shown = " (first 16 shown)" if len(records) > 16 else ""
-        plot_trajectories(records, args.plot, goal_tolerance_m=tolerance,
-                          title=f"{model_path.name} on {env_id}: "
-                                f"{summary['success_rate']:.0%} success over "
-                                f"{len(records)} episodes{shown}")
-        outputs["plot"] = args.plot
-    if args.video is not None:
-        n_frames = record_video(policy, args.video, n_episodes=args.video_episodes, **common)
-        outputs[f"video ({n_frames} frames)"] = args.video
-    if args.bag is not None:
-        from smartcar_gym.ros.bag import write_bag
+            tolerance = float(env_kwargs.get("goal_tolerance", 0.1))
+            shown = " (first 16 shown)" if len(records) > 16 else ""
+            plot_trajectories(records, args.plot, goal_tolerance_m=tolerance,
+                              title=f"{model_path.name} on {env_id}: "
+                                    f"{summary['success_rate']:.0%} success over "
+                                    f"{len(records)} episodes{shown}")
+            outputs["plot"] = args.plot
+        if args.video is not None:
+            n_frames = record_video(policy, args.video, n_episodes=args.video_episodes, **common)
+            outputs[f"video ({n_frames} frames)"] = args.video
+        if args.bag is not None and args.bag_format == "ros1":
+            from smartcar_gym.ros.bag import write_bag
 
-        n_messages = write_bag(policy, args.bag, n_episodes=args.episodes, **common)
-        outputs[f"bag ({n_messages} messages)"] = args.bag
-    _print_summary(summary, model_path, env_id, args, outputs)
-    for warning in warnings:  # again after the table, where the numbers are read
-        print(f"smartcar-eval: warning: {warning}", file=sys.stderr)
+            n_messages = write_bag(policy, args.bag, n_episodes=args.episodes, **common)
+            outputs[f"bag ({n_messages} messages)"] = args.bag
+        _print_summary(summary, model_path, env_id, args, outputs)
+        for warning in warnings:  # again after the table, where the numbers are read
+            print(f"smartcar-eval: warning: {warning}", file=sys.stderr)
+        if args.rerun_serve:
+            _serve_until_interrupted(recorders)
     return 0
+
+
+def _recorders(args: argparse.Namespace, stack: contextlib.ExitStack) -> list[Any]:
+    """The sinks the evaluated episodes go to (``--rerun``, ``--rerun-serve``, a ros2
+    ``--bag``); an error leaves no half-written file."""
+    recorders: list[Any] = []
+    if args.rerun is not None or args.rerun_serve:
+        from smartcar_gym.viewers.rerun_log import RerunSink
+
+        grpc_port, web_port = args.rerun_ports
+        sink = RerunSink(args.rerun, serve=args.rerun_serve, grpc_port=grpc_port,
+                         web_port=web_port)
+        if sink.web_url:
+            print(f"smartcar-eval: Rerun web viewer: {sink.web_url}", file=sys.stderr)
+        recorders.append(sink)
+    if args.bag is not None and args.bag_format == "ros2":
+        from smartcar_gym.ros.bag_ros2 import Ros2BagSink
+
+        recorders.append(Ros2BagSink(args.bag, storage=args.bag_storage))
+
+    def discard(kind: Any, error: Any, trace: Any) -> None:
+        if error is not None:
+            for recorder in recorders:
+                recorder.discard()
+
+    stack.push(discard)
+    return recorders
+
+
+def _close_recorders(recorders: list[Any]) -> dict[str, Any]:
+    """Finish the recorders' files; what they wrote, for the summary table."""
+    from smartcar_gym.viewers.rerun_log import RerunSink
+
+    written: dict[str, Any] = {}
+    for recorder in recorders:
+        recorder.close()
+        if isinstance(recorder, RerunSink):
+            if recorder.path is not None:
+                written[f"rerun ({recorder.episodes} episodes)"] = recorder.path
+        else:
+            written[f"ros2 bag ({recorder.count} messages)"] = recorder.path
+    return written
+
+
+def _serve_until_interrupted(recorders: list[Any]) -> None:
+    """Keep the web viewer up until Ctrl-C."""
+    import time
+
+    from smartcar_gym.viewers.rerun_log import RerunSink
+
+    url = next(r.web_url for r in recorders if isinstance(r, RerunSink))
+    print(f"smartcar-eval: serving the episodes at {url}; Ctrl-C stops", file=sys.stderr)
+    try:
+        while True:
+            time.sleep(3600)
+    except KeyboardInterrupt:
+        pass
 
 
 def check_outputs(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
@@ -203,15 +280,31 @@ def check_outputs(parser: argparse.ArgumentParser, args: argparse.Namespace) -> 
         if args.plot.suffix[1:].lower() not in formats:
             parser.error(f"--plot: cannot write {args.plot.suffix} images; use .png, .svg or "
                          ".pdf")
-    if args.bag is not None:
+    if args.bag is not None and args.bag_format == "ros1":
         from smartcar_gym.ros.bag import SUFFIXES, missing_library
 
         if args.bag.suffix not in SUFFIXES:
             parser.error(f"--bag: the file must end in .bag or .mcap, got {str(args.bag)!r}")
         if missing_library():
             parser.error(f"--bag: {missing_library()}")
+    if args.bag is not None and args.bag_format == "ros2":
+        from smartcar_gym.ros.bag_ros2 import missing_library
+
+        if missing_library():
+            parser.error(f"--bag: {missing_library()}")
+        if args.bag.exists():
+            parser.error(f"--bag: {args.bag} exists; a ROS 2 bag is a new folder (remove it "
+                         "or pick another name)")
+    if args.rerun is not None or args.rerun_serve:
+        from smartcar_gym.viewers import missing_rerun
+
+        option = "--rerun" if args.rerun is not None else "--rerun-serve"
+        if missing_rerun():
+            parser.error(f"{option}: {missing_rerun()}")
+        if args.rerun is not None and args.rerun.suffix != ".rrd":
+            parser.error(f"--rerun: the file must end in .rrd, got {str(args.rerun)!r}")
     for option, path in (("--json", args.json), ("--plot", args.plot), ("--video", args.video),
-                         ("--bag", args.bag)):
+                         ("--bag", args.bag), ("--rerun", args.rerun)):
         problem = None if path is None else output_path_error(path)
         if problem:
             parser.error(f"{option}: {problem}")

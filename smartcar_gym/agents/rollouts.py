@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -72,8 +72,9 @@ def summarize(records: Sequence[EpisodeRecord]) -> dict[str, float | int | None]
     }
 
 
-def _vector_env(env_id: str, n_envs: int, env_kwargs: dict[str, Any]) -> gym.vector.VectorEnv:
-    fns = [_EnvFn(env_id, env_kwargs) for _ in range(n_envs)]
+def _vector_env(env_id: str, n_envs: int, env_kwargs: dict[str, Any],
+                capture: bool = False) -> gym.vector.VectorEnv:
+    fns = [_EnvFn(env_id, env_kwargs, capture) for _ in range(n_envs)]
     mode = gym.vector.AutoresetMode.DISABLED
     if n_envs == 1:
         return gym.vector.SyncVectorEnv(fns, autoreset_mode=mode)
@@ -86,9 +87,15 @@ class _EnvFn:
 
     env_id: str
     env_kwargs: dict[str, Any]
+    capture: bool = False  # add info["capture"] for recorders (smartcar_gym.viewers.capture)
 
     def __call__(self) -> gym.Env:
-        return make_env(self.env_id, self.env_kwargs)
+        env = make_env(self.env_id, self.env_kwargs)
+        if self.capture:
+            from smartcar_gym.viewers.capture import CaptureWrapper
+
+            env = CaptureWrapper(env)
+        return env
 
 
 class RandomPolicy:
@@ -117,6 +124,7 @@ def evaluate_policy_episodes(
     deterministic: bool = True,
     vecnormalize_path: str | os.PathLike | None = None,
     progress: bool = False,
+    recorders: Sequence[Callable[[Any], None]] = (),
 ) -> list[EpisodeRecord]:
     """Run ``n_episodes`` complete episodes over ``n_envs`` envs; episode i uses seed seed+i.
 
@@ -126,6 +134,10 @@ def evaluate_policy_episodes(
     run in worker processes when ``n_envs > 1`` (so call it under ``if __name__ ==
     "__main__":`` in a script). Records are returned in episode order. Sampled actions
     (``deterministic=False``) are reproducible for the same ``seed`` and ``n_envs``.
+
+    ``recorders`` (a Rerun recording, a ROS 2 bag: ``smartcar_gym.viewers``) are called with
+    each finished ``Episode`` (scene and per-step frames, read in the workers), in episode
+    order; recording only reads the simulator, so the episodes are the same with or without.
     """
     if n_episodes < 1 or n_envs < 1:
         raise ValueError(f"n_episodes and n_envs must be >= 1, got {n_episodes}, {n_envs}")
@@ -133,7 +145,12 @@ def evaluate_policy_episodes(
     if not deterministic and hasattr(policy.model, "set_random_seed"):
         policy.model.set_random_seed(seed)
     n_slots = min(n_envs, n_episodes)
-    envs = _vector_env(env_id, n_slots, dict(env_kwargs or {}))
+    envs = _vector_env(env_id, n_slots, dict(env_kwargs or {}), capture=bool(recorders))
+    collector = None
+    if recorders:
+        from smartcar_gym.viewers.capture import CAPTURE_KEY, EpisodeCollector
+
+        collector = EpisodeCollector(list(recorders))
     try:
         _check_spaces(policy, envs.single_observation_space, env_id)
     except ObservationShapeError:
@@ -151,6 +168,9 @@ def evaluate_policy_episodes(
         obs, info = envs.reset(seed=[seed + i for i in range(n_slots)])
         goals = _goals(envs, range(n_slots))
         tracks = [_Track(i, seed + i, goals[i], info, i) for i in range(n_slots)]
+        if collector is not None:
+            for slot in range(n_slots):
+                collector.begin(slot, slot, seed + slot, info[CAPTURE_KEY][slot])
         next_episode = n_slots
         while any(e is not None for e in episode_of):
             actions = np.zeros((n_slots, *envs.single_action_space.shape), dtype=np.float32)
@@ -164,6 +184,8 @@ def evaluate_policy_episodes(
                     continue
                 track = tracks[slot]
                 track.add(float(reward[slot]), info, slot)
+                if collector is not None:
+                    collector.add(slot, info[CAPTURE_KEY][slot])
                 if terminated[slot] or truncated[slot]:
                     records.append(track.record(step_s))
                     if bar is not None:
@@ -185,6 +207,9 @@ def evaluate_policy_episodes(
                     tracks[slot] = _Track(
                         episode_of[slot], seed + episode_of[slot], goals[slot], new_info, slot
                     )
+                    if collector is not None:
+                        collector.begin(slot, episode_of[slot], seed + episode_of[slot],
+                                        new_info[CAPTURE_KEY][slot])
     finally:
         if bar is not None:
             bar.close()

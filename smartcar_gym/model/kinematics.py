@@ -31,6 +31,15 @@ def quaternion_matrix(quaternion: Sequence[float]) -> np.ndarray:
     ])
 
 
+def matrix_quaternion(r: np.ndarray) -> tuple[float, float, float, float]:
+    """The (x, y, z, w) unit quaternion of a rotation matrix (``quaternion_matrix``'s inverse)."""
+    w = np.sqrt(max(0.0, 1.0 + r[0, 0] + r[1, 1] + r[2, 2])) / 2.0
+    x = np.copysign(np.sqrt(max(0.0, 1.0 + r[0, 0] - r[1, 1] - r[2, 2])) / 2.0, r[2, 1] - r[1, 2])
+    y = np.copysign(np.sqrt(max(0.0, 1.0 - r[0, 0] + r[1, 1] - r[2, 2])) / 2.0, r[0, 2] - r[2, 0])
+    z = np.copysign(np.sqrt(max(0.0, 1.0 - r[0, 0] - r[1, 1] + r[2, 2])) / 2.0, r[1, 0] - r[0, 1])
+    return float(x), float(y), float(z), float(w)
+
+
 def transform(origin: Origin) -> np.ndarray:
     """4x4 homogeneous transform of an ``<origin>``."""
     result = np.eye(4)

@@ -1,0 +1,22 @@
+"""Looking at episodes: Rerun recordings and the capture of what they show.
+
+* ``capture``: ``Scene`` and ``Frame`` read from a SmartCarEnv, ``CaptureWrapper`` (into
+  ``info``, for vector-env workers), ``EpisodeCollector`` (whole episodes, in order).
+* ``rerun_log``: ``RerunSink``, episodes into an ``.rrd`` file and/or Rerun's web viewer.
+
+``smartcar_gym.wrappers.RerunRecorder`` records any loop; ``smartcar-eval --rerun`` the
+evaluation. ROS 2 bags are written by ``smartcar_gym.ros.bag_ros2`` from the same episodes.
+"""
+
+from __future__ import annotations
+
+RERUN_EXTRA = 'pip install "smartcar-gym[rerun]"'
+
+
+def missing_rerun() -> str | None:
+    """One line naming the extra if ``rerun-sdk`` is not installed, else None."""
+    from smartcar_gym.agents import missing_modules
+
+    if missing_modules(("rerun",)):
+        return f"rerun-sdk not installed; recording needs the rerun extra: {RERUN_EXTRA}"
+    return None

@@ -1,0 +1,311 @@
+"""Episodes as a Rerun recording: to an ``.rrd`` file, to Rerun's web viewer live, or both.
+
+One recording holds every episode, each under entities of its own (``episode_007``), on one
+timeline, ``sim_time``: simulated seconds since the episode's controller started, so episodes
+play side by side. Entity tree (REP 103 axes: x forward, z up; metres, radians)::
+
+    world/episode_NNN/goal                 goal point and its tolerance circle (static)
+    world/episode_NNN/obstacles/{boxes,cylinders}                             (static)
+    world/episode_NNN/path/truth           the true base_link path             (static)
+    world/episode_NNN/car                  true pose of base_link, per step
+    world/episode_NNN/car/shapes/{boxes,cylinders,spheres}   the URDF's visuals (static)
+    world/episode_NNN/car/laser/scan       the laser's points, laser frame (SmartCarNav-v0)
+    world/episode_NNN/odom                 the odometry frame: the start pose (static)
+    world/episode_NNN/odom/base_link       the controller's odometry pose, per step
+    world/episode_NNN/odom/path            the odometry path                   (static)
+    wheel_speed/episode_NNN                wheel joint velocities (rad/s), one series a wheel
+    command/episode_NNN                    cmd_vel linear.x (m/s), angular.z (rad/s)
+    pwm/episode_NNN                        the board's PWM, left and right (-255..255)
+    reward/episode_NNN                     the reward's terms and their total
+    distance/episode_NNN, odom_error/episode_NNN, success/episode_NNN
+    robot_description                      the URDF text (static)
+
+Needs ``rerun-sdk`` (the ``rerun`` extra). Episodes are sent whole, as columns, when they
+end: recording costs little next to simulating them.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any
+from urllib.parse import quote
+
+import numpy as np
+
+from smartcar_gym.envs.nav_env import OBSTACLE_HEIGHT_M
+from smartcar_gym.envs.robots.smartcar import pose_from
+from smartcar_gym.model.kinematics import matrix_quaternion
+from smartcar_gym.viewers.capture import Episode, Scene
+
+APPLICATION_ID = "smartcar_gym"
+TIMELINE = "sim_time"
+GRPC_PORT = 9876  # Rerun's defaults
+WEB_PORT = 9090
+TRUTH_COLOR = (40, 170, 80)
+ODOM_COLOR = (240, 140, 20)
+GOAL_COLOR = (220, 40, 40)
+SCAN_COLOR = (230, 30, 30)
+OBSTACLE_COLOR = (140, 140, 150)
+SHAPE_COLORS = {"box": (60, 110, 200), "cylinder": (40, 40, 40), "sphere": (90, 90, 90)}
+_CAR_SHAPES: dict[tuple, list[tuple[str, Any]]] = {}  # the car's archetypes, by its visuals
+_SERIES_LINES: dict[tuple[str, ...], Any] = {}  # series names: the same for every episode
+
+
+def entity(episode: Episode) -> str:
+    """The entity name of an episode (``episode_007``)."""
+    return f"episode_{episode.index:03d}"
+
+
+def blueprint() -> Any:
+    """The viewer's layout: the world in 3D beside the time series."""
+    import rerun.blueprint as rrb
+
+    return rrb.Blueprint(
+        rrb.Horizontal(
+            rrb.Spatial3DView(origin="/world", name="world (true pose, odometry, goal, scan)"),
+            rrb.Vertical(
+                rrb.TimeSeriesView(origin="/wheel_speed", name="wheel speeds (rad/s)"),
+                rrb.TimeSeriesView(origin="/command", name="cmd_vel (m/s, rad/s)"),
+                rrb.TimeSeriesView(origin="/pwm", name="PWM"),
+                rrb.TimeSeriesView(origin="/reward", name="reward terms"),
+                rrb.TimeSeriesView(origin="/distance", name="distance to goal (m)"),
+            ),
+            column_shares=[3, 2],
+        ),
+        collapse_panels=True,
+    )
+
+
+def web_viewer_url(grpc_url: str, web_port: int = WEB_PORT) -> str:
+    """The address of the local web viewer, connected to the gRPC server at ``grpc_url``."""
+    return f"http://localhost:{web_port}/?url={quote(grpc_url, safe='')}"
+
+
+class RerunSink:
+    """Writes ``Episode`` objects to a Rerun recording.
+
+    Args:
+        path: an ``.rrd`` file, written whole when ``close`` is called.
+        serve: host a gRPC server (``grpc_port``) and Rerun's web viewer (``web_port``), both
+            from the ``rerun-sdk`` package (no internet); ``web_url`` is where to look.
+        recording: a ``rerun.RecordingStream`` of your own instead (then ``path`` and
+            ``serve`` must be left out): the episodes go to wherever it sends its data.
+    """
+
+    def __init__(self, path: str | os.PathLike | None = None, *, serve: bool = False,
+                 grpc_port: int = GRPC_PORT, web_port: int = WEB_PORT,
+                 recording: Any = None, recording_id: str | None = None) -> None:
+        import rerun as rr
+
+        self.path = None if path is None else Path(path)
+        self.web_url: str | None = None
+        self.episodes = 0
+        self._described = False
+        if recording is not None:
+            if path is not None or serve:
+                raise ValueError("pass a recording or path/serve, not both")
+            self.rec = recording
+            self._partial = None
+        else:
+            if path is None and not serve:
+                raise ValueError("a Rerun recording needs a path (.rrd), serve=True or both")
+            if self.path is not None and self.path.suffix != ".rrd":
+                raise ValueError(f"Rerun recordings end in .rrd, got {self.path.name!r}")
+            hosted = hasattr(rr, "GrpcServerSink")  # rerun-sdk 0.24 serves with serve_grpc
+            if serve and path is not None and not hosted:
+                raise ValueError(f"rerun-sdk {rr.__version__} cannot write a file and serve at "
+                                 "once; upgrade it (pip install -U rerun-sdk) or do one")
+            self.rec = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id)
+            self._partial = None
+            sinks = []
+            if self.path is not None:
+                self.path.parent.mkdir(parents=True, exist_ok=True)
+                self._partial = self.path.with_name(f".{self.path.stem}.partial.rrd")
+                sinks.append(rr.FileSink(str(self._partial)))
+            if serve and hosted:
+                server = rr.GrpcServerSink(bind_ip="127.0.0.1", port=grpc_port)  # this machine
+                sinks.append(server)
+                grpc_url = server.uri
+            if sinks:
+                self.rec.set_sinks(*sinks, default_blueprint=blueprint())
+            else:  # serving with rerun-sdk 0.24
+                grpc_url = self.rec.serve_grpc(grpc_port=grpc_port,
+                                               default_blueprint=blueprint())
+            if serve:
+                rr.serve_web_viewer(web_port=web_port, open_browser=False, connect_to=grpc_url)
+                self.web_url = web_viewer_url(grpc_url, web_port)
+        self.rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+
+    def __call__(self, episode: Episode) -> None:
+        self.write(episode)
+
+    def write(self, episode: Episode) -> None:
+        """Send one whole episode."""
+        import rerun as rr
+
+        rec, name, scene, frames = self.rec, entity(episode), episode.scene, episode.frames
+        if not self._described:
+            rec.log("robot_description", rr.TextDocument(scene.urdf, media_type="text/plain"),
+                    static=True)
+            self._described = True
+        world = f"world/{name}"
+        _log_scene(rec, world, scene)
+        times = rr.TimeColumn(TIMELINE, duration=np.array([f.time_ns for f in frames]) / 1e9)
+        truth = np.array([f.position for f in frames])
+        rec.log(f"{world}/path/truth", rr.LineStrips3D([truth], colors=[TRUTH_COLOR],
+                                                       radii=0.01), static=True)
+        rec.send_columns(f"{world}/car", indexes=[times], columns=rr.Transform3D.columns(
+            translation=truth, quaternion=np.array([f.orientation for f in frames])))
+        start = frames[0]
+        yaw0 = pose_from(start.position, start.orientation).yaw
+        rec.log(f"{world}/odom", rr.Transform3D(
+            translation=(start.position[0], start.position[1], 0.0),
+            quaternion=(0.0, 0.0, np.sin(yaw0 / 2), np.cos(yaw0 / 2))), static=True)
+        odom = np.array([(f.odometry.x, f.odometry.y, f.odometry.theta) for f in frames])
+        odom_xyz = np.column_stack([odom[:, 0], odom[:, 1], np.full(len(odom), truth[0, 2])])
+        rec.log(f"{world}/odom/path", rr.LineStrips3D([odom_xyz], colors=[ODOM_COLOR],
+                                                      radii=0.01), static=True)
+        rec.log(f"{world}/odom/base_link", rr.Arrows3D(vectors=[(0.15, 0.0, 0.0)],
+                                                       colors=[ODOM_COLOR], radii=0.008),
+                static=True)
+        half = odom[:, 2] / 2
+        rec.send_columns(f"{world}/odom/base_link", indexes=[times],
+                         columns=rr.Transform3D.columns(
+                             translation=odom_xyz,
+                             quaternion=np.column_stack([np.zeros_like(half),
+                                                         np.zeros_like(half), np.sin(half),
+                                                         np.cos(half)])))
+        if scene.laser_mount is not None and any(f.scan is not None for f in frames):
+            _log_scans(rec, f"{world}/car/laser", scene, frames, times)
+        _log_series(rec, name, scene, frames, times)
+        self.episodes += 1
+
+    def close(self) -> None:
+        """Flush; the ``.rrd`` file appears at its path now, complete."""
+        self.rec.flush()
+        if self._partial is not None:
+            self.rec.disconnect()
+            os.replace(self._partial, self.path)
+            self._partial = None
+
+    def discard(self) -> None:
+        """Stop without leaving a file (after an error)."""
+        if self._partial is not None:
+            self.rec.disconnect()
+            self._partial.unlink(missing_ok=True)
+            self._partial = None
+
+
+def _log_series(rec: Any, name: str, scene: Scene, frames: list, times: Any) -> None:
+    """The time series of one episode (wheel speeds, command, PWM, reward terms, ...)."""
+    import rerun as rr
+
+    def series(path: str, values: np.ndarray, names: list[str]) -> None:
+        lines = _SERIES_LINES.get(tuple(names))
+        if lines is None:
+            lines = _SERIES_LINES[tuple(names)] = rr.SeriesLines(names=names)
+        rec.log(path, lines, static=True)
+        rec.send_columns(path, indexes=[times], columns=rr.Scalars.columns(scalars=values))
+
+    series(f"wheel_speed/{name}", np.array([f.joints.velocity for f in frames]),
+           list(scene.wheel_joints))
+    series(f"command/{name}", np.array([f.command for f in frames]),
+           ["linear.x (m/s)", "angular.z (rad/s)"])
+    series(f"pwm/{name}", np.array([f.pwm for f in frames], dtype=float),
+           ["left", "right"])
+    terms = list(frames[-1].reward_terms)
+    rewards = np.array([[f.reward_terms.get(t, 0.0) for t in terms] + [f.reward]
+                        for f in frames])
+    series(f"reward/{name}", rewards, [*terms, "total"])
+    series(f"distance/{name}", np.array([[f.distance_m] for f in frames]), ["distance"])
+    series(f"odom_error/{name}", np.array([[f.odom_error_m] for f in frames]),
+           ["odometry error (m)"])
+    series(f"success/{name}", np.array([[float(f.success)] for f in frames]), ["success"])
+
+
+def _log_scene(rec: Any, world: str, scene: Scene) -> None:
+    """The goal, the obstacles and the car's shapes (static)."""
+    import rerun as rr
+
+    gx, gy = scene.goal
+    rec.log(f"{world}/goal", rr.Points3D([(gx, gy, 0.0)], colors=[GOAL_COLOR], radii=0.03,
+                                         labels=["goal"]), static=True)
+    angle = np.linspace(0.0, 2 * np.pi, 49)
+    circle = np.column_stack([gx + scene.goal_tolerance_m * np.cos(angle),
+                              gy + scene.goal_tolerance_m * np.sin(angle), np.zeros_like(angle)])
+    rec.log(f"{world}/goal/tolerance", rr.LineStrips3D([circle], colors=[GOAL_COLOR],
+                                                       radii=0.004), static=True)
+    boxes = [o for o in scene.obstacles if o.shape == "box"]
+    cylinders = [o for o in scene.obstacles if o.shape == "cylinder"]
+    height = OBSTACLE_HEIGHT_M
+    if boxes:
+        rec.log(f"{world}/obstacles/boxes", rr.Boxes3D(
+            half_sizes=[(o.size[0] / 2, o.size[1] / 2, height / 2) for o in boxes],
+            centers=[(*o.position, height / 2) for o in boxes],
+            quaternions=[(0.0, 0.0, np.sin(o.yaw / 2), np.cos(o.yaw / 2)) for o in boxes],
+            colors=[OBSTACLE_COLOR], fill_mode="solid"), static=True)
+    if cylinders:
+        rec.log(f"{world}/obstacles/cylinders", rr.Cylinders3D(
+            lengths=[height] * len(cylinders), radii=[o.size[0] / 2 for o in cylinders],
+            centers=[(*o.position, height / 2) for o in cylinders],
+            colors=[OBSTACLE_COLOR], fill_mode="solid"), static=True)
+    for kind, archetype in _car_shapes(scene.shapes):
+        rec.log(f"{world}/car/shapes/{kind}", archetype, static=True)
+
+
+def _car_shapes(shapes: tuple) -> list[tuple[str, Any]]:
+    """The car's visuals as one archetype per kind (built once per model: episodes share it)."""
+    key = tuple((s.link, s.type, s.size, s.pose.tobytes()) for s in shapes)
+    cached = _CAR_SHAPES.get(key)
+    if cached is not None:
+        return cached
+    import rerun as rr
+
+    built = []
+    for kind in ("box", "cylinder", "sphere"):
+        chosen = [s for s in shapes if s.type == kind]
+        if not chosen:
+            continue
+        centers = [s.pose[:3, 3] for s in chosen]
+        quaternions = [matrix_quaternion(s.pose[:3, :3]) for s in chosen]
+        colors = [SHAPE_COLORS[kind]] * len(chosen)
+        if kind == "box":
+            archetype = rr.Boxes3D(sizes=[s.size for s in chosen], centers=centers,
+                                   quaternions=quaternions, colors=colors, fill_mode="solid")
+        elif kind == "cylinder":
+            archetype = rr.Cylinders3D(radii=[s.size[0] for s in chosen],
+                                       lengths=[s.size[1] for s in chosen], centers=centers,
+                                       quaternions=quaternions, colors=colors,
+                                       fill_mode="solid")
+        else:
+            archetype = rr.Ellipsoids3D(half_sizes=[(s.size[0],) * 3 for s in chosen],
+                                        centers=centers, colors=colors, fill_mode="solid")
+        built.append((f"{kind}es" if kind == "box" else f"{kind}s", archetype))
+    _CAR_SHAPES[key] = built
+    return built
+
+
+def _log_scans(rec: Any, laser: str, scene: Scene, frames: list, times: Any) -> None:
+    """Each frame's latest scan as points in the laser frame (finite ranges only)."""
+    import rerun as rr
+
+    mount = scene.laser_mount
+    rec.log(laser, rr.Transform3D(translation=mount[:3, 3], mat3x3=mount[:3, :3]), static=True)
+    points, lengths = [], []
+    for frame in frames:
+        scan = frame.scan
+        if scan is None:
+            lengths.append(0)
+            continue
+        ranges = np.asarray(scan.ranges, dtype=np.float64)
+        angles = scan.angle_min + scan.angle_increment * np.arange(len(ranges))
+        hit = np.isfinite(ranges)
+        r, a = ranges[hit], angles[hit]
+        points.append(np.column_stack([r * np.cos(a), r * np.sin(a), np.zeros_like(r)]))
+        lengths.append(len(r))
+    positions = np.concatenate(points) if points else np.zeros((0, 3))
+    rec.log(f"{laser}/scan", rr.Points3D.from_fields(colors=[SCAN_COLOR], radii=0.02),
+            static=True)  # static positions would hide the per-step ones
+    rec.send_columns(f"{laser}/scan", indexes=[times],
+                     columns=rr.Points3D.columns(positions=positions).partition(lengths))

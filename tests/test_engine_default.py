@@ -3,14 +3,13 @@ argument existed, bit for bit (the commit before it, extracted with ``git archiv
 
 from __future__ import annotations
 
-import shutil
 import subprocess
 import sys
-import tarfile
 import textwrap
 from pathlib import Path
 
 import pytest
+from git_trees import package_at
 
 REPO = Path(__file__).resolve().parent.parent
 BEFORE_ENGINES = "1b9b166"  # the last commit before engine= (smartcar_gym/sim/clock.py)
@@ -43,22 +42,10 @@ def _digests(tree: Path, extra: str) -> str:
     return done.stdout
 
 
-def _tree_before(tmp: Path) -> Path | None:
-    if shutil.which("git") is None:
-        return None
-    archive = tmp / "before.tar"
-    done = subprocess.run(["git", "-C", str(REPO), "archive", "-o", str(archive), BEFORE_ENGINES,
-                           "smartcar_gym"], capture_output=True, timeout=60, check=False)
-    if done.returncode != 0:
-        return None
-    with tarfile.open(archive) as tar:
-        tar.extractall(tmp / "before", filter="data")
-    return tmp / "before"
-
 
 @pytest.mark.slow
 def test_pybullet_rollouts_are_unchanged_by_the_engine_argument(tmp_path):
-    tree = _tree_before(tmp_path)
+    tree = package_at(BEFORE_ENGINES, tmp_path, "before")
     if tree is None:
         pytest.skip(f"needs git and commit {BEFORE_ENGINES} (a clone with its history)")
     before = _digests(tree, "{}")

@@ -6,10 +6,8 @@ import copy
 import math
 import os
 import pickle
-import shutil
 import subprocess
 import sys
-import tarfile
 import textwrap
 from pathlib import Path
 
@@ -17,6 +15,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 import yaml
+from git_trees import package_at
 
 import smartcar_gym  # noqa: F401
 from smartcar_gym.envs.randomization import (
@@ -58,24 +57,12 @@ def _digests(pythonpath: Path, kwargs: str, cwd: Path) -> str:
                           text=True, env=env, cwd=cwd, timeout=300, check=True).stdout
 
 
-def _tree_before(tmp: Path) -> Path | None:
-    if shutil.which("git") is None:
-        return None
-    archive = tmp / "before.tar"
-    done = subprocess.run(["git", "-C", str(REPO), "archive", "-o", str(archive), BEFORE,
-                           "smartcar_gym"], capture_output=True, timeout=60, check=False)
-    if done.returncode != 0:
-        return None
-    with tarfile.open(archive) as tar:
-        tar.extractall(tmp / "before", filter="data")
-    return tmp / "before"
-
 
 # -- the nominal env ---------------------------------------------------------------------------
 @pytest.mark.slow
 def test_randomize_none_is_the_env_before_randomisation_bit_for_bit(tmp_path):
     """Observations, rewards, poses, odometry and info keys equal the code before the change."""
-    tree = _tree_before(tmp_path)
+    tree = package_at(BEFORE, tmp_path, "before")
     if tree is None:
         pytest.skip(f"git cannot give the code before randomisation ({BEFORE}) here")
     before = _digests(tree, "{}", tmp_path)

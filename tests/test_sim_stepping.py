@@ -3,15 +3,14 @@
 from __future__ import annotations
 
 import os
-import shutil
 import subprocess
 import sys
-import tarfile
 import textwrap
 from pathlib import Path
 
 import numpy as np
 import pytest
+from git_trees import package_at
 
 from smartcar_gym.envs.robots import SmartCarRobot, drive
 from smartcar_gym.envs.robots.maneuvers import hold, random_commands, run
@@ -199,18 +198,6 @@ def test_the_chains_force_cap_never_binds(shipped_model, shipped_config):
     assert 0.0 < peak < 1.0  # N m, against a cap of at least 100
 
 
-def _round_1_tree(tmp: Path) -> Path | None:
-    if shutil.which("git") is None:
-        return None
-    archive = tmp / "round1.tar"
-    done = subprocess.run(["git", "-C", str(REPO), "archive", "-o", str(archive), ROUND_1,
-                           "smartcar_gym"], capture_output=True, timeout=60, check=False)
-    if done.returncode != 0:
-        return None
-    with tarfile.open(archive) as tar:
-        tar.extractall(tmp / "round1", filter="data")
-    return tmp / "round1"
-
 
 DIGEST = textwrap.dedent("""
     import hashlib, sys, warnings
@@ -237,7 +224,7 @@ DIGEST = textwrap.dedent("""
 @pytest.mark.slow
 def test_2_ms_substeps_reproduce_round_1_bit_for_bit(tmp_path):
     """max_substep_s=0.002 is 0.1.0's fixed 500 Hz stepping: same observations, rewards, poses."""
-    tree = _round_1_tree(tmp_path)
+    tree = package_at(ROUND_1, tmp_path, "round1")
     if tree is None:
         pytest.skip(f"git cannot give the round-1 code ({ROUND_1}) here")
 

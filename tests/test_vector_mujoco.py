@@ -107,3 +107,29 @@ def test_bad_input_is_one_line():
         make(10**12)
     with pytest.raises(ValueError, match="num_threads must be >= 1"):
         make(2, num_threads=0)
+
+
+def test_batched_mujoco_training_reads_its_own_preset():
+    """``--vectorization batched --engine mujoco`` reads ``<env>-batched-mujoco``, then
+    ``<env>-batched``; without the engine, ``<env>-batched``."""
+    from smartcar_gym.agents.hyperparams import load_hyperparams
+
+    mujoco = load_hyperparams("ppo", "SmartCar-v0", variant=("batched-mujoco", "batched"))
+    assert mujoco["n_envs"] == 64 and mujoco["n_steps"] == 32
+    assert load_hyperparams("ppo", "SmartCar-v0", variant="batched")["n_envs"] == 8
+    sim = load_hyperparams("ppo", "SmartCarSim-v0", variant=("batched-mujoco", "batched"))
+    assert sim["n_envs"] == 64 and sim["n_timesteps"] == 81920
+
+
+def test_sb3_adapter_on_the_mujoco_batch():
+    from smartcar_gym.agents.vec_env import make_batched_vec_env
+
+    venv = make_batched_vec_env("SmartCar-v0", 4, seed=0, env_kwargs={"engine": "mujoco"})
+    try:
+        assert isinstance(venv.unwrapped.venv, SmartCarMujocoVectorEnv)
+        obs = venv.reset()
+        assert obs.shape == (4, 21)
+        obs, rewards, dones, infos = venv.step(np.zeros((4, 2), dtype=np.float32))
+        assert rewards.shape == (4,) and len(infos) == 4 and "is_success" in infos[0]
+    finally:
+        venv.close()

@@ -115,7 +115,7 @@ def test_batched_mujoco_training_reads_its_own_preset():
     from smartcar_gym.agents.hyperparams import load_hyperparams
 
     mujoco = load_hyperparams("ppo", "SmartCar-v0", variant=("batched-mujoco", "batched"))
-    assert mujoco["n_envs"] == 64 and mujoco["n_steps"] == 32
+    assert mujoco["n_envs"] == 16 and mujoco["n_steps"] == 128
     assert load_hyperparams("ppo", "SmartCar-v0", variant="batched")["n_envs"] == 8
     sim = load_hyperparams("ppo", "SmartCarSim-v0", variant=("batched-mujoco", "batched"))
     assert sim["n_envs"] == 64 and sim["n_timesteps"] == 81920

@@ -12,6 +12,10 @@ set from before the env was made to after the last step. Envs:
 - ``SmartCarSim-v0 single``: one ``gym.make("SmartCarSim-v0")`` (pybullet world, kinematic).
 - ``SmartCar-v0 loop``: the pybullet env's vector_entry_point (N single envs in a loop), up to
   ``--max-loop`` cars (each is a pybullet world).
+- ``SmartCar-v0 MuJoCo batched``: ``engine="mujoco"`` through the vector_entry_point
+  (``SmartCarMujocoVectorEnv``: each car's physics in C, two worker threads), at every N; fewer
+  steps per measurement (``--mujoco-car-steps``) since each car-step is a dozen physics steps.
+- ``SmartCar-v0 MuJoCo single``: one ``gym.make("SmartCar-v0", engine="mujoco")``.
 
 The table shows the median over rounds; ratios are taken within a round, since this shared
 machine's speed drifts by half within minutes.
@@ -46,15 +50,17 @@ def measure(env_id: str, mode: str, n: int, car_steps: int) -> dict[str, float]:
     import smartcar_gym  # noqa: F401
 
     before = _rss_bytes()
-    if mode == "single":
-        envs = gym.make_vec(env_id, num_envs=1, vectorization_mode="sync")
+    kwargs = {"engine": "mujoco"} if mode.startswith("mujoco") else {}
+    if mode in ("single", "mujoco-single"):
+        envs = gym.make_vec(env_id, num_envs=1, vectorization_mode="sync", **kwargs)
     else:
-        envs = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point")
+        envs = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point",
+                            **kwargs)
     rng = np.random.default_rng(0)
     envs.reset(seed=0)
-    steps = min(max(50, car_steps // n), 5000)
+    steps = min(max(5 if mode == "mujoco" else 50, car_steps // n), 5000)
     actions = [rng.uniform(-1, 1, (n, 2)).astype(np.float32) for _ in range(16)]
-    for k in range(min(20, steps)):  # warm-up
+    for k in range(min(20, steps // 5 or 1)):  # warm-up
         envs.step(actions[k % 16])
     wall, cpu = time.perf_counter(), time.process_time()
     for k in range(steps):
@@ -103,6 +109,8 @@ def main() -> None:
     parser.add_argument("--car-steps", type=int, default=400_000,
                         help="car-steps per batched measurement (fewer for the pybullet ones)")
     parser.add_argument("--max-loop", type=int, default=64, help="largest N of the loop env")
+    parser.add_argument("--mujoco-car-steps", type=int, default=20_000,
+                        help="car-steps per MuJoCo batched measurement")
     parser.add_argument("--out", type=Path, default=REPO / "docs" / "batched_speed.png")
     parser.add_argument("--one", nargs=4, help=argparse.SUPPRESS)
     args = parser.parse_args()
@@ -115,6 +123,9 @@ def main() -> None:
     plan += [("SmartCarSim-v0 single", "SmartCarSim-v0", "single", 1, 3000)]
     plan += [("SmartCar-v0 loop", "SmartCar-v0", "vector", n, 1500)
              for n in SIZES if n <= args.max_loop]
+    plan += [("SmartCar-v0 MuJoCo batched", "SmartCar-v0", "mujoco", n, args.mujoco_car_steps)
+             for n in SIZES]
+    plan += [("SmartCar-v0 MuJoCo single", "SmartCar-v0", "mujoco-single", 1, 3000)]
     rounds: list[dict] = []
     for r in range(args.rounds):
         got: dict = {}
@@ -135,6 +146,12 @@ def main() -> None:
         "batched N=4096 / SmartCar-v0 loop N=1": statistics.median(
             rd["SmartCarSim-v0 batched"][top]["car_steps_per_s"]
             / rd["SmartCar-v0 loop"]["1"]["car_steps_per_s"] for rd in rounds),
+        "MuJoCo batched N=64 / SmartCar-v0 loop N=1 (pybullet)": statistics.median(
+            rd["SmartCar-v0 MuJoCo batched"]["64"]["car_steps_per_s"]
+            / rd["SmartCar-v0 loop"]["1"]["car_steps_per_s"] for rd in rounds),
+        "MuJoCo batched N=64 / MuJoCo single": statistics.median(
+            rd["SmartCar-v0 MuJoCo batched"]["64"]["car_steps_per_s"]
+            / rd["SmartCar-v0 MuJoCo single"]["1"]["car_steps_per_s"] for rd in rounds),
     }
     print("| env | N | car-steps/s (wall) | car-steps per CPU-s | memory growth (MiB) |")
     print("|---|---|---|---|---|")
@@ -143,7 +160,7 @@ def main() -> None:
             print(f"| {label} | {n} | {row['car_steps_per_s']:,.0f} | "
                   f"{row['car_steps_per_cpu_s']:,.0f} | {row['rss_mib']:.1f} |")
     for name, value in ratios.items():
-        print(f"{name}: x{value:,.0f} (median of per-round ratios)")
+        print(f"{name}: x{value:,.1f} (median of per-round ratios)")
     args.out.parent.mkdir(parents=True, exist_ok=True)
     plot(median, args.out)
     (args.out.with_suffix(".json")).write_text(json.dumps(

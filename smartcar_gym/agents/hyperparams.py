@@ -25,6 +25,7 @@ import ast
 import copy
 import inspect
 import os
+from collections.abc import Sequence
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -76,11 +77,12 @@ def default_hyperparams_file(algo: str) -> Path:
 
 
 def load_hyperparams(algo: str, env_id: str, path: str | Path | None = None,
-                     variant: str | None = None) -> dict[str, Any]:
+                     variant: str | Sequence[str] | None = None) -> dict[str, Any]:
     """The hyperparameters for ``env_id`` from ``path`` (default: the shipped ``<algo>.yaml``);
     its ``default`` entry if it has none for ``env_id``, as in rl-baselines3-zoo. A
-    ``variant`` (``"batched"``) picks the entry ``<env_id>-<variant>`` where the file has one
-    (rl-baselines3-zoo never reads those)."""
+    ``variant`` (``"batched"``, or several tried in order such as ``("batched-mujoco",
+    "batched")``) picks the first entry ``<env_id>-<variant>`` the file has (rl-baselines3-zoo
+    never reads those)."""
     path = Path(path) if path is not None else default_hyperparams_file(algo)
     try:
         data = yaml.safe_load(path.read_text())
@@ -89,8 +91,11 @@ def load_hyperparams(algo: str, env_id: str, path: str | Path | None = None,
     if not isinstance(data, dict):
         raise HyperparamsError(f"{path}: expected a mapping of env id -> hyperparameters")
     key = env_id if env_id in data else DEFAULT_ENTRY
-    if variant is not None and f"{env_id}-{variant}" in data:
-        key = f"{env_id}-{variant}"
+    variants = [variant] if isinstance(variant, str) else list(variant or [])
+    for name in variants:
+        if f"{env_id}-{name}" in data:
+            key = f"{env_id}-{name}"
+            break
     if key not in data:
         raise HyperparamsError(
             f"{path}: no hyperparameters for env {env_id!r} and no {DEFAULT_ENTRY!r} entry; it "

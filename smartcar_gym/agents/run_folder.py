@@ -68,8 +68,10 @@ def new_config(args: argparse.Namespace, command: str) -> dict[str, Any]:
     algo = args.algo or "ppo"
     env_id = args.env_id or DEFAULT_ENV_ID
     vectorization = getattr(args, "vectorization", None) or "subproc"
-    hyperparams = load_hyperparams(algo, env_id, args.hyperparams_file,
-                                   variant="batched" if vectorization == "batched" else None)
+    engine = dict(args.env_kwargs or []).get("engine")
+    variant = None if vectorization != "batched" else (
+        ("batched", ) if engine is None else (f"batched-{engine}", "batched"))
+    hyperparams = load_hyperparams(algo, env_id, args.hyperparams_file, variant=variant)
     hyperparams.update(dict(args.hyperparams or []))
     file_n_envs, file_timesteps = run_int(hyperparams, "n_envs"), run_int(hyperparams,
                                                                        "n_timesteps")

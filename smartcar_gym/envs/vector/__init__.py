@@ -15,27 +15,32 @@ import gymnasium as gym
 
 from smartcar_gym.envs.vector.kinematic import SmartCarSimVectorEnv, supports
 from smartcar_gym.envs.vector.loop import SmartCarLoopVectorEnv
+from smartcar_gym.envs.vector.mujoco import SmartCarMujocoVectorEnv
+from smartcar_gym.envs.vector.mujoco import supports as mujoco_supports
 
-__all__ = ["SmartCarLoopVectorEnv", "SmartCarSimVectorEnv", "make_vector_env",
-           "smartcar_arrive_v0", "smartcar_goal_v0", "smartcar_nav_v0", "smartcar_sim_v0",
-           "smartcar_v0"]
+__all__ = ["SmartCarLoopVectorEnv", "SmartCarMujocoVectorEnv", "SmartCarSimVectorEnv",
+           "make_vector_env", "smartcar_arrive_v0", "smartcar_goal_v0", "smartcar_nav_v0",
+           "smartcar_sim_v0", "smartcar_v0"]
 
 
 def make_vector_env(env_id: str, num_envs: int = 1, **kwargs: Any) -> gym.vector.VectorEnv:
     """The fastest faithful vector env of ``env_id`` for ``num_envs`` cars.
 
-    SmartCarSim-v0 in the kinematic mode: ``SmartCarSimVectorEnv`` (numpy); anything else:
-    ``SmartCarLoopVectorEnv``. ``kwargs`` are the single env's, plus ``max_episode_steps`` and
-    ``autoreset_mode``.
+    SmartCarSim-v0 in the kinematic mode: ``SmartCarSimVectorEnv`` (numpy); SmartCar-v0 with
+    ``engine="mujoco"`` (hardware mode, no ``randomize``, no GUI): ``SmartCarMujocoVectorEnv``
+    (MuJoCo in C per car); anything else: ``SmartCarLoopVectorEnv``. ``kwargs`` are the single
+    env's, plus ``max_episode_steps`` and ``autoreset_mode``.
     """
     if env_id == "SmartCarSim-v0" and supports(kwargs) is None \
             and kwargs.get("controller_mode", "sim") == "sim":
         return SmartCarSimVectorEnv(num_envs=num_envs, **kwargs)
+    if env_id == "SmartCar-v0" and mujoco_supports(kwargs) is None:
+        return SmartCarMujocoVectorEnv(num_envs=num_envs, **kwargs)
     return SmartCarLoopVectorEnv(env_id, num_envs=num_envs, **kwargs)
 
 
 def smartcar_v0(num_envs: int = 1, **kwargs: Any) -> gym.vector.VectorEnv:
-    """SmartCar-v0's ``vector_entry_point`` (pybullet: a loop of single envs)."""
+    """SmartCar-v0's ``vector_entry_point`` (MuJoCo: batched in C; pybullet: a loop)."""
     return make_vector_env("SmartCar-v0", num_envs, **kwargs)
 
 

@@ -1,0 +1,113 @@
+"""N copies of one car's MuJoCo world, each stepped by its own ``mj_step`` calls in C.
+
+``CarBatch`` copies the compiled ``MjModel`` and the settled ``MjData`` of one
+``MujocoSimulator`` N times: car i is exactly the single env's world (same model, same data,
+same solver warm start), so its physics is bit for bit what ``N`` single envs compute. One
+``step`` advances any subset of cars, each by its own number of substeps of its own length
+(``mj_step(model, data, nstep)``: the substeps run in C), the cars split between worker threads
+(MuJoCo releases Python's GIL inside ``mj_step``). What the emulated board changes between
+events (the wheels' motor torque in ``qfrc_applied``, their back-EMF damping in
+``dof_damping``) is written into each car's own model and data before it steps.
+
+Why not ``mujoco.rollout``: it restarts every rollout from a state vector, and MuJoCo's state
+(``mjSTATE_INTEGRATION``) does not give the solver's warm start back, so chained rollouts drift
+from the single env after the first interval. Why not one model holding N cars: the constraint
+solver then solves all cars' contacts as one system (its iterations and tolerance are the
+whole world's), so a car's bits depend on the others.
+"""
+
+from __future__ import annotations
+
+import copy
+from concurrent.futures import ThreadPoolExecutor
+
+import mujoco
+import numpy as np
+
+from smartcar_gym.sim.mujoco.simulator import MujocoSimulator
+
+#: below this many cars to step, the threads cost more than they save
+MIN_CARS_PER_THREAD = 4
+
+
+class CarBatch:
+    """``num_cars`` independent copies of ``sim``'s world as it is now (compiled, settled).
+
+    Args:
+        sim: a ``MujocoSimulator`` holding one car (spawned and settled): the template.
+        num_cars: N.
+        wheel_dofs: the wheels' dof addresses (``qfrc_applied``/``dof_damping`` columns).
+        threads: worker threads for ``step`` (1: the calling thread only).
+
+    ``qpos`` (N, nq) and ``qvel`` (N, nv) hold every car's state after its last step or reset;
+    ``torque`` and ``damping`` (N, wheels) are what ``step`` writes before stepping a car.
+    """
+
+    def __init__(self, sim: MujocoSimulator, num_cars: int, wheel_dofs: list[int],
+                 threads: int = 1) -> None:
+        m, d = sim.model_compiled(), sim.data
+        self.template_model, self.template_data = copy.copy(m), copy.copy(d)
+        self.n = int(num_cars)
+        self.dofs = np.asarray(wheel_dofs, dtype=np.intp)
+        self.models = [copy.copy(m) for _ in range(self.n)]
+        self.datas = [copy.copy(d) for _ in range(self.n)]
+        self.qpos = np.tile(d.qpos, (self.n, 1))
+        self.qvel = np.tile(d.qvel, (self.n, 1))
+        self.torque = np.tile(d.qfrc_applied[self.dofs], (self.n, 1))
+        self.damping = np.tile(m.dof_damping[self.dofs], (self.n, 1))
+        self.threads = max(1, int(threads))
+        self._pool: ThreadPoolExecutor | None = None
+
+    def reset(self, cars: np.ndarray) -> None:
+        """Put the listed cars back into the template's state (model values and data)."""
+        tm, td = self.template_model, self.template_data
+        for i in cars:
+            m = self.models[i]
+            mujoco.mj_copyData(self.datas[i], tm, td)
+            m.dof_damping[:] = tm.dof_damping
+            m.opt.timestep = tm.opt.timestep
+        self.qpos[cars] = td.qpos
+        self.qvel[cars] = td.qvel
+        self.torque[cars] = td.qfrc_applied[self.dofs]
+        self.damping[cars] = tm.dof_damping[self.dofs]
+
+    def step(self, cars: np.ndarray, nstep: np.ndarray, timestep: np.ndarray) -> None:
+        """Step car ``cars[k]`` by ``nstep[k]`` substeps of ``timestep[k]`` s (in C)."""
+        count = len(cars)
+        if count == 0:
+            return
+        chunks = min(self.threads, count // MIN_CARS_PER_THREAD) or 1
+        if chunks == 1:
+            self._run(cars, nstep, timestep)
+            return
+        if self._pool is None:
+            self._pool = ThreadPoolExecutor(self.threads, thread_name_prefix="smartcar-mj")
+        jobs = [self._pool.submit(self._run, cars[k::chunks], nstep[k::chunks],
+                                  timestep[k::chunks]) for k in range(chunks)]
+        for job in jobs:
+            job.result()
+
+    def _run(self, cars: np.ndarray, nstep: np.ndarray, timestep: np.ndarray) -> None:
+        models, datas, dofs = self.models, self.datas, self.dofs
+        torque, damping, qpos, qvel = self.torque, self.damping, self.qpos, self.qvel
+        for i, n, dt in zip(cars.tolist(), nstep.tolist(), timestep.tolist(), strict=True):
+            m, d = models[i], datas[i]
+            m.opt.timestep = dt
+            d.qfrc_applied[dofs] = torque[i]
+            m.dof_damping[dofs] = damping[i]
+            mujoco.mj_step(m, d, n)
+            qpos[i] = d.qpos
+            qvel[i] = d.qvel
+
+    def bytes_per_car(self) -> int:
+        """The memory one car's model and data hold (bytes)."""
+        m, d = self.template_model, self.template_data
+        return int(m.nbuffer + d.nbuffer) if hasattr(d, "nbuffer") else int(
+            m.nbuffer + d.narena * 8)
+
+    def close(self) -> None:
+        """Stop the worker threads and drop the copies."""
+        if self._pool is not None:
+            self._pool.shutdown(wait=True)
+            self._pool = None
+        self.models, self.datas = [], []

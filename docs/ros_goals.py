@@ -3,6 +3,7 @@
 ::
 
     python docs/ros_goals.py sim  --json sim.json    # GoalDriver and the simulated robot, no ROS
+    python docs/ros_goals.py sim --policy runs/ft/step_49152 --seed 3   # another policy folder
     python docs/ros_goals.py live --json live.json   # roscore, bringup and policy nodes
     python docs/ros_goals.py plot sim.json live.json --out docs/ros_goals.png
     python docs/ros_goals.py slip      # calibrated odometry against the truth, by motion
@@ -38,11 +39,11 @@ REST_M_S = 0.01
 TOLERANCE_M = 0.1
 
 
-def run_sim(count: int, seed: int) -> list[GoalResult]:
+def run_sim(count: int, seed: int, source: str = "ros") -> list[GoalResult]:
     from smartcar_gym.policy import Policy
     from smartcar_gym.ros.goal_run import drive_goals
 
-    policy = Policy.load("ros")
+    policy = Policy.load(source if source == "ros" else Path(source))
     return drive_goals(policy.settings, policy.act, count, seed)
 
 
@@ -245,6 +246,8 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--speed", type=float, default=4.0, help="live: bringup --speed")
     parser.add_argument("--json", type=Path, help="sim/live: write the results here")
+    parser.add_argument("--policy", default="ros",
+                        help="sim: the shipped 'ros' policy or a policy folder")
     parser.add_argument("--out", type=Path, default=Path("docs/ros_goals.png"))
     args = parser.parse_args()
     if args.mode == "slip":
@@ -260,7 +263,7 @@ def main() -> None:
         plot(runs, args.out)
         return
     started = time.monotonic()
-    results = (run_sim(args.count, args.seed) if args.mode == "sim"
+    results = (run_sim(args.count, args.seed, args.policy) if args.mode == "sim"
                else run_live(args.count, args.seed, args.speed))
     wall = time.monotonic() - started
     for i, r in enumerate(results, 1):

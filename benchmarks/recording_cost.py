@@ -26,6 +26,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from typing import Any
 
 VARIANTS = {
     "plain": [],
@@ -51,8 +52,25 @@ def start(policy: list[str], extra: list[str], episodes: int,
 def finish(started: tuple[subprocess.Popen, str, float]) -> tuple[float, float]:
     """Wall time and CPU time (user + system, its threads and worker processes included) in
     seconds of a process that ``start`` started."""
+    _, status, usage = os.wait4(started[0].pid, 0)
+    return _result(started, status, usage)
+
+
+def finish_all(started: list[tuple[subprocess.Popen, str, float]]) -> list[tuple[float, float]]:
+    """``finish`` for processes running at once: each is timed when it ends."""
+    index = {s[0].pid: i for i, s in enumerate(started)}
+    measured: list[tuple[float, float]] = [(0.0, 0.0)] * len(started)
+    while index:
+        pid, status, usage = os.wait4(-1, 0)
+        if pid in index:
+            i = index.pop(pid)
+            measured[i] = _result(started[i], status, usage)
+    return measured
+
+
+def _result(started: tuple[subprocess.Popen, str, float], status: int,
+            usage: Any) -> tuple[float, float]:
     process, tmp, begin = started
-    _, status, usage = os.wait4(process.pid, 0)
     elapsed = time.perf_counter() - begin
     process.returncode = os.waitstatus_to_exitcode(status)
     shutil.rmtree(tmp)
@@ -82,7 +100,7 @@ def main() -> None:
         if args.concurrent:
             started = [start(POLICIES[n], VARIANTS[v], args.episodes, args.n_envs)
                        for n, v in runs]
-            measured = [finish(s) for s in started]
+            measured = finish_all(started)
         else:
             measured = [finish(start(POLICIES[n], VARIANTS[v], args.episodes, args.n_envs))
                         for n, v in runs]

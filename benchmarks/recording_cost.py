@@ -1,7 +1,7 @@
 """What recording costs an evaluation: ``smartcar-eval`` wall time with ``--rerun`` and with a
 ROS 2 bag, as ratios to the same evaluation without, measured interleaved in one run.
 
-    python benchmarks/recording_cost.py [--episodes 100] [--rounds 3] [--n-envs 1]
+    python benchmarks/recording_cost.py [--episodes 100] [--rounds 3] [--n-envs 1] [--concurrent]
 
 Each round runs every variant once, in turn, each as a fresh ``smartcar-eval`` process (the
 whole command: imports, model loading, the episodes, writing the files), for the shipped
@@ -10,19 +10,23 @@ nav``, whose bags and recordings also hold the laser scan). A ratio is taken wit
 the table shows the median over rounds, with the range, of the CPU time (user + system: what
 the recording adds to the work, little moved by other programs on a shared machine) and of
 the wall time. This machine's speed drifts by up to a half within minutes, so only ratios
-measured side by side mean anything.
+measured side by side mean anything. ``--concurrent`` starts a round's processes (every
+variant of both policies) at once: on a machine busy with other jobs a round then takes the
+time of one evaluation instead of eight, and the CPU times, each process's own, stay
+comparable; wall times then mostly measure the sharing.
 """
 
 from __future__ import annotations
 
 import argparse
-import resource
+import os
 import shutil
 import statistics
 import subprocess
 import sys
 import tempfile
 import time
+from typing import Any
 
 VARIANTS = {
     "plain": [],
@@ -34,21 +38,45 @@ POLICIES = {"SmartCar-v0 (--pretrained)": ["--pretrained"],
             "SmartCarNav-v0 (--pretrained nav)": ["--pretrained", "nav"]}
 
 
-def run(policy: list[str], extra: list[str], episodes: int, n_envs: int) -> tuple[float, float]:
-    """Wall time and CPU time (user + system, its threads and worker processes included) in
-    seconds of one ``smartcar-eval`` process."""
+def start(policy: list[str], extra: list[str], episodes: int,
+          n_envs: int) -> tuple[subprocess.Popen, str, float]:
+    """Start one ``smartcar-eval`` process (into a folder of its own)."""
     tmp = tempfile.mkdtemp(prefix="recording-cost-")
     command = [sys.executable, "-m", "smartcar_gym.agents.evaluate", *policy, "--episodes",
                str(episodes), "--n-envs", str(n_envs), "--no-progress",
                *(a.format(tmp=tmp) for a in extra)]
-    before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    start = time.perf_counter()
-    subprocess.run(command, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    elapsed = time.perf_counter() - start
-    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    return process, tmp, time.perf_counter()
+
+
+def finish(started: tuple[subprocess.Popen, str, float]) -> tuple[float, float]:
+    """Wall time and CPU time (user + system, its threads and worker processes included) in
+    seconds of a process that ``start`` started."""
+    _, status, usage = os.wait4(started[0].pid, 0)
+    return _result(started, status, usage)
+
+
+def finish_all(started: list[tuple[subprocess.Popen, str, float]]) -> list[tuple[float, float]]:
+    """``finish`` for processes running at once: each is timed when it ends."""
+    index = {s[0].pid: i for i, s in enumerate(started)}
+    measured: list[tuple[float, float]] = [(0.0, 0.0)] * len(started)
+    while index:
+        pid, status, usage = os.wait4(-1, 0)
+        if pid in index:
+            i = index.pop(pid)
+            measured[i] = _result(started[i], status, usage)
+    return measured
+
+
+def _result(started: tuple[subprocess.Popen, str, float], status: int,
+            usage: Any) -> tuple[float, float]:
+    process, tmp, begin = started
+    elapsed = time.perf_counter() - begin
+    process.returncode = os.waitstatus_to_exitcode(status)
     shutil.rmtree(tmp)
-    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
-    return elapsed, cpu
+    if process.returncode != 0:
+        raise subprocess.CalledProcessError(process.returncode, process.args)
+    return elapsed, usage.ru_utime + usage.ru_stime
 
 
 def main() -> None:
@@ -56,29 +84,38 @@ def main() -> None:
     parser.add_argument("--episodes", type=int, default=100)
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--n-envs", type=int, default=1)
+    parser.add_argument("--concurrent", action="store_true",
+                        help="start a round's processes at once (CPU ratios only)")
     args = parser.parse_args()
     print(f"{args.episodes} episodes, --n-envs {args.n_envs}, {args.rounds} rounds; "
-          f"python {sys.version.split()[0]}")
+          f"python {sys.version.split()[0]}"
+          f"{', concurrent' if args.concurrent else ''}")
     print("| policy | variant | CPU s | CPU ratio (median, range) | wall s | wall ratio "
           "(median, range) |")
     print("|---|---|---:|---:|---:|---:|")
-    for name, policy in POLICIES.items():
-        wall: dict[str, list[float]] = {v: [] for v in VARIANTS}
-        cpu: dict[str, list[float]] = {v: [] for v in VARIANTS}
-        for _ in range(args.rounds):
-            for variant, extra in VARIANTS.items():
-                w, c = run(policy, extra, args.episodes, args.n_envs)
-                wall[variant].append(w)
-                cpu[variant].append(c)
-        for variant in VARIANTS:
-            cells = []
-            for times in (cpu, wall):
-                ratios = [t / p for t, p in zip(times[variant], times["plain"], strict=True)]
-                cells.append(f"{statistics.median(times[variant]):.1f} | "
-                             f"{statistics.median(ratios):.3f} "
-                             f"({min(ratios):.3f}-{max(ratios):.3f})")
-            print(f"| {name} | {variant} | {' | '.join(cells)} |", flush=True)
-
+    runs = [(name, variant) for name in POLICIES for variant in VARIANTS]
+    wall: dict[tuple[str, str], list[float]] = {run: [] for run in runs}
+    cpu: dict[tuple[str, str], list[float]] = {run: [] for run in runs}
+    for _ in range(args.rounds):
+        if args.concurrent:
+            started = [start(POLICIES[n], VARIANTS[v], args.episodes, args.n_envs)
+                       for n, v in runs]
+            measured = finish_all(started)
+        else:
+            measured = [finish(start(POLICIES[n], VARIANTS[v], args.episodes, args.n_envs))
+                        for n, v in runs]
+        for run, (w, c) in zip(runs, measured, strict=True):
+            wall[run].append(w)
+            cpu[run].append(c)
+    for name, variant in runs:
+        cells = []
+        for times in (cpu, wall):
+            ratios = [t / p for t, p in zip(times[name, variant], times[name, "plain"],
+                                            strict=True)]
+            cells.append(f"{statistics.median(times[name, variant]):.1f} | "
+                         f"{statistics.median(ratios):.3f} "
+                         f"({min(ratios):.3f}-{max(ratios):.3f})")
+        print(f"| {name} | {variant} | {' | '.join(cells)} |", flush=True)
 
 if __name__ == "__main__":
     main()

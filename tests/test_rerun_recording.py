@@ -160,6 +160,27 @@ def test_eval_cli_writes_a_recording_and_refuses_bad_names(tmp_path, capsys):
     assert "--rerun: the file must end in .rrd" in capsys.readouterr().err
 
 
+def test_eval_cli_records_without_importing_pandas(tmp_path):
+    """``smartcar-eval --rerun`` spares itself pyarrow's import of pandas (0.3 s); pyarrow's
+    pandas features still work afterwards."""
+    import subprocess
+    import sys
+
+    path = tmp_path / "random.rrd"
+    code = (
+        "import sys\n"
+        "from smartcar_gym.agents.evaluate import main\n"
+        f"main(['--random', '--episodes', '2', '--no-progress', '--rerun', {str(path)!r}])\n"
+        "print('pandas' in sys.modules)\n"
+        "import pyarrow as pa\n"
+        "print(pa.table({'a': [1.5]}).to_pandas()['a'].tolist())\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True,
+                         text=True).stdout.splitlines()
+    assert out[-2:] == ["False", "[1.5]"]
+    assert path.stat().st_size > 10_000
+
+
 def test_eval_cli_names_the_extra_when_rerun_is_missing(monkeypatch, capsys):
     import smartcar_gym.agents as agents
 

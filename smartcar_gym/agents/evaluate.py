@@ -217,8 +217,9 @@ def _recorders(args: argparse.Namespace, stack: contextlib.ExitStack) -> list[An
     ``--bag``); an error leaves no half-written file."""
     recorders: list[Any] = []
     if args.rerun is not None or args.rerun_serve:
-        from smartcar_gym.viewers.rerun_log import RerunSink
+        from smartcar_gym.viewers.rerun_log import RerunSink, skip_pandas_probe
 
+        skip_pandas_probe()  # this process never uses pandas: 0.3 s of CPU saved
         grpc_port, web_port = args.rerun_ports
         sink = RerunSink(args.rerun, serve=args.rerun_serve, grpc_port=grpc_port,
                          web_port=web_port)

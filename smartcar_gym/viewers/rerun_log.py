@@ -27,6 +27,7 @@ end: recording costs little next to simulating them.
 from __future__ import annotations
 
 import os
+import sys
 from pathlib import Path
 from typing import Any
 from urllib.parse import quote
@@ -50,6 +51,31 @@ OBSTACLE_COLOR = (140, 140, 150)
 SHAPE_COLORS = {"box": (60, 110, 200), "cylinder": (40, 40, 40), "sphere": (90, 90, 90)}
 _CAR_SHAPES: dict[tuple, list[tuple[str, Any]]] = {}  # the car's archetypes, by its visuals
 _SERIES_LINES: dict[tuple[str, ...], Any] = {}  # series names: the same for every episode
+
+
+def skip_pandas_probe() -> None:
+    """Spare a process that has not imported pandas its import (a third of what starting a
+    recording costs): pyarrow, under rerun-sdk, imports pandas on its first array built from
+    a list only to ask whether that list is a pandas object, which it cannot be then. Here
+    that first probe finds no pandas; pyarrow's own pandas features (``to_pandas``) still
+    import it when called. For a process of its own, like ``smartcar-eval``: pyarrow stops
+    recognising pandas objects that are made later in the same process.
+    """
+    if "pandas" in sys.modules:
+        return
+    import pyarrow as pa
+
+    class _NoPandas:
+        def find_spec(self, name: str, path: Any = None, target: Any = None) -> None:
+            if name == "pandas":
+                raise ModuleNotFoundError("pandas is not looked for here", name=name)
+
+    finder = _NoPandas()
+    sys.meta_path.insert(0, finder)
+    try:
+        pa.array([0])  # pyarrow looks for pandas once, on this first list
+    finally:
+        sys.meta_path.remove(finder)
 
 
 def entity(episode: Episode) -> str:

@@ -157,6 +157,11 @@ def test_what_numpy_cannot_batch_falls_back_to_the_loop():
                         randomize="default")
     assert isinstance(envs, SmartCarLoopVectorEnv)
     envs.close()
+    # stop_speed's arrival terms are the single env's: the loop, not a numpy env without them
+    envs = gym.make_vec("SmartCarSim-v0", num_envs=2, vectorization_mode="vector_entry_point",
+                        stop_speed=0.01)
+    assert isinstance(envs, SmartCarLoopVectorEnv)
+    envs.close()
 
 
 @pytest.mark.parametrize("num_envs", [0, -3, 2.5, True])

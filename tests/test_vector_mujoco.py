@@ -84,7 +84,8 @@ def test_mujoco_batch_follows_gymnasium_conventions():
 
 
 def test_what_mujoco_cannot_batch_falls_back_to_the_loop():
-    for kwargs in ({"randomize": "default"}, {"controller_mode": "sim"}):
+    for kwargs in ({"randomize": "default"}, {"controller_mode": "sim"},
+                   {"stop_speed": 0.01}):
         envs = make(2, **kwargs)
         assert isinstance(envs, SmartCarLoopVectorEnv), kwargs
         envs.close()

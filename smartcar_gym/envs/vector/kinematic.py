@@ -43,6 +43,8 @@ def supports(kwargs: dict[str, Any]) -> str | None:
         return "randomize (domain randomisation) needs the per-episode pybullet world"
     if kwargs.get("render_mode") == "human":
         return "render_mode='human' is the pybullet GUI"
+    if kwargs.get("stop_speed") is not None:
+        return "stop_speed's arrival terms (SmartCarArrive-v0) are the single env's"
     return None
 
 

@@ -34,6 +34,8 @@ def supports(kwargs: dict[str, Any]) -> str | None:
         return "randomize (domain randomisation) builds a different world per episode"
     if kwargs.get("render_mode") == "human":
         return "render_mode='human' is a GUI"
+    if kwargs.get("stop_speed") is not None:
+        return "stop_speed's arrival terms (SmartCarArrive-v0) are the single env's"
     if kwargs.get("controller_mode") not in (None, HARDWARE):
         return "controller_mode='sim' steps no physics (SmartCarSim-v0 is batched in numpy)"
     return None

@@ -252,7 +252,7 @@ class SmartCarSimVectorEnv(gym.vector.VectorEnv):
 
     def _advance(self, a: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """One controller period for every car: SmartCarEnv.step's arithmetic, in arrays."""
-        s, task = self.settings, self.task
+        s = self.settings
         now_s = (self._steps * self.period_ns).astype(np.float64) / NS_PER_S
         self.base.cmd_vel(a[:, 0] * s.max_linear, a[:, 1] * s.max_angular, now_s)
         self._steps += 1
@@ -272,11 +272,18 @@ class SmartCarSimVectorEnv(gym.vector.VectorEnv):
         # the task, on the position as pybullet stores it (float32)
         px = x.astype(np.float32).astype(np.float64)
         py = y.astype(np.float32).astype(np.float64)
+        return self._score(px, py, a)
+
+    def _score(self, px: np.ndarray, py: np.ndarray, a: np.ndarray,
+               flipped: np.ndarray | bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Reward, success and failure of every car from its true position: the arithmetic
+        of ``GoalReachingTask.evaluate``, in its order, on arrays."""
+        task = self.task
         dx, dy = px - self.goal[:, 0], py - self.goal[:, 1]
         distance = np.sqrt(dx * dx + dy * dy)
         success = distance < task.goal_tolerance_m
         half = task.arena_half_size_m
-        failure = (np.abs(px) > half) | (np.abs(py) > half)
+        failure = flipped | (np.abs(px) > half) | (np.abs(py) > half)
         reward = (task.progress_weight * (self._distance - distance) - task.time_cost
                   - task.action_cost * (a[:, 0] * a[:, 0] + a[:, 1] * a[:, 1])
                   + task.success_bonus * success.astype(np.float64)

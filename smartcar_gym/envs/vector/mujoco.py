@@ -243,25 +243,13 @@ class SmartCarMujocoVectorEnv(SmartCarSimVectorEnv):
 
     def _advance(self, a: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """One controller period for every car: SmartCarEnv.step's arithmetic, in arrays."""
-        s, task = self.settings, self.task
+        s = self.settings
         self.base.cmd_vel(a[:, 0] * s.max_linear, a[:, 1] * s.max_angular,
                           self._now / NS_PER_S)
         self._run_period()
         self._steps += 1
         self._read_pose()
-        dx, dy = self._pose[:, 0] - self.goal[:, 0], self._pose[:, 1] - self.goal[:, 1]
-        distance = np.sqrt(dx * dx + dy * dy)
-        success = distance < task.goal_tolerance_m
-        half = task.arena_half_size_m
-        failure = ((self._up_z < FLIP_UP_Z) | (np.abs(self._pose[:, 0]) > half)
-                   | (np.abs(self._pose[:, 1]) > half))
-        reward = (task.progress_weight * (self._distance - distance) - task.time_cost
-                  - task.action_cost * (a[:, 0] * a[:, 0] + a[:, 1] * a[:, 1])
-                  + task.success_bonus * success.astype(np.float64)
-                  - task.failure_penalty * failure.astype(np.float64))
-        self._distance = distance
-        self._prev_action = a.astype(np.float32)
-        return reward, success, failure
+        return self._score(self._pose[:, 0], self._pose[:, 1], a, self._up_z < FLIP_UP_Z)
 
     def _observe(self) -> np.ndarray:
         self._wheels = self.cars.qpos[:, self._wheel_q]

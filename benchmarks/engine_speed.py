@@ -18,11 +18,15 @@ on a shared machine.
 (pyramidal friction cones; 20 ms substeps), each and both, against pybullet in the same rounds:
 what they would buy. ``--lever-fidelity`` says what they cost: the fidelity table's spin rates
 and coast-down under each setting, against pybullet's (at its shipped 10 ms substeps).
+``--substep-costs`` times one MuJoCo substep of a driving car with its options switched one at a
+time (where a substep's time goes); ``--impratio-sweep`` measures the slow spin at 20 ms substeps
+for a range of ``impratio`` (whether any setting holds the fidelity tolerance).
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import statistics
 import time
 
@@ -120,8 +124,8 @@ def levers(steps: int, rounds: int) -> None:
         print(f"| {name} | {statistics.median(values):.0f} | {' | '.join(cells)} |")
 
 
-def lever_fidelity() -> None:
-    """The ``--lever-fidelity`` table."""
+def lever_fidelity(names: tuple[str, ...] | None = None) -> None:
+    """The ``--lever-fidelity`` table (of the maneuvers ``names``: spins and coast-down)."""
     from smartcar_gym.controller import load_controller_config
     from smartcar_gym.envs.robots import engines_compared
     from smartcar_gym.model import load_model
@@ -129,7 +133,7 @@ def lever_fidelity() -> None:
 
     model, config = load_model(), load_controller_config()
     rows = [m for m in engines_compared.MANEUVERS
-            if m.name.startswith("spin rate") or m.name.startswith("coast-down")]
+            if (m.name in names if names else m.name.startswith(("spin rate", "coast-down")))]
     reference = {m.name: m.measure(model, config, "pybullet") for m in rows}
     reset, shipped_substep = simulator.MujocoSimulator.reset, engines_compared.DEFAULT_MAX_SUBSTEP_S
     print(f"| setting | {' | '.join(m.name for m in rows)} |")
@@ -151,6 +155,63 @@ def lever_fidelity() -> None:
         engines_compared.DEFAULT_MAX_SUBSTEP_S = shipped_substep
 
 
+SUBSTEP_VARIANTS = {
+    "as shipped": {},
+    "no warm start": {"disableflags": "WARMSTART"},
+    "no gearbox friction": {"disableflags": "FRICTIONLOSS"},
+    "no wheel chain": {"disableflags": "EQUALITY"},
+    "pyramidal cones": {"cone": 0},
+    "no contacts": {"disableflags": "CONTACT"},
+    "no constraints at all": {"disableflags": "CONSTRAINT"},
+}
+
+
+def substep_costs(repeats: int = 400, substeps: int = 12) -> None:
+    """The ``--substep-costs`` table: CPU per ``mj_step`` of one mid-drive state."""
+    import copy
+
+    import mujoco
+
+    env = gym.make("SmartCar-v0", engine="mujoco")
+    env.reset(seed=0)
+    for _ in range(40):  # a curve at speed: four wheels on the ground
+        env.step(np.array([0.6, 0.4], dtype=np.float32))
+    sim = env.unwrapped.sim
+    shipped, data = sim.model_compiled(), sim.data
+    state = [data.qpos.copy(), data.qvel.copy(), data.qacc_warmstart.copy(),
+             data.qfrc_applied.copy()]
+    print("| `mj_step` of the same state | us per substep (CPU) |")
+    print("|---|---|")
+    for name, change in SUBSTEP_VARIANTS.items():
+        model = copy.copy(shipped)
+        for key, value in change.items():
+            if key == "disableflags":
+                model.opt.disableflags |= getattr(mujoco.mjtDisableBit, f"mjDSBL_{value}")
+            else:
+                setattr(model.opt, key, value)
+        d = mujoco.MjData(model)
+        best = math.inf
+        for _ in range(5):
+            cpu = time.process_time()
+            for _ in range(repeats):
+                d.qpos[:], d.qvel[:], d.qacc_warmstart[:], d.qfrc_applied[:] = state
+                mujoco.mj_step(model, d, substeps)
+            best = min(best, (time.process_time() - cpu) / repeats / substeps)
+        print(f"| {name} | {best * 1e6:.1f} |", flush=True)
+    env.close()
+
+
+def impratio_sweep(values: tuple[float, ...] = (1, 2, 3, 5, 10, 30)) -> None:
+    """The ``--impratio-sweep`` row: the 0.5 rad/s spin at 20 ms substeps against pybullet."""
+    global LEVERS
+    shipped = LEVERS
+    try:
+        LEVERS = {f"impratio {v:g}": ({"impratio": float(v)}, 0.02) for v in values}
+        lever_fidelity(("spin rate at cmd_vel 0.5 rad/s",))
+    finally:
+        LEVERS = shipped
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--steps", type=int, default=600)
@@ -160,7 +221,17 @@ def main() -> None:
                         help="MuJoCo settings it does not use, against pybullet")
     parser.add_argument("--lever-fidelity", action="store_true",
                         help="what those settings change in the fidelity table")
+    parser.add_argument("--substep-costs", action="store_true",
+                        help="CPU per MuJoCo substep with its options switched one at a time")
+    parser.add_argument("--impratio-sweep", action="store_true",
+                        help="the slow spin at 20 ms substeps for a range of impratio")
     args = parser.parse_args()
+    if args.substep_costs:
+        substep_costs()
+        return
+    if args.impratio_sweep:
+        impratio_sweep()
+        return
     if args.lever_fidelity:
         lever_fidelity()
         return

@@ -294,6 +294,18 @@ class SmartCarSimVectorEnv(gym.vector.VectorEnv):
 
     def _observe(self) -> np.ndarray:
         """Every car's observation: ``Observation.build``'s values, in its order and rounding."""
+        columns = self._columns()
+        obs = np.empty((self.num_envs, len(self.observation_names)), dtype=np.float32)
+        k = 0
+        for entry in self.observation.entries:
+            for col in columns[entry.key]:
+                obs[:, k] = col  # each float64 value rounded once to float32
+                k += 1
+        return np.minimum(np.maximum(obs, self.observation.low, out=obs), self.observation.high,
+                          out=obs)
+
+    def _columns(self) -> dict[str, Any]:
+        """Each observation entry's values as columns over cars (by the entry's key)."""
         b = self.base
         c, s = np.cos(b.theta), np.sin(b.theta)
         gx, gy = self.goal[:, 0] - b.x, self.goal[:, 1] - b.y
@@ -311,14 +323,7 @@ class SmartCarSimVectorEnv(gym.vector.VectorEnv):
             "previous_action": (self._prev_action[:, 0], self._prev_action[:, 1]),
             "goal_odom": (self.goal[:, 0], self.goal[:, 1]),
         }
-        obs = np.empty((self.num_envs, len(self.observation_names)), dtype=np.float32)
-        k = 0
-        for entry in self.observation.entries:
-            for col in columns[entry.key]:
-                obs[:, k] = col  # each float64 value rounded once to float32
-                k += 1
-        return np.minimum(np.maximum(obs, self.observation.low, out=obs), self.observation.high,
-                          out=obs)
+        return columns
 
     def _info(self, mask: np.ndarray, success: np.ndarray) -> dict[str, Any]:
         b, pose = self.base, self._pose

@@ -276,10 +276,10 @@ class SmartCarMujocoVectorEnv(SmartCarSimVectorEnv):
         self._read_pose()
         return self._score(self._pose[:, 0], self._pose[:, 1], a, self._up_z < FLIP_UP_Z)
 
-    def _observe(self) -> np.ndarray:
+    def _columns(self) -> dict[str, Any]:
         self._wheels = self.cars.qpos[:, self._wheel_q]
         self._wheel_speed = self.cars.qvel[:, self._wheel_v]
-        return super()._observe()
+        return super()._columns()
 
     def _info(self, mask: np.ndarray, success: np.ndarray) -> dict[str, Any]:
         values = self._info_values(success)

@@ -43,7 +43,7 @@ class SmartCarNavMujocoVectorEnv(SmartCarMujocoVectorEnv):
     obstacles, the laser's noise seed, the first scan at t = 0) and the car's slot of
     ``sim.mujoco.batch.CarBatch`` becomes a copy of that world (``CarBatch.load``; about 7 ms a
     reset). From there on nothing goes through a single env: every car's physics is
-    ``mj_step`` in its own world, its laser one ``mj_multiRay`` per scan (``CarBatch.cast``)
+    ``mj_step`` in its own world, its laser one ``mj_multiRay`` per scan (``CarBatch.scan``)
     at the laser's rate on the car's own clock, its clearance ``mj_geomDistance`` between the
     car's and the obstacles' geoms (``CarBatch.distances``), all in C, the cars split between
     ``num_threads`` worker threads; the beams' geometry, ranges (REP 117, noise from each
@@ -151,13 +151,11 @@ class SmartCarNavMujocoVectorEnv(SmartCarMujocoVectorEnv):
         q = self.cars.qpos[idx, self._free_q:self._free_q + 7]
         origin, directions = laser.beams(q[:, :3], quaternion_matrix(q[:, [4, 5, 6, 3]]))
         starts = np.broadcast_to(origin[:, None, :], directions.shape)
-        hits = self.cars.cast(idx, starts, origin[:, None, :] + directions * range_max)
+        hit, fraction = self.cars.scan(idx, starts, origin[:, None, :] + directions * range_max)
         if laser.config.noise_std_m > 0:
-            for i, h in zip(idx.tolist(), hits, strict=True):
-                self.latest_ranges[i] = laser.ranges(h.fraction, h.hit, self._laser_rngs[i])
+            for k, i in enumerate(idx.tolist()):
+                self.latest_ranges[i] = laser.ranges(fraction[k], hit[k], self._laser_rngs[i])
         else:
-            fraction = np.stack([h.fraction for h in hits])
-            hit = np.stack([h.hit for h in hits])
             self.latest_ranges[idx] = laser.ranges(fraction, hit, None)
 
     # -- step, observation, info ---------------------------------------------------------------

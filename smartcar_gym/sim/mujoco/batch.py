@@ -10,7 +10,7 @@ events (the wheels' motor torque in ``qfrc_applied``, their back-EMF damping in
 ``dof_damping``) is written into each car's own model and data before it steps.
 
 A car whose world changes per episode (SmartCarNav-v0's obstacles) gets a copy of the world its
-single env builds (``load``). Its sensors query its own world in C the same way: ``cast`` (the
+single env builds (``load``). Its sensors query its own world in C the same way: ``scan`` (the
 laser: one ``mj_multiRay`` per car) and ``distances`` (``mj_geomDistance`` over geom pairs).
 
 Why not ``mujoco.rollout``: it restarts every rollout from a state vector, and MuJoCo's state
@@ -29,12 +29,13 @@ from concurrent.futures import ThreadPoolExecutor
 import mujoco
 import numpy as np
 
-from smartcar_gym.sim.mujoco.rays import cast
+from smartcar_gym.sim.mujoco.rays import hit_fraction, multi_ray, unit_rays
 from smartcar_gym.sim.mujoco.simulator import MujocoSimulator
-from smartcar_gym.sim.rays import RayHits
 
 #: below this many cars to step, the threads cost more than they save
 MIN_CARS_PER_THREAD = 4
+#: rounding allowance (m) when bounding spheres rule a pair of geoms out of ``distances``
+SPHERE_SLACK_M = 1e-6
 
 
 class CarBatch:
@@ -94,13 +95,18 @@ class CarBatch:
         """Step car ``cars[k]`` by ``nstep[k]`` substeps of ``timestep[k]`` s (in C)."""
         self._map(self._run, cars, (nstep.tolist(), timestep.tolist()))
 
-    def cast(self, cars: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> list[RayHits]:
-        """Car ``cars[k]``'s rays from ``starts[k]`` to ``ends[k]`` ((B, 3) each) in its own
-        world (``rays.cast``: one ``mj_multiRay`` per car, in C), as ``MujocoSimulator``'s."""
-        hits: list[RayHits | None] = [None] * len(cars)
-        self._map(self._cast, cars, (list(range(len(cars))), list(zip(starts, ends, strict=True))),
-                  (hits,))
-        return hits
+    def scan(self, cars: np.ndarray, starts: np.ndarray,
+             ends: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Car ``cars[k]``'s rays from ``starts[k]`` (one point, repeated: (B, 3)) to
+        ``ends[k]`` ((B, 3)) in its own world, one ``mj_multiRay`` per car in C, as
+        ``MujocoSimulator.ray_batch`` casts them (``rays``' arithmetic, on all cars at once):
+        which rays hit (K, B) and how far along (1 where none)."""
+        _, length, unit = unit_rays(starts, ends)
+        geom = np.full(length.shape, -1, dtype=np.int32)
+        dist = np.full(length.shape, -1.0)
+        self._map(self._multi_ray, cars, (list(starts[:, 0]), list(unit),
+                                          length.max(axis=1).tolist(), list(geom), list(dist)))
+        return hit_fraction(geom, dist, length)
 
     def distances(self, cars: np.ndarray, pairs: list[np.ndarray],
                   max_distance_m: float) -> np.ndarray:
@@ -150,16 +156,24 @@ class CarBatch:
         mujoco.mj_kinematics(m, d)
         return m, d
 
-    def _cast(self, cars: list[int], slots: list[int], rays: list, hits: list) -> None:
-        for i, k, (starts, ends) in zip(cars, slots, rays, strict=True):
-            hits[k] = cast(*self._current(i), starts, ends)
+    def _multi_ray(self, cars: list[int], starts: list, units: list, cutoffs: list[float],
+                   geoms: list, dists: list) -> None:
+        for i, start, unit, cutoff, geom, dist in zip(cars, starts, units, cutoffs, geoms, dists,
+                                                      strict=True):
+            multi_ray(*self._current(i), start, unit, cutoff, geom, dist)
 
     def _nearest(self, cars: list[int], slots: list[int], pairs: list[np.ndarray],
                  out: np.ndarray, max_distance_m: float) -> None:
         for i, k, car_pairs in zip(cars, slots, pairs, strict=True):
             m, d = self._current(i)
             nearest = max_distance_m
-            for g1, g2 in car_pairs.tolist():
+            # a pair whose bounding spheres are further apart than max_distance_m gives
+            # exactly max_distance_m: only the others are measured (the same minimum)
+            g1, g2 = car_pairs[:, 0], car_pairs[:, 1]
+            apart = d.geom_xpos[g1] - d.geom_xpos[g2]
+            gap = (np.sqrt(np.add.reduce(apart * apart, axis=1)) - m.geom_rbound[g1]
+                   - m.geom_rbound[g2])
+            for g1, g2 in car_pairs[gap <= max_distance_m + SPHERE_SLACK_M].tolist():
                 nearest = min(nearest, mujoco.mj_geomDistance(m, d, g1, g2, max_distance_m,
                                                               None))
             out[k] = nearest

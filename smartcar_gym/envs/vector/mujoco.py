@@ -104,8 +104,8 @@ class SmartCarMujocoVectorEnv(SmartCarSimVectorEnv):
         self._keep(template)
 
     def _keep(self, template: SmartCarEnv) -> None:
-        """What to do with the single env the batch was made from once it is: close it (every
-        car is a copy of its world)."""
+        """The single env the batch was made from, once made: closed (every car is a copy of
+        its world)."""
         template.close()
 
     def _init_from(self, s: SmartCarEnv, num_threads: int | None) -> None:

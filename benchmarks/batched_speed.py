@@ -16,6 +16,14 @@ set from before the env was made to after the last step. Envs:
   (``SmartCarMujocoVectorEnv``: each car's physics in C, two worker threads), at every N; fewer
   steps per measurement (``--mujoco-car-steps``) since each car-step is a dozen physics steps.
 - ``SmartCar-v0 MuJoCo single``: one ``gym.make("SmartCar-v0", engine="mujoco")``.
+- ``SmartCarNav-v0 MuJoCo batched``: ``engine="mujoco"`` through the vector_entry_point
+  (``SmartCarNavMujocoVectorEnv``: physics, laser and clearance in C, two worker threads), and
+  ``SmartCarNav-v0 MuJoCo loop``: the same cars as the loop of single MuJoCo envs that the
+  entry point falls back to (``SmartCarLoopVectorEnv``), at N = 16 and 64.
+
+``--only PREFIX`` measures only the rows whose label starts with it (``--only SmartCarNav``:
+the Nav rows alone, a minute or two); pass another ``--out`` then, to keep the full sweep's
+figure.
 
 The table shows the median over rounds; ratios are taken within a round, since this shared
 machine's speed drifts by half within minutes.
@@ -50,15 +58,19 @@ def measure(env_id: str, mode: str, n: int, car_steps: int) -> dict[str, float]:
     import smartcar_gym  # noqa: F401
 
     before = _rss_bytes()
+    from smartcar_gym.envs.vector import SmartCarLoopVectorEnv
+
     kwargs = {"engine": "mujoco"} if mode.startswith("mujoco") else {}
     if mode in ("single", "mujoco-single"):
         envs = gym.make_vec(env_id, num_envs=1, vectorization_mode="sync", **kwargs)
+    elif mode == "mujoco-loop":
+        envs = SmartCarLoopVectorEnv(env_id, num_envs=n, **kwargs)
     else:
         envs = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point",
                             **kwargs)
     rng = np.random.default_rng(0)
     envs.reset(seed=0)
-    steps = min(max(5 if mode == "mujoco" else 50, car_steps // n), 5000)
+    steps = min(max(5 if mode.startswith("mujoco") else 50, car_steps // n), 5000)
     actions = [rng.uniform(-1, 1, (n, 2)).astype(np.float32) for _ in range(16)]
     for k in range(min(20, steps // 5 or 1)):  # warm-up
         envs.step(actions[k % 16])
@@ -112,6 +124,10 @@ def main() -> None:
     parser.add_argument("--mujoco-car-steps", type=int, default=20_000,
                         help="car-steps per MuJoCo batched measurement")
     parser.add_argument("--out", type=Path, default=REPO / "docs" / "batched_speed.png")
+    parser.add_argument("--nav-car-steps", type=int, default=3_000,
+                        help="car-steps per SmartCarNav-v0 measurement")
+    parser.add_argument("--only", default="", help="measure only the rows whose label starts "
+                        "with this (e.g. SmartCarNav)")
     parser.add_argument("--one", nargs=4, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.one:
@@ -126,6 +142,9 @@ def main() -> None:
     plan += [("SmartCar-v0 MuJoCo batched", "SmartCar-v0", "mujoco", n, args.mujoco_car_steps)
              for n in SIZES]
     plan += [("SmartCar-v0 MuJoCo single", "SmartCar-v0", "mujoco-single", 1, 3000)]
+    plan += [(f"SmartCarNav-v0 MuJoCo {kind}", "SmartCarNav-v0", mode, n, args.nav_car_steps)
+             for n in (16, 64) for kind, mode in (("batched", "mujoco"), ("loop", "mujoco-loop"))]
+    plan = [row for row in plan if row[0].startswith(args.only)]
     rounds: list[dict] = []
     for r in range(args.rounds):
         got: dict = {}
@@ -139,20 +158,25 @@ def main() -> None:
         median.setdefault(label, {})[str(n)] = {
             key: statistics.median(row[key] for row in rows) for key in rows[0]}
     top = str(SIZES[-1])
-    ratios = {
-        "batched N=4096 / single SmartCarSim-v0": statistics.median(
-            rd["SmartCarSim-v0 batched"][top]["car_steps_per_s"]
-            / rd["SmartCarSim-v0 single"]["1"]["car_steps_per_s"] for rd in rounds),
-        "batched N=4096 / SmartCar-v0 loop N=1": statistics.median(
-            rd["SmartCarSim-v0 batched"][top]["car_steps_per_s"]
-            / rd["SmartCar-v0 loop"]["1"]["car_steps_per_s"] for rd in rounds),
-        "MuJoCo batched N=64 / SmartCar-v0 loop N=1 (pybullet)": statistics.median(
-            rd["SmartCar-v0 MuJoCo batched"]["64"]["car_steps_per_s"]
-            / rd["SmartCar-v0 loop"]["1"]["car_steps_per_s"] for rd in rounds),
-        "MuJoCo batched N=64 / MuJoCo single": statistics.median(
-            rd["SmartCar-v0 MuJoCo batched"]["64"]["car_steps_per_s"]
-            / rd["SmartCar-v0 MuJoCo single"]["1"]["car_steps_per_s"] for rd in rounds),
+    pairs = {
+        "batched N=4096 / single SmartCarSim-v0": (("SmartCarSim-v0 batched", top),
+                                                    ("SmartCarSim-v0 single", "1")),
+        "batched N=4096 / SmartCar-v0 loop N=1": (("SmartCarSim-v0 batched", top),
+                                                   ("SmartCar-v0 loop", "1")),
+        "MuJoCo batched N=64 / SmartCar-v0 loop N=1 (pybullet)": (
+            ("SmartCar-v0 MuJoCo batched", "64"), ("SmartCar-v0 loop", "1")),
+        "MuJoCo batched N=64 / MuJoCo single": (("SmartCar-v0 MuJoCo batched", "64"),
+                                                ("SmartCar-v0 MuJoCo single", "1")),
     }
+    for n in ("16", "64"):
+        pairs[f"Nav MuJoCo batched / Nav MuJoCo loop, N={n}"] = (
+            ("SmartCarNav-v0 MuJoCo batched", n), ("SmartCarNav-v0 MuJoCo loop", n))
+    ratios = {}
+    for name, ((a, na), (b, nb)) in pairs.items():
+        if a in median and b in median:
+            for unit, suffix in (("car_steps_per_s", ""), ("car_steps_per_cpu_s", " (CPU)")):
+                ratios[name + suffix] = statistics.median(
+                    rd[a][na][unit] / rd[b][nb][unit] for rd in rounds)
     print("| env | N | car-steps/s (wall) | car-steps per CPU-s | memory growth (MiB) |")
     print("|---|---|---|---|---|")
     for label, rows in median.items():

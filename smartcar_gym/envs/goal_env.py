@@ -95,8 +95,11 @@ class SmartCarGoalEnv(SmartCarEnv):
     ## Vector envs
 
     ``gym.make_vec("SmartCarGoal-v0", num_envs=N, vectorization_mode="vector_entry_point")``:
-    N single envs stepped in a loop (``SmartCarLoopVectorEnv``; pybullet is not batched), with
-    the smartcar vector conventions (docs/vector.md).
+    with ``engine="mujoco"``, N cars in C (``SmartCarGoalMujocoVectorEnv``, bit for bit N of
+    this env, ``Dict`` observations of ``(N, ...)`` arrays, ``compute_reward`` for HER); on
+    pybullet, or with ``randomize`` or ``controller_mode="sim"``, N single envs stepped in a
+    loop (``SmartCarLoopVectorEnv``); both with the smartcar vector conventions
+    (docs/vector.md).
 
     ## Version History
 

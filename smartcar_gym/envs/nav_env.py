@@ -138,8 +138,11 @@ class SmartCarNavEnv(SmartCarEnv):
     ## Vector envs
 
     ``gym.make_vec("SmartCarNav-v0", num_envs=N, vectorization_mode="vector_entry_point")``:
-    N single envs stepped in a loop (``SmartCarLoopVectorEnv``; pybullet is not batched), with
-    the smartcar vector conventions (docs/vector.md).
+    with ``engine="mujoco"``, N cars in C (``SmartCarNavMujocoVectorEnv``: each car's world
+    built at its reset as here, then its physics, laser and clearance stepped in C; bit for
+    bit N of this env); on pybullet, or with ``randomize``, a ``render_mode`` or
+    ``controller_mode="sim"``, N single envs stepped in a loop (``SmartCarLoopVectorEnv``);
+    both with the smartcar vector conventions (docs/vector.md).
 
     ## Version History
 

@@ -189,10 +189,11 @@ class SmartCarEnv(gym.Env):
 
     ``gym.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point", **kwargs)`` makes N
     cars in one process (docs/vector.md): SmartCarSim-v0 in numpy arrays
-    (``SmartCarSimVectorEnv``, bit for bit N single envs), SmartCar-v0 with ``engine="mujoco"``
-    in C (``SmartCarMujocoVectorEnv``, bit for bit too), on pybullet or with options the
-    batches lack (``randomize``, ``stop_speed``, the GUI) as N single envs in a loop
-    (``SmartCarLoopVectorEnv``). Gymnasium 1.x autoreset (``"NextStep"``, or
+    (``SmartCarSimVectorEnv``, bit for bit N single envs), SmartCar-v0, SmartCarNav-v0 and
+    SmartCarGoal-v0 with ``engine="mujoco"`` in C (``SmartCarMujocoVectorEnv``,
+    ``SmartCarNavMujocoVectorEnv``, ``SmartCarGoalMujocoVectorEnv``, bit for bit too), on
+    pybullet or with options the batches lack (``randomize``, ``stop_speed``, the GUI) as N
+    single envs in a loop (``SmartCarLoopVectorEnv``). Gymnasium 1.x autoreset (``"NextStep"``, or
     ``autoreset_mode="SameStep"``), car i seeded ``s + i``, ``info["is_success"]`` per car.
 
     ## Version History

@@ -21,14 +21,18 @@ def rpy_matrix(rpy: Sequence[float]) -> np.ndarray:
     return rz @ ry @ rx
 
 
-def quaternion_matrix(quaternion: Sequence[float]) -> np.ndarray:
-    """The rotation matrix of an (x, y, z, w) unit quaternion (pybullet's and ROS's order)."""
-    x, y, z, w = quaternion
-    return np.array([
+def quaternion_matrix(quaternion: Sequence[float] | np.ndarray) -> np.ndarray:
+    """The rotation matrix of an (x, y, z, w) unit quaternion (pybullet's and ROS's order);
+    an ``(N, 4)`` array of quaternions gives the ``(N, 3, 3)`` matrices (the same arithmetic
+    per element)."""
+    stacked = isinstance(quaternion, np.ndarray) and quaternion.ndim == 2
+    x, y, z, w = quaternion.T if stacked else quaternion
+    matrix = np.array([
         [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
         [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
         [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
     ])
+    return np.ascontiguousarray(np.moveaxis(matrix, (0, 1), (1, 2))) if stacked else matrix
 
 
 def matrix_quaternion(r: np.ndarray) -> tuple[float, float, float, float]:

@@ -107,20 +107,32 @@ class SimulatedLaser:
         self._next_ns += self.period_ns
 
     # -- scanning ------------------------------------------------------------------------------
+    def beams(self, position: np.ndarray, rotation: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The scan's origin and unit beam directions (world frame) for base_link at
+        ``position`` turned by ``rotation``; ``(N, 3)`` and ``(N, 3, 3)`` give N scans' (the
+        batched MuJoCo env's), each bit for bit as alone."""
+        origin = position + rotation @ self.mount[:3, 3]
+        return origin, self._directions @ np.swapaxes(rotation, -1, -2)
+
+    def ranges(self, fraction: np.ndarray, hit: np.ndarray,
+               rng: np.random.Generator | None) -> np.ndarray:
+        """A scan's ranges (REP 117) from its rays' hit ``fraction`` of ``range_max`` and
+        ``hit`` flags, with ``rng``'s noise if the config has any."""
+        config = self.config
+        ranges = fraction * config.range_max
+        if config.noise_std_m > 0:
+            ranges = ranges + rng.normal(0.0, config.noise_std_m, size=ranges.shape)
+        ranges = np.where(hit & (ranges <= config.range_max), ranges, np.inf)
+        return np.where(ranges < config.range_min, -np.inf, ranges)
+
     def scan(self) -> LaserScan:
         """Cast every beam now (one batch) and return the scan (ranges as REP 117 says)."""
         config = self.config
         position, orientation = self.body.link_pose()
-        rotation = quaternion_matrix(orientation)
-        origin = np.asarray(position) + rotation @ self.mount[:3, 3]
-        directions = self._directions @ rotation.T
+        origin, directions = self.beams(np.asarray(position), quaternion_matrix(orientation))
         hits = cast_rays(self.sim, np.broadcast_to(origin, directions.shape),
                          origin + directions * config.range_max)
-        ranges = hits.fraction * config.range_max
-        if config.noise_std_m > 0:
-            ranges = ranges + self.rng.normal(0.0, config.noise_std_m, size=ranges.shape)
-        ranges = np.where(hits.hit & (ranges <= config.range_max), ranges, np.inf)
-        ranges = np.where(ranges < config.range_min, -np.inf, ranges)
+        ranges = self.ranges(hits.fraction, hits.hit, self.rng)
         finite = np.isfinite(ranges)
         self.origin = origin
         self.hit_points = origin + directions[finite] * ranges[finite, None]

@@ -91,14 +91,15 @@ class LaserScan:
 def scan_sectors(ranges: np.ndarray, range_max: float, sectors: int) -> np.ndarray:
     """The scan as ``sectors`` values: the nearest range in each of ``sectors`` consecutive
     groups of beams (sizes differing by at most one beam), in beam order. ``+inf`` (nothing
-    within range) reads ``range_max``, ``-inf`` (closer than ``range_min``) reads 0."""
+    within range) reads ``range_max``, ``-inf`` (closer than ``range_min``) reads 0. An
+    ``(N, beams)`` array of N scans gives ``(N, sectors)``."""
     ranges = np.asarray(ranges, dtype=np.float64)
-    if not 1 <= sectors <= len(ranges):
-        raise ValueError(f"a scan of {len(ranges)} beams gives 1 to {len(ranges)} sectors, "
-                         f"got {sectors}")
+    beams = ranges.shape[-1]
+    if not 1 <= sectors <= beams:
+        raise ValueError(f"a scan of {beams} beams gives 1 to {beams} sectors, got {sectors}")
     values = np.where(np.isneginf(ranges), 0.0, np.minimum(ranges, range_max))
-    starts = (np.arange(sectors) * len(ranges)) // sectors
-    return np.minimum.reduceat(values, starts)
+    starts = (np.arange(sectors) * beams) // sectors
+    return np.minimum.reduceat(values, starts, axis=-1)
 
 
 def sector_names(sectors: int) -> tuple[str, ...]:

@@ -2,9 +2,11 @@
 
 ``gym.make_vec(env_id, num_envs=N, vectorization_mode="vector_entry_point", **kwargs)`` calls
 the entry point of ``env_id`` here. SmartCarSim-v0 (kinematic, no engine) is batched in numpy
-arrays (``SmartCarSimVectorEnv``); the pybullet ids, and SmartCarSim-v0 with options only a
-pybullet world has (``randomize``, the GUI), step N single envs in a loop
-(``SmartCarLoopVectorEnv``). Both follow the same conventions (docs/vector.md).
+arrays (``SmartCarSimVectorEnv``); SmartCar-v0, SmartCarNav-v0 and SmartCarGoal-v0 with
+``engine="mujoco"`` step every car's MuJoCo world in C (``SmartCarMujocoVectorEnv``,
+``SmartCarNavMujocoVectorEnv``, ``SmartCarGoalMujocoVectorEnv``); the pybullet ids, and the
+options only a single env's world has (``randomize``, the GUI, ...), step N single envs in a
+loop (``SmartCarLoopVectorEnv``). All follow the same conventions (docs/vector.md).
 """
 
 from __future__ import annotations
@@ -13,12 +15,16 @@ from typing import Any
 
 import gymnasium as gym
 
+from smartcar_gym.envs.vector.goal_mujoco import SmartCarGoalMujocoVectorEnv
 from smartcar_gym.envs.vector.kinematic import SmartCarSimVectorEnv, supports
 from smartcar_gym.envs.vector.loop import SmartCarLoopVectorEnv
 from smartcar_gym.envs.vector.mujoco import SmartCarMujocoVectorEnv
 from smartcar_gym.envs.vector.mujoco import supports as mujoco_supports
+from smartcar_gym.envs.vector.nav_mujoco import SmartCarNavMujocoVectorEnv
+from smartcar_gym.envs.vector.nav_mujoco import supports as nav_mujoco_supports
 
-__all__ = ["SmartCarLoopVectorEnv", "SmartCarMujocoVectorEnv", "SmartCarSimVectorEnv",
+__all__ = ["SmartCarGoalMujocoVectorEnv", "SmartCarLoopVectorEnv", "SmartCarMujocoVectorEnv",
+           "SmartCarNavMujocoVectorEnv", "SmartCarSimVectorEnv",
            "make_vector_env", "smartcar_arrive_v0", "smartcar_goal_v0", "smartcar_nav_v0",
            "smartcar_sim_v0", "smartcar_v0"]
 
@@ -28,7 +34,10 @@ def make_vector_env(env_id: str, num_envs: int = 1, **kwargs: Any) -> gym.vector
 
     SmartCarSim-v0 in the kinematic mode: ``SmartCarSimVectorEnv`` (numpy); SmartCar-v0 with
     ``engine="mujoco"`` (hardware mode, no ``randomize``, no GUI): ``SmartCarMujocoVectorEnv``
-    (MuJoCo in C per car); anything else: ``SmartCarLoopVectorEnv``. ``kwargs`` are the single
+    (MuJoCo in C per car); SmartCarNav-v0 with ``engine="mujoco"`` (the same, and no
+    ``render_mode``): ``SmartCarNavMujocoVectorEnv``; SmartCarGoal-v0 with
+    ``engine="mujoco"`` (as SmartCar-v0): ``SmartCarGoalMujocoVectorEnv``; anything else:
+    ``SmartCarLoopVectorEnv``. ``kwargs`` are the single
     env's, plus ``max_episode_steps`` and ``autoreset_mode``.
     """
     if env_id == "SmartCarSim-v0" and supports(kwargs) is None \
@@ -36,6 +45,10 @@ def make_vector_env(env_id: str, num_envs: int = 1, **kwargs: Any) -> gym.vector
         return SmartCarSimVectorEnv(num_envs=num_envs, **kwargs)
     if env_id == "SmartCar-v0" and mujoco_supports(kwargs) is None:
         return SmartCarMujocoVectorEnv(num_envs=num_envs, **kwargs)
+    if env_id == "SmartCarNav-v0" and nav_mujoco_supports(kwargs) is None:
+        return SmartCarNavMujocoVectorEnv(num_envs=num_envs, **kwargs)
+    if env_id == "SmartCarGoal-v0" and mujoco_supports(kwargs) is None:
+        return SmartCarGoalMujocoVectorEnv(num_envs=num_envs, **kwargs)
     return SmartCarLoopVectorEnv(env_id, num_envs=num_envs, **kwargs)
 
 
@@ -50,7 +63,7 @@ def smartcar_sim_v0(num_envs: int = 1, **kwargs: Any) -> gym.vector.VectorEnv:
 
 
 def smartcar_nav_v0(num_envs: int = 1, **kwargs: Any) -> gym.vector.VectorEnv:
-    """SmartCarNav-v0's ``vector_entry_point`` (pybullet: a loop of single envs)."""
+    """SmartCarNav-v0's ``vector_entry_point`` (MuJoCo: batched in C; pybullet: a loop)."""
     return make_vector_env("SmartCarNav-v0", num_envs, **kwargs)
 
 
@@ -60,5 +73,5 @@ def smartcar_arrive_v0(num_envs: int = 1, **kwargs: Any) -> gym.vector.VectorEnv
 
 
 def smartcar_goal_v0(num_envs: int = 1, **kwargs: Any) -> gym.vector.VectorEnv:
-    """SmartCarGoal-v0's ``vector_entry_point`` (pybullet: a loop of single envs)."""
+    """SmartCarGoal-v0's ``vector_entry_point`` (MuJoCo: batched in C; pybullet: a loop)."""
     return make_vector_env("SmartCarGoal-v0", num_envs, **kwargs)

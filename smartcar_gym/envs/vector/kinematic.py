@@ -13,6 +13,7 @@ from gymnasium.vector.utils import batch_space
 
 from smartcar_gym.controller import KINEMATIC
 from smartcar_gym.controller.batched import BatchedArbotix
+from smartcar_gym.envs.observation import Observation
 from smartcar_gym.envs.smartcar_env import SmartCarEnv
 from smartcar_gym.envs.vector.common import (
     check_actions,
@@ -177,8 +178,9 @@ class SmartCarSimVectorEnv(gym.vector.VectorEnv):
             else np.zeros(self.num_envs, dtype=bool)
         reward, success, failure = self._advance(a)
         terminated = success | failure
-        truncated = (self._steps >= self.max_episode_steps if self.max_episode_steps is not None
-                     else np.zeros(self.num_envs, dtype=bool))
+        truncated = self._cut_short() | (
+            self._steps >= self.max_episode_steps if self.max_episode_steps is not None
+            else np.zeros(self.num_envs, dtype=bool))
         if self.autoreset_mode == AutoresetMode.NEXT_STEP:
             if restart.any():
                 self._reset_cars(restart, None)
@@ -193,7 +195,7 @@ class SmartCarSimVectorEnv(gym.vector.VectorEnv):
             if done.any():
                 final_obs = np.full(self.num_envs, None, dtype=object)
                 for i in np.flatnonzero(done):
-                    final_obs[i] = obs[i].copy()
+                    final_obs[i] = self._car_obs(obs, i)
                 final_info = self._info(done, success)
                 self._reset_cars(done, None)
                 obs = self._observe()
@@ -292,8 +294,31 @@ class SmartCarSimVectorEnv(gym.vector.VectorEnv):
         self._prev_action = a.astype(np.float32)
         return reward, success, failure
 
+    def _cut_short(self) -> np.ndarray:
+        """Which cars the env itself truncates this step (none here: only the time limit)."""
+        return np.zeros(self.num_envs, dtype=bool)
+
+    @staticmethod
+    def _car_obs(obs: np.ndarray, i: int) -> np.ndarray:
+        """Car ``i``'s observation, copied out of the batch (``final_obs``)."""
+        return obs[i].copy()
+
     def _observe(self) -> np.ndarray:
         """Every car's observation: ``Observation.build``'s values, in its order and rounding."""
+        return self._build(self.observation, self._columns())
+
+    def _build(self, observation: Observation, columns: dict[str, Any]) -> np.ndarray:
+        """``observation.build`` for every car from the entries' ``columns``."""
+        obs = np.empty((self.num_envs, len(observation.names)), dtype=np.float32)
+        k = 0
+        for entry in observation.entries:
+            for col in columns[entry.key]:
+                obs[:, k] = col  # each float64 value rounded once to float32
+                k += 1
+        return np.minimum(np.maximum(obs, observation.low, out=obs), observation.high, out=obs)
+
+    def _columns(self) -> dict[str, Any]:
+        """Each observation entry's values as columns over cars (by the entry's key)."""
         b = self.base
         c, s = np.cos(b.theta), np.sin(b.theta)
         gx, gy = self.goal[:, 0] - b.x, self.goal[:, 1] - b.y
@@ -311,14 +336,7 @@ class SmartCarSimVectorEnv(gym.vector.VectorEnv):
             "previous_action": (self._prev_action[:, 0], self._prev_action[:, 1]),
             "goal_odom": (self.goal[:, 0], self.goal[:, 1]),
         }
-        obs = np.empty((self.num_envs, len(self.observation_names)), dtype=np.float32)
-        k = 0
-        for entry in self.observation.entries:
-            for col in columns[entry.key]:
-                obs[:, k] = col  # each float64 value rounded once to float32
-                k += 1
-        return np.minimum(np.maximum(obs, self.observation.low, out=obs), self.observation.high,
-                          out=obs)
+        return columns
 
     def _info(self, mask: np.ndarray, success: np.ndarray) -> dict[str, Any]:
         b, pose = self.base, self._pose

@@ -71,30 +71,42 @@ class SmartCarMujocoVectorEnv(SmartCarSimVectorEnv):
     """
 
     metadata = {"render_modes": ["rgb_array"], "autoreset_mode": AutoresetMode.NEXT_STEP}
+    #: the single env each car is bit for bit, and its id (messages)
+    single_env = SmartCarEnv
+    env_id = "SmartCar-v0"
+    bytes_per_car = BYTES_PER_CAR
+    why_not = staticmethod(supports)
 
     def __init__(self, num_envs: int = 1, max_episode_steps: int | None = MAX_EPISODE_STEPS,
                  autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
                  num_threads: int | None = None, **kwargs: Any) -> None:
         kwargs.setdefault("engine", "mujoco")
-        why = supports(kwargs)
+        why = self.why_not(kwargs)
         if why is not None:
-            raise ValueError(f"SmartCarMujocoVectorEnv cannot run {why}; use "
+            raise ValueError(f"{type(self).__name__} cannot run {why}; use "
                              "vectorization_mode='sync' (or the vector_entry_point falls back)")
-        self.num_envs = check_num_envs(num_envs, "SmartCar-v0 (mujoco)", BYTES_PER_CAR)
+        self.num_envs = check_num_envs(num_envs, f"{self.env_id} (mujoco)", self.bytes_per_car)
         self.autoreset_mode = check_autoreset_mode(autoreset_mode)
         self.max_episode_steps = None if max_episode_steps is None else int(max_episode_steps)
-        template = SmartCarEnv(**kwargs)
+        template = self.single_env(**kwargs)
         try:
             if template.controller_mode != HARDWARE:
-                raise ValueError("SmartCarMujocoVectorEnv is the hardware mode (PID, motors)")
+                raise ValueError(f"{type(self).__name__} is the hardware mode (PID, motors)")
             if template.robot_model.drive_kind == "differential":
-                raise ValueError("SmartCarMujocoVectorEnv runs skid-steer bases; a "
+                raise ValueError(f"{type(self).__name__} runs skid-steer bases; a "
                                  "differential-drive model starts its encoders mid-tick "
                                  "(use vectorization_mode='sync')")
             template.reset(seed=0)
             self._init_from(template, num_threads)
-        finally:
+        except BaseException:
             template.close()
+            raise
+        self._keep(template)
+
+    def _keep(self, template: SmartCarEnv) -> None:
+        """The single env the batch was made from, once made: closed (every car is a copy of
+        its world)."""
+        template.close()
 
     def _init_from(self, s: SmartCarEnv, num_threads: int | None) -> None:
         from smartcar_gym.sim.mujoco.batch import CarBatch
@@ -176,11 +188,7 @@ class SmartCarMujocoVectorEnv(SmartCarSimVectorEnv):
     def _reset_cars(self, mask: np.ndarray, goals: np.ndarray | None) -> None:
         """The masked cars afresh: the settled world, the controller at t = 0, a new goal."""
         idx = np.flatnonzero(mask)
-        origin = np.zeros(2)
-        for i in idx:
-            self.goal[i] = (goals[i] if goals is not None
-                            else self.task.sample_goal(self._rng(i), origin))
-        self.cars.reset(idx)
+        self._new_worlds(idx, goals)
         self._steps[idx] = 0
         self._now[idx] = 0
         self._next_update[idx] = self.period_ns
@@ -191,6 +199,14 @@ class SmartCarMujocoVectorEnv(SmartCarSimVectorEnv):
         d = self._pose[idx, :2] - self.goal[idx]
         self._distance[idx] = np.sqrt(np.add.reduce(d * d, axis=-1))
 
+    def _new_worlds(self, idx: np.ndarray, goals: np.ndarray | None) -> None:
+        """Each listed car's goal (given or drawn from its generator) and its world at t = 0."""
+        origin = np.zeros(2)
+        for i in idx:
+            self.goal[i] = (goals[i] if goals is not None
+                            else self.task.sample_goal(self._rng(i), origin))
+        self.cars.reset(idx)
+
     def _motors_to_wheels(self, mask: np.ndarray) -> None:
         """Each side's motor output shared by its wheels (``set_motor_output``)."""
         side = self._side
@@ -199,11 +215,13 @@ class SmartCarMujocoVectorEnv(SmartCarSimVectorEnv):
         self.cars.damping[mask] = self.base.damping[mask][:, side] * self._share
 
     def _fire(self, mask: np.ndarray) -> None:
-        """Every masked car's events due at its clock: controller update, then PID frame."""
+        """Every masked car's events due at its clock: controller update, then PID frame (the
+        robot's), then the sensors' (``_fire_sensors``), in the single env's order."""
         now = self._now
         for _ in range(MAX_FIRINGS_PER_INSTANT):
-            firing = mask & (self._next_due() <= now)
+            firing = mask & (self._robot_due() <= now)
             if not firing.any():
+                self._fire_sensors(mask)
                 return
             now_s = now / NS_PER_S
             angles = self._angles()
@@ -216,8 +234,15 @@ class SmartCarMujocoVectorEnv(SmartCarSimVectorEnv):
         raise RuntimeError("a car's board is still due after "
                            f"{MAX_FIRINGS_PER_INSTANT} firings at one instant")
 
+    def _fire_sensors(self, mask: np.ndarray) -> None:
+        """The event sources after the robot (SmartCar-v0 has none)."""
+
     def _next_due(self) -> np.ndarray:
-        """Each car's next event (ns on its clock): ``SmartCarRobot.next_event_ns``."""
+        """Each car's next event (ns on its clock), of any source."""
+        return self._robot_due()
+
+    def _robot_due(self) -> np.ndarray:
+        """Each car's next robot event (ns on its clock): ``SmartCarRobot.next_event_ns``."""
         frame = self.base.next_frame_ms()
         frame_ns = np.where(frame >= 0, np.maximum(self._now, frame * 1_000_000), _NEVER)
         return np.minimum(self._next_update, frame_ns)
@@ -251,14 +276,22 @@ class SmartCarMujocoVectorEnv(SmartCarSimVectorEnv):
         self._read_pose()
         return self._score(self._pose[:, 0], self._pose[:, 1], a, self._up_z < FLIP_UP_Z)
 
-    def _observe(self) -> np.ndarray:
+    def _columns(self) -> dict[str, Any]:
         self._wheels = self.cars.qpos[:, self._wheel_q]
         self._wheel_speed = self.cars.qvel[:, self._wheel_v]
-        return super()._observe()
+        return super()._columns()
 
     def _info(self, mask: np.ndarray, success: np.ndarray) -> dict[str, Any]:
+        values = self._info_values(success)
+        if not mask.all():
+            values = {k: np.where(mask.reshape(-1, *([1] * (v.ndim - 1))), v,
+                                  np.zeros_like(v)) for k, v in values.items()}
+        return vector_info(values, mask)
+
+    def _info_values(self, success: np.ndarray) -> dict[str, np.ndarray]:
+        """Every car's ``info`` values (as SmartCarEnv's ``_info``) by key."""
         b, pose = self.base, self._pose
-        values = {
+        return {
             "is_success": success.copy(),
             "distance": self._distance.copy(),
             "pose": pose.copy(),
@@ -266,8 +299,4 @@ class SmartCarMujocoVectorEnv(SmartCarSimVectorEnv):
                 [b.x, b.y, [math.remainder(t, TWO_PI) for t in b.theta.tolist()]], axis=1),
             "odom_error": np.hypot(b.x - pose[:, 0], b.y - pose[:, 1]),
         }
-        if not mask.all():
-            values = {k: np.where(mask.reshape(-1, *([1] * (v.ndim - 1))), v,
-                                  np.zeros_like(v)) for k, v in values.items()}
-        return vector_info(values, mask)
 

@@ -40,13 +40,11 @@ from smartcar_gym.sim.mujoco.model import (
     has_visuals,
     link_frictions,
 )
+from smartcar_gym.sim.mujoco.rays import cast
 from smartcar_gym.sim.rays import RayHits
 
 IMPRATIO = 10.0
 CONVERGED_TOLERANCE = 1e-12  # converge_contacts: the Newton solver's tolerance
-#: the rays' geom groups: the world's and the robots' collision shapes (not hidden, visuals)
-RAY_GROUPS = np.array([1, 1, 0, 0, 0, 0], dtype=np.uint8)
-_RAY_NORMALS = "normal" in (mujoco.mj_multiRay.__doc__ or "")
 _SHAPES = {"box": mujoco.mjtGeom.mjGEOM_BOX, "cylinder": mujoco.mjtGeom.mjGEOM_CYLINDER,
            "sphere": mujoco.mjtGeom.mjGEOM_SPHERE}
 
@@ -370,29 +368,9 @@ class MujocoSimulator(EventClock):
 
     # -- queries -------------------------------------------------------------------------------
     def ray_batch(self, starts: np.ndarray, ends: np.ndarray) -> RayHits:
-        """``smartcar_gym.sim.rays.cast_rays`` of checked (N, 3) arrays: ``mj_multiRay`` from a
-        common start, ``mj_ray`` otherwise; bodies hidden from rays are passed through."""
-        m, d = self.model_compiled(), self.kinematics()
-        vec = ends - starts
-        length = np.linalg.norm(vec, axis=1)
-        unit = vec / np.where(length > 0, length, 1.0)[:, None]
-        count = len(starts)
-        geom = np.full(count, -1, dtype=np.int32)
-        dist = np.full(count, -1.0)
-        if np.all(starts == starts[0]):
-            normals = (None,) if _RAY_NORMALS else ()  # an argument since MuJoCo 3.3.x
-            mujoco.mj_multiRay(m, d, starts[0], unit.ravel(), RAY_GROUPS, 1, -1, geom, dist,
-                               *normals, count, float(length.max()))
-        else:
-            one = np.zeros(1, dtype=np.int32)
-            for i in range(count):
-                dist[i] = mujoco.mj_ray(m, d, starts[i], unit[i], RAY_GROUPS, 1, -1, one)
-                geom[i] = one[0]
-        hit = (geom >= 0) & (dist >= 0) & (dist <= length)
-        fraction = np.where(hit, dist / np.where(length > 0, length, 1.0), 1.0)
-        body = np.where(hit, m.body_rootid[m.geom_bodyid[np.maximum(geom, 0)]], -1)
-        point = starts + vec * fraction[:, None]
-        return RayHits(fraction=fraction, body=body.astype(int), point=point)
+        """``smartcar_gym.sim.rays.cast_rays`` of checked (N, 3) arrays (``rays.cast``: one
+        ``mj_multiRay`` from a common start); bodies hidden from rays are passed through."""
+        return cast(self.model_compiled(), self.kinematics(), starts, ends)
 
     # -- rendering -----------------------------------------------------------------------------
     def render(self, width: int, height: int, target: Sequence[float], distance: float,

@@ -68,7 +68,7 @@ def test_user_robots_drive_straight_at_the_default(robot):
 
 @pytest.mark.parametrize("robot", [CASTERBOT, HEAVYBOT], ids=["casterbot", "heavybot"])
 def test_user_robots_drive_straight_on_mujoco(robot):
-    pytest.importorskip("mujoco", reason="engine='mujoco' needs the mujoco extra")
+    pytest.importorskip("smartcar_gym.sim.mujoco", reason="engine='mujoco' needs the mujoco extra")
     forward, sideways, env = drive_straight(*robot, engine="mujoco")
     # the caster ball drags more on MuJoCo's elliptic cones (0.49 m for pybullet's 0.59 m)
     assert forward == pytest.approx(SPEED * 3.0, rel=0.2)

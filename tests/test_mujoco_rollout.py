@@ -17,7 +17,8 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-mujoco = pytest.importorskip("mujoco", reason="engine='mujoco' needs the mujoco extra")
+pytest.importorskip("smartcar_gym.sim.mujoco", reason="engine='mujoco' needs the mujoco extra")
+import mujoco  # noqa: E402  (after smartcar_gym.sim.mujoco has chosen MUJOCO_GL)
 
 import smartcar_gym  # noqa: E402, F401
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from gymnasium.vector import AutoresetMode
 
-pytest.importorskip("mujoco", reason="the mujoco extra is not installed")
+pytest.importorskip("smartcar_gym.sim.mujoco", reason="engine='mujoco' needs the mujoco extra")
 
 import smartcar_gym  # noqa: E402, F401
 from smartcar_gym.envs.vector import (  # noqa: E402

@@ -36,7 +36,30 @@ def goal_entries(position_bound_m: float) -> tuple[Entry, Entry]:
     )
 
 
-class SmartCarGoalEnv(SmartCarEnv):
+class GoalRewards:
+    """``compute_reward`` / ``compute_terminated`` / ``compute_truncated`` of a goal-conditioned
+    env (Gymnasium-Robotics' ``GoalEnv`` interface, what HER relabels with), from its
+    ``goal_task``: one pair of goals or a batch."""
+
+    goal_task: GoalConditionedTask
+
+    def compute_reward(self, achieved_goal: np.ndarray, desired_goal: np.ndarray,
+                       info: Any) -> np.ndarray:
+        """The reward for these goals (one pair or a batch); ``info`` is not used."""
+        return self.goal_task.compute_reward(achieved_goal, desired_goal, info)
+
+    def compute_terminated(self, achieved_goal: np.ndarray, desired_goal: np.ndarray,
+                           info: Any) -> np.ndarray:
+        """True where the goal is reached (one pair or a batch)."""
+        return self.goal_task.compute_terminated(achieved_goal, desired_goal, info)
+
+    def compute_truncated(self, achieved_goal: np.ndarray, desired_goal: np.ndarray,
+                          info: Any) -> np.ndarray:
+        """True where the car left the arena or flipped over (``info["flipped"]``)."""
+        return self.goal_task.compute_truncated(achieved_goal, desired_goal, info)
+
+
+class SmartCarGoalEnv(GoalRewards, SmartCarEnv):
     """## Description
 
     SmartCar-v0 as a goal-conditioned task, the interface of Gymnasium-Robotics' ``GoalEnv``
@@ -140,22 +163,6 @@ class SmartCarGoalEnv(SmartCarEnv):
         self._achieved, self._desired = Observation([achieved]), Observation([desired])
         return Observation.compose(GOAL_OBSERVATION_ORDER, robot_entries(wheels, bound),
                                    [previous_action_entry()])
-
-    # -- GoalEnv -------------------------------------------------------------------------------
-    def compute_reward(self, achieved_goal: np.ndarray, desired_goal: np.ndarray,
-                       info: Any) -> np.ndarray:
-        """The reward for these goals (one pair or a batch); ``info`` is not used."""
-        return self.goal_task.compute_reward(achieved_goal, desired_goal, info)
-
-    def compute_terminated(self, achieved_goal: np.ndarray, desired_goal: np.ndarray,
-                           info: Any) -> np.ndarray:
-        """True where the goal is reached (one pair or a batch)."""
-        return self.goal_task.compute_terminated(achieved_goal, desired_goal, info)
-
-    def compute_truncated(self, achieved_goal: np.ndarray, desired_goal: np.ndarray,
-                          info: Any) -> np.ndarray:
-        """True where the car left the arena or flipped over (``info["flipped"]``)."""
-        return self.goal_task.compute_truncated(achieved_goal, desired_goal, info)
 
     # -- gymnasium API -------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None,

@@ -7,12 +7,12 @@ from typing import Any
 
 import numpy as np
 
-from smartcar_gym.envs.goal_env import SmartCarGoalEnv
+from smartcar_gym.envs.goal_env import GoalRewards, SmartCarGoalEnv
 from smartcar_gym.envs.vector.mujoco import SmartCarMujocoVectorEnv
 from smartcar_gym.registration import SPECS
 
 
-class SmartCarGoalMujocoVectorEnv(SmartCarMujocoVectorEnv):
+class SmartCarGoalMujocoVectorEnv(GoalRewards, SmartCarMujocoVectorEnv):
     """## Description
 
     ``SmartCarGoal-v0`` with ``engine="mujoco"`` for ``num_envs`` cars at once: the physics and
@@ -56,22 +56,6 @@ class SmartCarGoalMujocoVectorEnv(SmartCarMujocoVectorEnv):
         self._truncate = np.zeros(n, dtype=bool)
         self._just_reset = np.zeros(n, dtype=bool)
         self._reset_success = np.zeros(n, dtype=bool)
-
-    # -- GoalEnv -------------------------------------------------------------------------------
-    def compute_reward(self, achieved_goal: np.ndarray, desired_goal: np.ndarray,
-                       info: Any) -> np.ndarray:
-        """SmartCarGoalEnv.compute_reward (``info`` is not used)."""
-        return self.goal_task.compute_reward(achieved_goal, desired_goal, info)
-
-    def compute_terminated(self, achieved_goal: np.ndarray, desired_goal: np.ndarray,
-                           info: Any) -> np.ndarray:
-        """SmartCarGoalEnv.compute_terminated: True where the goal is reached."""
-        return self.goal_task.compute_terminated(achieved_goal, desired_goal, info)
-
-    def compute_truncated(self, achieved_goal: np.ndarray, desired_goal: np.ndarray,
-                          info: Any) -> np.ndarray:
-        """SmartCarGoalEnv.compute_truncated: left the arena or flipped (``info``'s)."""
-        return self.goal_task.compute_truncated(achieved_goal, desired_goal, info)
 
     # -- the model -----------------------------------------------------------------------------
     def _reset_cars(self, mask: np.ndarray, goals: np.ndarray | None) -> None:

@@ -51,6 +51,7 @@ OBSTACLE_COLOR = (140, 140, 150)
 SHAPE_COLORS = {"box": (60, 110, 200), "cylinder": (40, 40, 40), "sphere": (90, 90, 90)}
 _CAR_SHAPES: dict[tuple, list[tuple[str, Any]]] = {}  # the car's archetypes, by its visuals
 _SERIES_LINES: dict[tuple[str, ...], Any] = {}  # series names: the same for every episode
+_UNCHANGING: dict[str, Any] = {}  # the odometry arrow, the scan's colour and radius
 
 
 def skip_pandas_probe() -> None:
@@ -177,24 +178,23 @@ class RerunSink:
             self._described = True
         world = f"world/{name}"
         _log_scene(rec, world, scene)
-        times = rr.TimeColumn(TIMELINE, duration=np.array([f.time_ns for f in frames]) / 1e9)
-        truth = np.array([f.position for f in frames])
+        table = _Table(frames)
+        times = rr.TimeColumn(TIMELINE, duration=table.time_ns / 1e9)
+        truth = table.position
         rec.log(f"{world}/path/truth", rr.LineStrips3D([truth], colors=[TRUTH_COLOR],
                                                        radii=0.01), static=True)
         rec.send_columns(f"{world}/car", indexes=[times], columns=rr.Transform3D.columns(
-            translation=truth, quaternion=np.array([f.orientation for f in frames])))
+            translation=truth, quaternion=table.orientation))
         start = frames[0]
         yaw0 = pose_from(start.position, start.orientation).yaw
         rec.log(f"{world}/odom", rr.Transform3D(
             translation=(start.position[0], start.position[1], 0.0),
             quaternion=(0.0, 0.0, np.sin(yaw0 / 2), np.cos(yaw0 / 2))), static=True)
-        odom = np.array([(f.odometry.x, f.odometry.y, f.odometry.theta) for f in frames])
+        odom = table.odometry
         odom_xyz = np.column_stack([odom[:, 0], odom[:, 1], np.full(len(odom), truth[0, 2])])
         rec.log(f"{world}/odom/path", rr.LineStrips3D([odom_xyz], colors=[ODOM_COLOR],
                                                       radii=0.01), static=True)
-        rec.log(f"{world}/odom/base_link", rr.Arrows3D(vectors=[(0.15, 0.0, 0.0)],
-                                                       colors=[ODOM_COLOR], radii=0.008),
-                static=True)
+        rec.log(f"{world}/odom/base_link", _unchanging("odom_arrow"), static=True)
         half = odom[:, 2] / 2
         rec.send_columns(f"{world}/odom/base_link", indexes=[times],
                          columns=rr.Transform3D.columns(
@@ -204,7 +204,7 @@ class RerunSink:
                                                          np.cos(half)])))
         if scene.laser_mount is not None and any(f.scan is not None for f in frames):
             _log_scans(rec, f"{world}/car/laser", scene, frames, times)
-        _log_series(rec, name, scene, frames, times)
+        _log_series(rec, name, scene, table, times)
         self.episodes += 1
 
     def close(self) -> None:
@@ -223,7 +223,31 @@ class RerunSink:
             self._partial = None
 
 
-def _log_series(rec: Any, name: str, scene: Scene, frames: list, times: Any) -> None:
+class _Table:
+    """An episode's per-frame numbers as arrays, read from its frames in one pass."""
+
+    def __init__(self, frames: list) -> None:
+        terms = list(frames[-1].reward_terms)
+        numbers = np.array([
+            (f.time_ns, *f.position, *f.orientation, f.odometry.x, f.odometry.y,
+             f.odometry.theta, *f.command, *f.pwm, f.distance_m, f.odom_error_m, f.success,
+             *[f.reward_terms.get(t, 0.0) for t in terms], f.reward)
+            for f in frames], dtype=np.float64)
+        self.time_ns = numbers[:, 0]  # exact: simulated ns stay far below 2**53
+        self.position = numbers[:, 1:4]
+        self.orientation = numbers[:, 4:8]
+        self.odometry = numbers[:, 8:11]  # x, y, theta
+        self.command = numbers[:, 11:13]
+        self.pwm = numbers[:, 13:15]
+        self.distance = numbers[:, 15:16]
+        self.odom_error = numbers[:, 16:17]
+        self.success = numbers[:, 17:18]
+        self.rewards = numbers[:, 18:]  # the terms, then the total
+        self.reward_names = [*terms, "total"]
+        self.wheel_speed = np.array([f.joints.velocity for f in frames])
+
+
+def _log_series(rec: Any, name: str, scene: Scene, table: _Table, times: Any) -> None:
     """The time series of one episode (wheel speeds, command, PWM, reward terms, ...)."""
     import rerun as rr
 
@@ -234,20 +258,27 @@ def _log_series(rec: Any, name: str, scene: Scene, frames: list, times: Any) -> 
         rec.log(path, lines, static=True)
         rec.send_columns(path, indexes=[times], columns=rr.Scalars.columns(scalars=values))
 
-    series(f"wheel_speed/{name}", np.array([f.joints.velocity for f in frames]),
-           list(scene.wheel_joints))
-    series(f"command/{name}", np.array([f.command for f in frames]),
-           ["linear.x (m/s)", "angular.z (rad/s)"])
-    series(f"pwm/{name}", np.array([f.pwm for f in frames], dtype=float),
-           ["left", "right"])
-    terms = list(frames[-1].reward_terms)
-    rewards = np.array([[f.reward_terms.get(t, 0.0) for t in terms] + [f.reward]
-                        for f in frames])
-    series(f"reward/{name}", rewards, [*terms, "total"])
-    series(f"distance/{name}", np.array([[f.distance_m] for f in frames]), ["distance"])
-    series(f"odom_error/{name}", np.array([[f.odom_error_m] for f in frames]),
-           ["odometry error (m)"])
-    series(f"success/{name}", np.array([[float(f.success)] for f in frames]), ["success"])
+    series(f"wheel_speed/{name}", table.wheel_speed, list(scene.wheel_joints))
+    series(f"command/{name}", table.command, ["linear.x (m/s)", "angular.z (rad/s)"])
+    series(f"pwm/{name}", table.pwm, ["left", "right"])
+    series(f"reward/{name}", table.rewards, table.reward_names)
+    series(f"distance/{name}", table.distance, ["distance"])
+    series(f"odom_error/{name}", table.odom_error, ["odometry error (m)"])
+    series(f"success/{name}", table.success, ["success"])
+
+
+def _unchanging(kind: str) -> Any:
+    """An archetype that every episode logs the same (built once)."""
+    cached = _UNCHANGING.get(kind)
+    if cached is None:
+        import rerun as rr
+
+        if kind == "odom_arrow":
+            cached = rr.Arrows3D(vectors=[(0.15, 0.0, 0.0)], colors=[ODOM_COLOR], radii=0.008)
+        else:  # "scan_style": static positions would hide the per-step ones
+            cached = rr.Points3D.from_fields(colors=[SCAN_COLOR], radii=0.02)
+        _UNCHANGING[kind] = cached
+    return cached
 
 
 def _log_scene(rec: Any, world: str, scene: Scene) -> None:
@@ -318,20 +349,32 @@ def _log_scans(rec: Any, laser: str, scene: Scene, frames: list, times: Any) -> 
 
     mount = scene.laser_mount
     rec.log(laser, rr.Transform3D(translation=mount[:3, 3], mat3x3=mount[:3, :3]), static=True)
-    points, lengths = [], []
-    for frame in frames:
-        scan = frame.scan
-        if scan is None:
-            lengths.append(0)
-            continue
-        ranges = np.asarray(scan.ranges, dtype=np.float64)
-        angles = scan.angle_min + scan.angle_increment * np.arange(len(ranges))
+    scans = [f.scan for f in frames]
+    known = [s for s in scans if s is not None]
+    first = known[0]
+    if len(known) == len(scans) and all(
+            (s.angle_min, s.angle_increment, len(s.ranges))
+            == (first.angle_min, first.angle_increment, len(first.ranges)) for s in known):
+        ranges = np.array([s.ranges for s in scans], dtype=np.float64)  # all scans at once
+        angles = first.angle_min + first.angle_increment * np.arange(ranges.shape[1])
         hit = np.isfinite(ranges)
-        r, a = ranges[hit], angles[hit]
-        points.append(np.column_stack([r * np.cos(a), r * np.sin(a), np.zeros_like(r)]))
-        lengths.append(len(r))
-    positions = np.concatenate(points) if points else np.zeros((0, 3))
-    rec.log(f"{laser}/scan", rr.Points3D.from_fields(colors=[SCAN_COLOR], radii=0.02),
-            static=True)  # static positions would hide the per-step ones
+        r = ranges[hit]
+        a = np.broadcast_to(angles, ranges.shape)[hit]
+        positions = np.column_stack([r * np.cos(a), r * np.sin(a), np.zeros_like(r)])
+        lengths = hit.sum(axis=1).tolist()
+    else:
+        points, lengths = [], []
+        for scan in scans:
+            if scan is None:
+                lengths.append(0)
+                continue
+            ranges = np.asarray(scan.ranges, dtype=np.float64)
+            angles = scan.angle_min + scan.angle_increment * np.arange(len(ranges))
+            hit = np.isfinite(ranges)
+            r, a = ranges[hit], angles[hit]
+            points.append(np.column_stack([r * np.cos(a), r * np.sin(a), np.zeros_like(r)]))
+            lengths.append(len(r))
+        positions = np.concatenate(points) if points else np.zeros((0, 3))
+    rec.log(f"{laser}/scan", _unchanging("scan_style"), static=True)
     rec.send_columns(f"{laser}/scan", indexes=[times],
                      columns=rr.Points3D.columns(positions=positions).partition(lengths))

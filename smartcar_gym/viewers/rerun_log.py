@@ -52,6 +52,7 @@ SHAPE_COLORS = {"box": (60, 110, 200), "cylinder": (40, 40, 40), "sphere": (90, 
 _CAR_SHAPES: dict[tuple, list[tuple[str, Any]]] = {}  # the car's archetypes, by its visuals
 _SERIES_LINES: dict[tuple[str, ...], Any] = {}  # series names: the same for every episode
 _UNCHANGING: dict[str, Any] = {}  # the odometry arrow, the scan's colour and radius
+_ARRAYS: dict[tuple, Any] = {}  # colours and radii as arrow arrays
 
 
 def skip_pandas_probe() -> None:
@@ -181,8 +182,8 @@ class RerunSink:
         table = _Table(frames)
         times = rr.TimeColumn(TIMELINE, duration=table.time_ns / 1e9)
         truth = table.position
-        rec.log(f"{world}/path/truth", rr.LineStrips3D([truth], colors=[TRUTH_COLOR],
-                                                       radii=0.01), static=True)
+        rec.log(f"{world}/path/truth", rr.LineStrips3D([truth], colors=_color(TRUTH_COLOR),
+                                                       radii=_radius(0.01)), static=True)
         rec.send_columns(f"{world}/car", indexes=[times], columns=rr.Transform3D.columns(
             translation=truth, quaternion=table.orientation))
         start = frames[0]
@@ -192,8 +193,8 @@ class RerunSink:
             quaternion=(0.0, 0.0, np.sin(yaw0 / 2), np.cos(yaw0 / 2))), static=True)
         odom = table.odometry
         odom_xyz = np.column_stack([odom[:, 0], odom[:, 1], np.full(len(odom), truth[0, 2])])
-        rec.log(f"{world}/odom/path", rr.LineStrips3D([odom_xyz], colors=[ODOM_COLOR],
-                                                      radii=0.01), static=True)
+        rec.log(f"{world}/odom/path", rr.LineStrips3D([odom_xyz], colors=_color(ODOM_COLOR),
+                                                      radii=_radius(0.01)), static=True)
         rec.log(f"{world}/odom/base_link", _unchanging("odom_arrow"), static=True)
         half = odom[:, 2] / 2
         rec.send_columns(f"{world}/odom/base_link", indexes=[times],
@@ -267,6 +268,27 @@ def _log_series(rec: Any, name: str, scene: Scene, table: _Table, times: Any) ->
     series(f"success/{name}", table.success, ["success"])
 
 
+def _color(rgb: tuple[int, int, int]) -> Any:
+    """One colour as Rerun's arrow array, converted once (converting costs more than a
+    line strip of a whole episode)."""
+    cached = _ARRAYS.get(("color", rgb))
+    if cached is None:
+        import rerun as rr
+
+        cached = _ARRAYS[("color", rgb)] = rr.components.ColorBatch([rgb]).as_arrow_array()
+    return cached
+
+
+def _radius(radius: float) -> Any:
+    """One radius as Rerun's arrow array, converted once."""
+    cached = _ARRAYS.get(("radius", radius))
+    if cached is None:
+        import rerun as rr
+
+        cached = _ARRAYS[("radius", radius)] = rr.components.RadiusBatch(radius).as_arrow_array()
+    return cached
+
+
 def _unchanging(kind: str) -> Any:
     """An archetype that every episode logs the same (built once)."""
     cached = _UNCHANGING.get(kind)
@@ -286,13 +308,13 @@ def _log_scene(rec: Any, world: str, scene: Scene) -> None:
     import rerun as rr
 
     gx, gy = scene.goal
-    rec.log(f"{world}/goal", rr.Points3D([(gx, gy, 0.0)], colors=[GOAL_COLOR], radii=0.03,
-                                         labels=["goal"]), static=True)
+    rec.log(f"{world}/goal", rr.Points3D([(gx, gy, 0.0)], colors=_color(GOAL_COLOR),
+                                         radii=_radius(0.03), labels=["goal"]), static=True)
     angle = np.linspace(0.0, 2 * np.pi, 49)
     circle = np.column_stack([gx + scene.goal_tolerance_m * np.cos(angle),
                               gy + scene.goal_tolerance_m * np.sin(angle), np.zeros_like(angle)])
-    rec.log(f"{world}/goal/tolerance", rr.LineStrips3D([circle], colors=[GOAL_COLOR],
-                                                       radii=0.004), static=True)
+    rec.log(f"{world}/goal/tolerance", rr.LineStrips3D([circle], colors=_color(GOAL_COLOR),
+                                                       radii=_radius(0.004)), static=True)
     boxes = [o for o in scene.obstacles if o.shape == "box"]
     cylinders = [o for o in scene.obstacles if o.shape == "cylinder"]
     height = OBSTACLE_HEIGHT_M
@@ -301,12 +323,12 @@ def _log_scene(rec: Any, world: str, scene: Scene) -> None:
             half_sizes=[(o.size[0] / 2, o.size[1] / 2, height / 2) for o in boxes],
             centers=[(*o.position, height / 2) for o in boxes],
             quaternions=[(0.0, 0.0, np.sin(o.yaw / 2), np.cos(o.yaw / 2)) for o in boxes],
-            colors=[OBSTACLE_COLOR], fill_mode="solid"), static=True)
+            colors=_color(OBSTACLE_COLOR), fill_mode="solid"), static=True)
     if cylinders:
         rec.log(f"{world}/obstacles/cylinders", rr.Cylinders3D(
             lengths=[height] * len(cylinders), radii=[o.size[0] / 2 for o in cylinders],
             centers=[(*o.position, height / 2) for o in cylinders],
-            colors=[OBSTACLE_COLOR], fill_mode="solid"), static=True)
+            colors=_color(OBSTACLE_COLOR), fill_mode="solid"), static=True)
     for kind, archetype in _car_shapes(scene.shapes):
         rec.log(f"{world}/car/shapes/{kind}", archetype, static=True)
 

@@ -2,6 +2,7 @@
 ROS 2 bag, as ratios to the same evaluation without, measured interleaved in one run.
 
     python benchmarks/recording_cost.py [--episodes 100] [--rounds 3] [--n-envs 1] [--concurrent]
+                                        [--variants rerun bag both]
 
 Each round runs every variant once, in turn, each as a fresh ``smartcar-eval`` process (the
 whole command: imports, model loading, the episodes, writing the files), for the shipped
@@ -13,7 +14,8 @@ the wall time. This machine's speed drifts by up to a half within minutes, so on
 measured side by side mean anything. ``--concurrent`` starts a round's processes (every
 variant of both policies) at once: on a machine busy with other jobs a round then takes the
 time of one evaluation instead of eight, and the CPU times, each process's own, stay
-comparable; wall times then mostly measure the sharing.
+comparable; wall times then mostly measure the sharing. ``--variants`` runs only some
+variants (``plain`` always runs: the ratios are to it), so more rounds fit in the same time.
 """
 
 from __future__ import annotations
@@ -34,6 +36,7 @@ VARIANTS = {
     "--bag ros2": ["--bag", "{tmp}/bag", "--bag-format", "ros2"],
     "both": ["--rerun", "{tmp}/episodes.rrd", "--bag", "{tmp}/bag", "--bag-format", "ros2"],
 }
+SHORT = {"rerun": "--rerun", "bag": "--bag ros2", "both": "both"}  # --variants names
 POLICIES = {"SmartCar-v0 (--pretrained)": ["--pretrained"],
             "SmartCarNav-v0 (--pretrained nav)": ["--pretrained", "nav"]}
 
@@ -86,14 +89,18 @@ def main() -> None:
     parser.add_argument("--n-envs", type=int, default=1)
     parser.add_argument("--concurrent", action="store_true",
                         help="start a round's processes at once (CPU ratios only)")
+    parser.add_argument("--variants", nargs="+", choices=list(SHORT), default=list(SHORT),
+                        help="which variants to run besides plain: rerun (--rerun), bag (--bag "
+                        "ros2), both (default: all)")
     args = parser.parse_args()
+    variants = ["plain", *(SHORT[v] for v in SHORT if v in args.variants)]
     print(f"{args.episodes} episodes, --n-envs {args.n_envs}, {args.rounds} rounds; "
           f"python {sys.version.split()[0]}"
           f"{', concurrent' if args.concurrent else ''}")
     print("| policy | variant | CPU s | CPU ratio (median, range) | wall s | wall ratio "
           "(median, range) |")
     print("|---|---|---:|---:|---:|---:|")
-    runs = [(name, variant) for name in POLICIES for variant in VARIANTS]
+    runs = [(name, variant) for name in POLICIES for variant in variants]
     wall: dict[tuple[str, str], list[float]] = {run: [] for run in runs}
     cpu: dict[tuple[str, str], list[float]] = {run: [] for run in runs}
     for _ in range(args.rounds):

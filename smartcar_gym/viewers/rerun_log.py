@@ -371,32 +371,39 @@ def _log_scans(rec: Any, laser: str, scene: Scene, frames: list, times: Any) -> 
 
     mount = scene.laser_mount
     rec.log(laser, rr.Transform3D(translation=mount[:3, 3], mat3x3=mount[:3, :3]), static=True)
-    scans = [f.scan for f in frames]
+    positions, lengths = scan_points([f.scan for f in frames])
+    rec.log(f"{laser}/scan", _unchanging("scan_style"), static=True)
+    rec.send_columns(f"{laser}/scan", indexes=[times],
+                     columns=rr.Points3D.columns(positions=positions).partition(lengths))
+
+
+def scan_points(scans: list) -> tuple[np.ndarray, list[int]]:
+    """The finite ranges of each scan (``LaserScan`` or None) as points in the laser frame,
+    all scans' points in one (N, 3) array, and how many each scan has. Scans of the same
+    geometry (a whole episode's) are turned into points at once."""
     known = [s for s in scans if s is not None]
+    if not known:
+        return np.zeros((0, 3)), [0] * len(scans)
     first = known[0]
+    geometry = (first.angle_min, first.angle_increment, len(first.ranges))
     if len(known) == len(scans) and all(
-            (s.angle_min, s.angle_increment, len(s.ranges))
-            == (first.angle_min, first.angle_increment, len(first.ranges)) for s in known):
-        ranges = np.array([s.ranges for s in scans], dtype=np.float64)  # all scans at once
+            (s.angle_min, s.angle_increment, len(s.ranges)) == geometry for s in known):
+        ranges = np.array([s.ranges for s in scans], dtype=np.float64)
         angles = first.angle_min + first.angle_increment * np.arange(ranges.shape[1])
         hit = np.isfinite(ranges)
         r = ranges[hit]
         a = np.broadcast_to(angles, ranges.shape)[hit]
-        positions = np.column_stack([r * np.cos(a), r * np.sin(a), np.zeros_like(r)])
-        lengths = hit.sum(axis=1).tolist()
-    else:
-        points, lengths = [], []
-        for scan in scans:
-            if scan is None:
-                lengths.append(0)
-                continue
-            ranges = np.asarray(scan.ranges, dtype=np.float64)
-            angles = scan.angle_min + scan.angle_increment * np.arange(len(ranges))
-            hit = np.isfinite(ranges)
-            r, a = ranges[hit], angles[hit]
-            points.append(np.column_stack([r * np.cos(a), r * np.sin(a), np.zeros_like(r)]))
-            lengths.append(len(r))
-        positions = np.concatenate(points) if points else np.zeros((0, 3))
-    rec.log(f"{laser}/scan", _unchanging("scan_style"), static=True)
-    rec.send_columns(f"{laser}/scan", indexes=[times],
-                     columns=rr.Points3D.columns(positions=positions).partition(lengths))
+        return (np.column_stack([r * np.cos(a), r * np.sin(a), np.zeros_like(r)]),
+                hit.sum(axis=1).tolist())
+    points, lengths = [], []
+    for scan in scans:
+        if scan is None:
+            lengths.append(0)
+            continue
+        ranges = np.asarray(scan.ranges, dtype=np.float64)
+        angles = scan.angle_min + scan.angle_increment * np.arange(len(ranges))
+        hit = np.isfinite(ranges)
+        r, a = ranges[hit], angles[hit]
+        points.append(np.column_stack([r * np.cos(a), r * np.sin(a), np.zeros_like(r)]))
+        lengths.append(len(r))
+    return (np.concatenate(points) if points else np.zeros((0, 3))), lengths

@@ -58,3 +58,49 @@ def test_reward_terms_add_up_to_the_reward(env_id):
         done = terminated or truncated
     env.close()
     assert ("collision" in frame.reward_terms) == (env_id == "SmartCarNav-v0")
+
+
+def _scan(ranges, angle_min=-1.0, increment=0.5):
+    from smartcar_gym.envs.sensors.scan import LaserScan
+
+    ranges = np.array(ranges, dtype=np.float32)
+    return LaserScan(0.0, "laser", angle_min, angle_min + increment * (len(ranges) - 1),
+                     increment, 0.0, 0.1, 0.05, 5.0, ranges)
+
+
+def test_scan_points_keep_finite_ranges_in_the_laser_frame():
+    pytest.importorskip("rerun")
+    from smartcar_gym.viewers.rerun_log import scan_points
+
+    scans = [_scan([1.0, np.inf, 2.0, 0.5, -np.inf]), _scan([np.inf] * 5),
+             _scan([3.0, 1.0, 1.0, 1.0, 1.0])]
+    positions, lengths = scan_points(scans)  # one geometry: all scans at once
+    assert lengths == [3, 0, 5]
+    # hand-derived: beam i at -1 + 0.5 i rad; the first scan's hits are beams 0, 2, 3
+    expected = [(r * np.cos(a), r * np.sin(a), 0.0)
+                for r, a in [(1.0, -1.0), (2.0, 0.0), (0.5, 0.5)]]
+    np.testing.assert_allclose(positions[:3], expected, atol=1e-12)
+    np.testing.assert_allclose(positions[3:], [(3 * np.cos(-1.0), 3 * np.sin(-1.0), 0.0),
+                                               *[(np.cos(a), np.sin(a), 0.0)
+                                                 for a in (-0.5, 0.0, 0.5, 1.0)]], atol=1e-12)
+    # a frame without a scan, or scans of another geometry: one scan at a time, same points
+    mixed, mixed_lengths = scan_points([None, *scans, _scan([2.0, 2.0], 0.0, 0.25)])
+    assert mixed_lengths == [0, 3, 0, 5, 2]
+    np.testing.assert_array_equal(mixed[:8], positions)
+    np.testing.assert_allclose(mixed[8:], [(2.0, 0.0, 0.0), (2 * np.cos(0.25),
+                                                             2 * np.sin(0.25), 0.0)])
+    empty, none_lengths = scan_points([None, None])
+    assert empty.shape == (0, 3) and none_lengths == [0, 0]
+
+
+def test_scene_shapes_are_worked_out_once_per_model():
+    from smartcar_gym.viewers.capture import scene_of
+
+    env = gym.make("SmartCar-v0")
+    env.reset(seed=0)
+    first = scene_of(env)
+    env.reset(seed=1)
+    again = scene_of(env)
+    assert again.shapes is first.shapes and again.goal != first.goal  # goal per episode
+    assert {s.type for s in first.shapes} >= {"box", "cylinder"}
+    env.close()

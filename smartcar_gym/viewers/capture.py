@@ -30,6 +30,7 @@ from smartcar_gym.model.kinematics import link_frames, transform
 from smartcar_gym.model.urdf import UrdfRobot
 
 CAPTURE_KEY = "capture"  # the info key CaptureWrapper fills
+_SHAPES: dict[str, tuple] = {}  # URDF text -> its visuals (VisualShape)
 
 
 @dataclass(frozen=True)
@@ -116,16 +117,9 @@ def scene_of(env: gym.Env) -> Scene:
     """The ``Scene`` of a freshly reset SmartCarEnv (or a wrapper around one)."""
     base = _smartcar(env)
     model = base.robot_model
-    frames = link_frames(UrdfRobot(model.name, model.links, model.joints, model.base_link))
-    shapes = tuple(
-        VisualShape(link.name, visual.geometry.type, tuple(visual.geometry.size),
-                    frames[link.name] @ transform(visual.origin))
-        for link in model.links.values() if link.name in frames
-        for visual in link.visuals if visual.geometry.type in ("box", "cylinder", "sphere")
-    )
     odom = base.robot.odometry
     return Scene(
-        robot_name=model.name, urdf=model.urdf, shapes=shapes,
+        robot_name=model.name, urdf=model.urdf, shapes=_shapes(model),
         wheel_joints=tuple(w.joint for w in base.robot.wheels),
         odom_frame=odom.frame_id, base_frame=odom.child_frame_id,
         goal=(float(base.goal[0]), float(base.goal[1])),
@@ -135,6 +129,24 @@ def scene_of(env: gym.Env) -> Scene:
         laser_mount=None if getattr(base, "mount", None) is None else np.array(base.mount),
         laser_frame=base.laser_config.frame_id if hasattr(base, "laser_config") else "laser",
     )
+
+
+def _shapes(model: Any) -> tuple[VisualShape, ...]:
+    """The visuals of a robot model in base_link, worked out once per URDF (each episode of
+    an env has the same)."""
+    shapes = _SHAPES.get(model.urdf)
+    if shapes is None:
+        frames = link_frames(UrdfRobot(model.name, model.links, model.joints, model.base_link))
+        shapes = tuple(
+            VisualShape(link.name, visual.geometry.type, tuple(visual.geometry.size),
+                        frames[link.name] @ transform(visual.origin))
+            for link in model.links.values() if link.name in frames
+            for visual in link.visuals if visual.geometry.type in ("box", "cylinder", "sphere")
+        )
+        if len(_SHAPES) >= 16:  # randomized models: keep a few
+            _SHAPES.clear()
+        _SHAPES[model.urdf] = shapes
+    return shapes
 
 
 class FrameReader:

@@ -51,6 +51,8 @@ OBSTACLE_COLOR = (140, 140, 150)
 SHAPE_COLORS = {"box": (60, 110, 200), "cylinder": (40, 40, 40), "sphere": (90, 90, 90)}
 _CAR_SHAPES: dict[tuple, list[tuple[str, Any]]] = {}  # the car's archetypes, by its visuals
 _SERIES_LINES: dict[tuple[str, ...], Any] = {}  # series names: the same for every episode
+_UNCHANGING: dict[str, Any] = {}  # the odometry arrow, the scan's colour and radius
+_ARRAYS: dict[tuple, Any] = {}  # colours and radii as arrow arrays
 
 
 def skip_pandas_probe() -> None:
@@ -177,24 +179,23 @@ class RerunSink:
             self._described = True
         world = f"world/{name}"
         _log_scene(rec, world, scene)
-        times = rr.TimeColumn(TIMELINE, duration=np.array([f.time_ns for f in frames]) / 1e9)
-        truth = np.array([f.position for f in frames])
-        rec.log(f"{world}/path/truth", rr.LineStrips3D([truth], colors=[TRUTH_COLOR],
-                                                       radii=0.01), static=True)
+        table = _Table(frames)
+        times = rr.TimeColumn(TIMELINE, duration=table.time_ns / 1e9)
+        truth = table.position
+        rec.log(f"{world}/path/truth", rr.LineStrips3D([truth], colors=_color(TRUTH_COLOR),
+                                                       radii=_radius(0.01)), static=True)
         rec.send_columns(f"{world}/car", indexes=[times], columns=rr.Transform3D.columns(
-            translation=truth, quaternion=np.array([f.orientation for f in frames])))
+            translation=truth, quaternion=table.orientation))
         start = frames[0]
         yaw0 = pose_from(start.position, start.orientation).yaw
         rec.log(f"{world}/odom", rr.Transform3D(
             translation=(start.position[0], start.position[1], 0.0),
             quaternion=(0.0, 0.0, np.sin(yaw0 / 2), np.cos(yaw0 / 2))), static=True)
-        odom = np.array([(f.odometry.x, f.odometry.y, f.odometry.theta) for f in frames])
+        odom = table.odometry
         odom_xyz = np.column_stack([odom[:, 0], odom[:, 1], np.full(len(odom), truth[0, 2])])
-        rec.log(f"{world}/odom/path", rr.LineStrips3D([odom_xyz], colors=[ODOM_COLOR],
-                                                      radii=0.01), static=True)
-        rec.log(f"{world}/odom/base_link", rr.Arrows3D(vectors=[(0.15, 0.0, 0.0)],
-                                                       colors=[ODOM_COLOR], radii=0.008),
-                static=True)
+        rec.log(f"{world}/odom/path", rr.LineStrips3D([odom_xyz], colors=_color(ODOM_COLOR),
+                                                      radii=_radius(0.01)), static=True)
+        rec.log(f"{world}/odom/base_link", _unchanging("odom_arrow"), static=True)
         half = odom[:, 2] / 2
         rec.send_columns(f"{world}/odom/base_link", indexes=[times],
                          columns=rr.Transform3D.columns(
@@ -204,7 +205,7 @@ class RerunSink:
                                                          np.cos(half)])))
         if scene.laser_mount is not None and any(f.scan is not None for f in frames):
             _log_scans(rec, f"{world}/car/laser", scene, frames, times)
-        _log_series(rec, name, scene, frames, times)
+        _log_series(rec, name, scene, table, times)
         self.episodes += 1
 
     def close(self) -> None:
@@ -223,7 +224,31 @@ class RerunSink:
             self._partial = None
 
 
-def _log_series(rec: Any, name: str, scene: Scene, frames: list, times: Any) -> None:
+class _Table:
+    """An episode's per-frame numbers as arrays, read from its frames in one pass."""
+
+    def __init__(self, frames: list) -> None:
+        terms = list(frames[-1].reward_terms)
+        numbers = np.array([
+            (f.time_ns, *f.position, *f.orientation, f.odometry.x, f.odometry.y,
+             f.odometry.theta, *f.command, *f.pwm, f.distance_m, f.odom_error_m, f.success,
+             *[f.reward_terms.get(t, 0.0) for t in terms], f.reward)
+            for f in frames], dtype=np.float64)
+        self.time_ns = numbers[:, 0]  # exact: simulated ns stay far below 2**53
+        self.position = numbers[:, 1:4]
+        self.orientation = numbers[:, 4:8]
+        self.odometry = numbers[:, 8:11]  # x, y, theta
+        self.command = numbers[:, 11:13]
+        self.pwm = numbers[:, 13:15]
+        self.distance = numbers[:, 15:16]
+        self.odom_error = numbers[:, 16:17]
+        self.success = numbers[:, 17:18]
+        self.rewards = numbers[:, 18:]  # the terms, then the total
+        self.reward_names = [*terms, "total"]
+        self.wheel_speed = np.array([f.joints.velocity for f in frames])
+
+
+def _log_series(rec: Any, name: str, scene: Scene, table: _Table, times: Any) -> None:
     """The time series of one episode (wheel speeds, command, PWM, reward terms, ...)."""
     import rerun as rr
 
@@ -234,20 +259,48 @@ def _log_series(rec: Any, name: str, scene: Scene, frames: list, times: Any) -> 
         rec.log(path, lines, static=True)
         rec.send_columns(path, indexes=[times], columns=rr.Scalars.columns(scalars=values))
 
-    series(f"wheel_speed/{name}", np.array([f.joints.velocity for f in frames]),
-           list(scene.wheel_joints))
-    series(f"command/{name}", np.array([f.command for f in frames]),
-           ["linear.x (m/s)", "angular.z (rad/s)"])
-    series(f"pwm/{name}", np.array([f.pwm for f in frames], dtype=float),
-           ["left", "right"])
-    terms = list(frames[-1].reward_terms)
-    rewards = np.array([[f.reward_terms.get(t, 0.0) for t in terms] + [f.reward]
-                        for f in frames])
-    series(f"reward/{name}", rewards, [*terms, "total"])
-    series(f"distance/{name}", np.array([[f.distance_m] for f in frames]), ["distance"])
-    series(f"odom_error/{name}", np.array([[f.odom_error_m] for f in frames]),
-           ["odometry error (m)"])
-    series(f"success/{name}", np.array([[float(f.success)] for f in frames]), ["success"])
+    series(f"wheel_speed/{name}", table.wheel_speed, list(scene.wheel_joints))
+    series(f"command/{name}", table.command, ["linear.x (m/s)", "angular.z (rad/s)"])
+    series(f"pwm/{name}", table.pwm, ["left", "right"])
+    series(f"reward/{name}", table.rewards, table.reward_names)
+    series(f"distance/{name}", table.distance, ["distance"])
+    series(f"odom_error/{name}", table.odom_error, ["odometry error (m)"])
+    series(f"success/{name}", table.success, ["success"])
+
+
+def _color(rgb: tuple[int, int, int]) -> Any:
+    """One colour as Rerun's arrow array, converted once (converting costs more than a
+    line strip of a whole episode)."""
+    cached = _ARRAYS.get(("color", rgb))
+    if cached is None:
+        import rerun as rr
+
+        cached = _ARRAYS[("color", rgb)] = rr.components.ColorBatch([rgb]).as_arrow_array()
+    return cached
+
+
+def _radius(radius: float) -> Any:
+    """One radius as Rerun's arrow array, converted once."""
+    cached = _ARRAYS.get(("radius", radius))
+    if cached is None:
+        import rerun as rr
+
+        cached = _ARRAYS[("radius", radius)] = rr.components.RadiusBatch(radius).as_arrow_array()
+    return cached
+
+
+def _unchanging(kind: str) -> Any:
+    """An archetype that every episode logs the same (built once)."""
+    cached = _UNCHANGING.get(kind)
+    if cached is None:
+        import rerun as rr
+
+        if kind == "odom_arrow":
+            cached = rr.Arrows3D(vectors=[(0.15, 0.0, 0.0)], colors=[ODOM_COLOR], radii=0.008)
+        else:  # "scan_style": static positions would hide the per-step ones
+            cached = rr.Points3D.from_fields(colors=[SCAN_COLOR], radii=0.02)
+        _UNCHANGING[kind] = cached
+    return cached
 
 
 def _log_scene(rec: Any, world: str, scene: Scene) -> None:
@@ -255,13 +308,13 @@ def _log_scene(rec: Any, world: str, scene: Scene) -> None:
     import rerun as rr
 
     gx, gy = scene.goal
-    rec.log(f"{world}/goal", rr.Points3D([(gx, gy, 0.0)], colors=[GOAL_COLOR], radii=0.03,
-                                         labels=["goal"]), static=True)
+    rec.log(f"{world}/goal", rr.Points3D([(gx, gy, 0.0)], colors=_color(GOAL_COLOR),
+                                         radii=_radius(0.03), labels=["goal"]), static=True)
     angle = np.linspace(0.0, 2 * np.pi, 49)
     circle = np.column_stack([gx + scene.goal_tolerance_m * np.cos(angle),
                               gy + scene.goal_tolerance_m * np.sin(angle), np.zeros_like(angle)])
-    rec.log(f"{world}/goal/tolerance", rr.LineStrips3D([circle], colors=[GOAL_COLOR],
-                                                       radii=0.004), static=True)
+    rec.log(f"{world}/goal/tolerance", rr.LineStrips3D([circle], colors=_color(GOAL_COLOR),
+                                                       radii=_radius(0.004)), static=True)
     boxes = [o for o in scene.obstacles if o.shape == "box"]
     cylinders = [o for o in scene.obstacles if o.shape == "cylinder"]
     height = OBSTACLE_HEIGHT_M
@@ -270,12 +323,12 @@ def _log_scene(rec: Any, world: str, scene: Scene) -> None:
             half_sizes=[(o.size[0] / 2, o.size[1] / 2, height / 2) for o in boxes],
             centers=[(*o.position, height / 2) for o in boxes],
             quaternions=[(0.0, 0.0, np.sin(o.yaw / 2), np.cos(o.yaw / 2)) for o in boxes],
-            colors=[OBSTACLE_COLOR], fill_mode="solid"), static=True)
+            colors=_color(OBSTACLE_COLOR), fill_mode="solid"), static=True)
     if cylinders:
         rec.log(f"{world}/obstacles/cylinders", rr.Cylinders3D(
             lengths=[height] * len(cylinders), radii=[o.size[0] / 2 for o in cylinders],
             centers=[(*o.position, height / 2) for o in cylinders],
-            colors=[OBSTACLE_COLOR], fill_mode="solid"), static=True)
+            colors=_color(OBSTACLE_COLOR), fill_mode="solid"), static=True)
     for kind, archetype in _car_shapes(scene.shapes):
         rec.log(f"{world}/car/shapes/{kind}", archetype, static=True)
 
@@ -318,9 +371,32 @@ def _log_scans(rec: Any, laser: str, scene: Scene, frames: list, times: Any) -> 
 
     mount = scene.laser_mount
     rec.log(laser, rr.Transform3D(translation=mount[:3, 3], mat3x3=mount[:3, :3]), static=True)
+    positions, lengths = scan_points([f.scan for f in frames])
+    rec.log(f"{laser}/scan", _unchanging("scan_style"), static=True)
+    rec.send_columns(f"{laser}/scan", indexes=[times],
+                     columns=rr.Points3D.columns(positions=positions).partition(lengths))
+
+
+def scan_points(scans: list) -> tuple[np.ndarray, list[int]]:
+    """The finite ranges of each scan (``LaserScan`` or None) as points in the laser frame,
+    all scans' points in one (N, 3) array, and how many each scan has. Scans of the same
+    geometry (a whole episode's) are turned into points at once."""
+    known = [s for s in scans if s is not None]
+    if not known:
+        return np.zeros((0, 3)), [0] * len(scans)
+    first = known[0]
+    geometry = (first.angle_min, first.angle_increment, len(first.ranges))
+    if len(known) == len(scans) and all(
+            (s.angle_min, s.angle_increment, len(s.ranges)) == geometry for s in known):
+        ranges = np.array([s.ranges for s in scans], dtype=np.float64)
+        angles = first.angle_min + first.angle_increment * np.arange(ranges.shape[1])
+        hit = np.isfinite(ranges)
+        r = ranges[hit]
+        a = np.broadcast_to(angles, ranges.shape)[hit]
+        return (np.column_stack([r * np.cos(a), r * np.sin(a), np.zeros_like(r)]),
+                hit.sum(axis=1).tolist())
     points, lengths = [], []
-    for frame in frames:
-        scan = frame.scan
+    for scan in scans:
         if scan is None:
             lengths.append(0)
             continue
@@ -330,8 +406,4 @@ def _log_scans(rec: Any, laser: str, scene: Scene, frames: list, times: Any) -> 
         r, a = ranges[hit], angles[hit]
         points.append(np.column_stack([r * np.cos(a), r * np.sin(a), np.zeros_like(r)]))
         lengths.append(len(r))
-    positions = np.concatenate(points) if points else np.zeros((0, 3))
-    rec.log(f"{laser}/scan", rr.Points3D.from_fields(colors=[SCAN_COLOR], radii=0.02),
-            static=True)  # static positions would hide the per-step ones
-    rec.send_columns(f"{laser}/scan", indexes=[times],
-                     columns=rr.Points3D.columns(positions=positions).partition(lengths))
+    return (np.concatenate(points) if points else np.zeros((0, 3))), lengths

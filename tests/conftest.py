@@ -5,6 +5,7 @@ from __future__ import annotations
 import signal
 from collections.abc import Iterator
 
+import gymnasium
 import pytest
 
 from smartcar_gym.controller import ArbotixConfig, load_controller_config
@@ -50,3 +51,15 @@ def hard_timeout():
     yield arm
     signal.alarm(0)
     signal.signal(signal.SIGALRM, signal.SIG_DFL)
+
+
+@pytest.fixture(autouse=True)
+def _gymnasium_time_limit_untouched() -> Iterator[None]:
+    """Fail the test that leaves gymnasium's ``TimeLimit`` replaced for the tests after it
+    (importing rl_zoo3 does: its ``gym_patches`` change when a terminated episode counts as
+    truncated, which the vector envs' equality tests compare)."""
+    yield
+    patched = gymnasium.wrappers.TimeLimit
+    assert patched.__module__.startswith("gymnasium."), (
+        f"gymnasium.wrappers.TimeLimit was replaced by {patched.__module__}.{patched.__name__} "
+        "(import rl_zoo3 only in a subprocess)")

@@ -166,3 +166,29 @@ def test_serving_outlives_close_until_stop(tmp_path):
     finally:
         sink.stop()
     assert not sink._process.is_alive()
+
+
+def test_eval_cli_interrupted_leaves_no_file_and_no_recorder(tmp_path, monkeypatch):
+    """Ctrl-C during ``smartcar-eval --rerun``: no half-written file, no recorder process
+    left (as with the in-process sink); a finished run leaves the file and no process."""
+    import smartcar_gym.agents.evaluate as evaluate
+
+    real = evaluate.evaluate_policy_episodes
+
+    def interrupted(*args, **kwargs):
+        real(*args, **{**kwargs, "n_episodes": 1})  # one episode recorded, then Ctrl-C
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(evaluate, "evaluate_policy_episodes", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        evaluate.main(["--random", "--env", "SmartCarSim-v0", "--episodes", "2",
+                       "--no-progress", "--rerun", str(tmp_path / "x.rrd")])
+    assert list(tmp_path.iterdir()) == []
+    assert not [p for p in multiprocessing.active_children()
+                if p.name == "smartcar-rerun-recorder"]
+    monkeypatch.setattr(evaluate, "evaluate_policy_episodes", real)
+    assert evaluate.main(["--random", "--env", "SmartCarSim-v0", "--episodes", "2",
+                          "--no-progress", "--rerun", str(tmp_path / "x.rrd")]) == 0
+    assert (tmp_path / "x.rrd").stat().st_size > 10_000
+    assert not [p for p in multiprocessing.active_children()
+                if p.name == "smartcar-rerun-recorder"]

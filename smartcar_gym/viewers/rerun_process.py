@@ -17,6 +17,7 @@ import builtins
 import multiprocessing
 import os
 import signal
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -197,8 +198,11 @@ def _record(conn: Any, path: Path | None, serve: bool, grpc_port: int, web_port:
             elif kind == "close":
                 sink.close()
                 conn.send(("closed",))
-                if not serve:
-                    return
+                if not serve:  # the file is complete: skip tearing down rerun's modules
+                    conn.close()
+                    sys.stdout.flush()
+                    sys.stderr.flush()
+                    os._exit(0)
             elif kind == "discard":
                 sink.discard()
                 sink = None

@@ -168,6 +168,7 @@ def test_serving_outlives_close_until_stop(tmp_path):
     assert not sink._process.is_alive()
 
 
+@pytest.mark.slow
 def test_eval_cli_interrupted_leaves_no_file_and_no_recorder(tmp_path, monkeypatch):
     """Ctrl-C during ``smartcar-eval --rerun``: no half-written file, no recorder process
     left (as with the in-process sink); a finished run leaves the file and no process."""

@@ -114,6 +114,8 @@ class RerunProcessSink:
             except BaseException:  # the recorder is ended below all the same
                 pass
         self._end()
+        if self.path is not None:  # what a recorder ended mid-write leaves (RerunSink's name)
+            self.path.with_name(f".{self.path.stem}.partial.rrd").unlink(missing_ok=True)
 
     def stop(self) -> None:
         """End the recorder (and its server): after ``close``, or instead (like ``discard``)."""

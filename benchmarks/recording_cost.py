@@ -18,8 +18,11 @@ comparable; wall times then mostly measure the sharing. ``--variants`` runs only
 variants (``plain`` always runs: the ratios are to it), so more rounds fit in the same time.
 ``--split`` also says where each process's CPU time went (``time.process_time`` around
 ``smartcar-eval``'s parts: start-up and model, starting the recorders, the episodes with
-capture and sending, closing the files, the rest, and exiting the interpreter: the CPU time
-at exit less that at the end of ``main``), as medians and as the difference to plain.
+capture and sending, closing the files, the rest, the child processes that ``main`` reaped
+(``--rerun``'s recorder process; vector-env workers), and exiting the interpreter: the CPU
+time at exit less that at the end of ``main`` and the children's), as medians and as the
+difference to plain. The CPU times always include the child processes (``--rerun``'s recorder:
+``smartcar-eval`` imports ``rerun`` in a process of its own, ``RerunProcessSink``).
 """
 
 from __future__ import annotations
@@ -58,10 +61,13 @@ for name in ("_recorders", "evaluate_policy_episodes", "_close_recorders"):
     setattr(ev, name, timed(name, getattr(ev, name)))
 code = ev.main(sys.argv[2:])
 stamps["end"] = time.process_time()
+import resource
+children = resource.getrusage(resource.RUSAGE_CHILDREN)  # reaped: the Rerun recorder
+stamps["children"] = children.ru_utime + children.ru_stime
 json.dump(stamps, open(sys.argv[1], "w"))
 sys.exit(code)
 """
-PARTS = ("start-up", "recorders", "episodes", "close", "rest", "exit")
+PARTS = ("start-up", "recorders", "episodes", "close", "rest", "children", "exit")
 POLICIES = {"SmartCar-v0 (--pretrained)": ["--pretrained"],
             "SmartCarNav-v0 (--pretrained nav)": ["--pretrained", "nav"]}
 
@@ -116,7 +122,7 @@ def _result(started: tuple[subprocess.Popen, str, float], status: int,
             (t["end"] - t["_close_recorders"]  # between the parts: summary, files
              + t["evaluate_policy_episodes from"] - t["_recorders"]
              + t["_close_recorders from"] - t["evaluate_policy_episodes"]),
-            cpu - t["end"]),
+            t["children"], cpu - t["end"] - t["children"]),
             strict=True))
     shutil.rmtree(tmp)
     if process.returncode != 0:

@@ -217,12 +217,11 @@ def _recorders(args: argparse.Namespace, stack: contextlib.ExitStack) -> list[An
     ``--bag``); an error leaves no half-written file."""
     recorders: list[Any] = []
     if args.rerun is not None or args.rerun_serve:
-        from smartcar_gym.viewers.rerun_log import RerunSink, skip_pandas_probe
+        from smartcar_gym.viewers.rerun_process import RerunProcessSink
 
-        skip_pandas_probe()  # this process never uses pandas: 0.3 s of CPU saved
-        grpc_port, web_port = args.rerun_ports
-        sink = RerunSink(args.rerun, serve=args.rerun_serve, grpc_port=grpc_port,
-                         web_port=web_port)
+        grpc_port, web_port = args.rerun_ports  # rerun itself is the recorder process's
+        sink = RerunProcessSink(args.rerun, serve=args.rerun_serve, grpc_port=grpc_port,
+                                web_port=web_port)
         if sink.web_url:
             print(f"smartcar-eval: Rerun web viewer: {sink.web_url}", file=sys.stderr)
         recorders.append(sink)
@@ -242,12 +241,12 @@ def _recorders(args: argparse.Namespace, stack: contextlib.ExitStack) -> list[An
 
 def _close_recorders(recorders: list[Any]) -> dict[str, Any]:
     """Finish the recorders' files; what they wrote, for the summary table."""
-    from smartcar_gym.viewers.rerun_log import RerunSink
+    from smartcar_gym.viewers.rerun_process import RerunProcessSink
 
     written: dict[str, Any] = {}
     for recorder in recorders:
         recorder.close()
-        if isinstance(recorder, RerunSink):
+        if isinstance(recorder, RerunProcessSink):
             if recorder.path is not None:
                 written[f"rerun ({recorder.episodes} episodes)"] = recorder.path
         else:
@@ -256,18 +255,21 @@ def _close_recorders(recorders: list[Any]) -> dict[str, Any]:
 
 
 def _serve_until_interrupted(recorders: list[Any]) -> None:
-    """Keep the web viewer up until Ctrl-C."""
+    """Keep the web viewer (the recorder process) up until Ctrl-C."""
     import time
 
-    from smartcar_gym.viewers.rerun_log import RerunSink
+    from smartcar_gym.viewers.rerun_process import RerunProcessSink
 
-    url = next(r.web_url for r in recorders if isinstance(r, RerunSink))
-    print(f"smartcar-eval: serving the episodes at {url}; Ctrl-C stops", file=sys.stderr)
+    sink = next(r for r in recorders if isinstance(r, RerunProcessSink))
+    print(f"smartcar-eval: serving the episodes at {sink.web_url}; Ctrl-C stops",
+          file=sys.stderr)
     try:
         while True:
             time.sleep(3600)
     except KeyboardInterrupt:
         pass
+    finally:
+        sink.stop()
 
 
 def check_outputs(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:

@@ -3,6 +3,8 @@
 * ``capture``: ``Scene`` and ``Frame`` read from a SmartCarEnv, ``CaptureWrapper`` (into
   ``info``, for vector-env workers), ``EpisodeCollector`` (whole episodes, in order).
 * ``rerun_log``: ``RerunSink``, episodes into an ``.rrd`` file and/or Rerun's web viewer.
+* ``rerun_process``: ``RerunProcessSink``, the same from a recorder process of its own (what
+  ``smartcar-eval --rerun`` uses: the evaluating process never imports ``rerun``).
 
 ``smartcar_gym.wrappers.RerunRecorder`` records any loop; ``smartcar-eval --rerun`` the
 evaluation. ROS 2 bags are written by ``smartcar_gym.ros.bag_ros2`` from the same episodes.

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import os
 import sys
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 from urllib.parse import quote
@@ -170,26 +171,29 @@ class RerunSink:
 
     def write(self, episode: Episode) -> None:
         """Send one whole episode."""
+        self.send(pack(episode, urdf=not self._described))
+
+    def send(self, packet: Packet) -> None:
+        """Send one whole episode, packed (``pack``)."""
         import rerun as rr
 
-        rec, name, scene, frames = self.rec, entity(episode), episode.scene, episode.frames
+        rec, name, scene, table = self.rec, packet.entity, packet.scene, packet.table
         if not self._described:
             rec.log("robot_description", rr.TextDocument(scene.urdf, media_type="text/plain"),
                     static=True)
             self._described = True
         world = f"world/{name}"
         _log_scene(rec, world, scene)
-        table = _Table(frames)
         times = rr.TimeColumn(TIMELINE, duration=table.time_ns / 1e9)
         truth = table.position
         rec.log(f"{world}/path/truth", rr.LineStrips3D([truth], colors=_color(TRUTH_COLOR),
                                                        radii=_radius(0.01)), static=True)
         rec.send_columns(f"{world}/car", indexes=[times], columns=rr.Transform3D.columns(
             translation=truth, quaternion=table.orientation))
-        start = frames[0]
-        yaw0 = pose_from(start.position, start.orientation).yaw
+        start = table.position[0].tolist()
+        yaw0 = pose_from(start, table.orientation[0].tolist()).yaw
         rec.log(f"{world}/odom", rr.Transform3D(
-            translation=(start.position[0], start.position[1], 0.0),
+            translation=(start[0], start[1], 0.0),
             quaternion=(0.0, 0.0, np.sin(yaw0 / 2), np.cos(yaw0 / 2))), static=True)
         odom = table.odometry
         odom_xyz = np.column_stack([odom[:, 0], odom[:, 1], np.full(len(odom), truth[0, 2])])
@@ -203,8 +207,8 @@ class RerunSink:
                              quaternion=np.column_stack([np.zeros_like(half),
                                                          np.zeros_like(half), np.sin(half),
                                                          np.cos(half)])))
-        if scene.laser_mount is not None and any(f.scan is not None for f in frames):
-            _log_scans(rec, f"{world}/car/laser", scene, frames, times)
+        if packet.scans is not None:
+            _log_scans(rec, f"{world}/car/laser", scene, packet.scans, times)
         _log_series(rec, name, scene, table, times)
         self.episodes += 1
 
@@ -222,6 +226,29 @@ class RerunSink:
             self.rec.disconnect()
             self._partial.unlink(missing_ok=True)
             self._partial = None
+
+
+@dataclass
+class Packet:
+    """One episode as a recording needs it: plain arrays, cheap to pickle (what
+    ``RerunProcessSink`` sends its recorder process). ``scene.urdf`` may be empty: only the
+    first episode of a recording needs it."""
+
+    entity: str
+    scene: Scene
+    table: _Table
+    scans: tuple[np.ndarray, list[int]] | None  # scan_points of its frames; None: no laser
+
+
+def pack(episode: Episode, *, urdf: bool = True) -> Packet:
+    """``episode`` as a ``Packet`` (``urdf=False``: without the URDF text)."""
+    frames, scene = episode.frames, episode.scene
+    scans = None
+    if scene.laser_mount is not None and any(f.scan is not None for f in frames):
+        scans = scan_points([f.scan for f in frames])
+    if not urdf:
+        scene = replace(scene, urdf="")
+    return Packet(entity(episode), scene, _Table(frames), scans)
 
 
 class _Table:
@@ -365,13 +392,14 @@ def _car_shapes(shapes: tuple) -> list[tuple[str, Any]]:
     return built
 
 
-def _log_scans(rec: Any, laser: str, scene: Scene, frames: list, times: Any) -> None:
+def _log_scans(rec: Any, laser: str, scene: Scene, scans: tuple[np.ndarray, list[int]],
+               times: Any) -> None:
     """Each frame's latest scan as points in the laser frame (finite ranges only)."""
     import rerun as rr
 
     mount = scene.laser_mount
     rec.log(laser, rr.Transform3D(translation=mount[:3, 3], mat3x3=mount[:3, :3]), static=True)
-    positions, lengths = scan_points([f.scan for f in frames])
+    positions, lengths = scans
     rec.log(f"{laser}/scan", _unchanging("scan_style"), static=True)
     rec.send_columns(f"{laser}/scan", indexes=[times],
                      columns=rr.Points3D.columns(positions=positions).partition(lengths))

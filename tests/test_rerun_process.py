@@ -3,7 +3,6 @@ errors come back, and no recorder process outlives ``close``, ``discard`` or ``s
 
 from __future__ import annotations
 
-import importlib.util
 import multiprocessing
 import socket
 import urllib.request
@@ -13,22 +12,12 @@ import pytest
 
 import smartcar_gym  # noqa: F401  (registers the envs)
 from smartcar_gym.agents.rollouts import RandomPolicy, evaluate_policy_episodes
-
-pytestmark = pytest.mark.skipif(importlib.util.find_spec("rerun") is None,
-                                reason='rerun-sdk not installed: pip install '
-                                       '"smartcar-gym[rerun]"')
-needs_reader = pytest.mark.skipif(
-    importlib.util.find_spec("datafusion") is None,
-    reason='reading .rrd files back needs DataFusion: pip install "rerun-sdk[catalog]"')
+from tests.test_rerun_recording import _store, needs_reader, pytestmark  # noqa: F401
 
 
 def _tables(path):
     """Every entity's rows of an .rrd file: the static ones and those on sim_time."""
-    from rerun.chunk import RrdReader
-
-    reader = RrdReader(path)
-    (recording,) = reader.recordings()
-    store = reader.stream(store=recording).collect()
+    store = _store(path)
     static = store.reader(index=None, contents="/**").to_pandas()
     timed = store.reader(index="sim_time", contents="/**").to_pandas()
     return static, timed

@@ -100,17 +100,7 @@ class SmartCarSimVectorEnv(gym.vector.VectorEnv):
         if s.controller_mode != KINEMATIC:
             raise ValueError(f"SmartCarSimVectorEnv is the kinematic mode ('sim'), got "
                              f"controller_mode={s.controller_mode!r}")
-        self.settings = s
-        self.task = s.task
-        self.observation = s.observation
-        self.observation_names = s.observation_names
-        self.render_mode = s.render_mode
-        self.metadata = {**self.metadata, "render_fps": s.controller_config.rate_hz,
-                         "autoreset_mode": self.autoreset_mode}
-        self.single_observation_space = s.observation_space
-        self.single_action_space = s.action_space
-        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
-        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self._take_settings(s)
         n = self.num_envs
         model, config = s.robot_model, s.controller_config
         wheels = list(model.left_wheels) + list(model.right_wheels)
@@ -135,6 +125,20 @@ class SmartCarSimVectorEnv(gym.vector.VectorEnv):
         self._prev_action = np.zeros((n, 2), dtype=np.float32)
         self._autoreset = np.zeros(n, dtype=bool)
         self._needs_reset = True
+
+    def _take_settings(self, s: Any) -> None:
+        """The task, observation, spaces and metadata of the single env (or its settings)
+        ``s`` that every car shares."""
+        self.settings = s
+        self.task, self.observation = s.task, s.observation
+        self.observation_names = s.observation_names
+        self.render_mode = s.render_mode
+        self.metadata = {**self.metadata, "render_fps": s.controller_config.rate_hz,
+                         "autoreset_mode": self.autoreset_mode}
+        self.single_observation_space = s.observation_space
+        self.single_action_space = s.action_space
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
 
     # -- gymnasium API -------------------------------------------------------------------------
     @property

@@ -9,7 +9,6 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 from gymnasium.vector import AutoresetMode
-from gymnasium.vector.utils import batch_space
 
 from smartcar_gym.controller import HARDWARE
 from smartcar_gym.controller.batched import BatchedArbotix
@@ -111,16 +110,7 @@ class SmartCarMujocoVectorEnv(SmartCarSimVectorEnv):
     def _init_from(self, s: SmartCarEnv, num_threads: int | None) -> None:
         from smartcar_gym.sim.mujoco.batch import CarBatch
 
-        self.settings = s
-        self.task, self.observation = s.task, s.observation
-        self.observation_names = s.observation_names
-        self.render_mode = s.render_mode
-        self.metadata = {**self.metadata, "render_fps": s.controller_config.rate_hz,
-                         "autoreset_mode": self.autoreset_mode}
-        self.single_observation_space = s.observation_space
-        self.single_action_space = s.action_space
-        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
-        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self._take_settings(s)
         n, robot, sim = self.num_envs, s.robot, s.sim
         ids = robot.body._ids
         qadr, dadr = ids.addresses(robot.wheel_joint_indices)

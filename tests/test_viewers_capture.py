@@ -70,7 +70,7 @@ def _scan(ranges, angle_min=-1.0, increment=0.5):
 
 def test_scan_points_keep_finite_ranges_in_the_laser_frame():
     pytest.importorskip("rerun")
-    from smartcar_gym.viewers.rerun_log import scan_points
+    from smartcar_gym.viewers.packing import scan_points
 
     scans = [_scan([1.0, np.inf, 2.0, 0.5, -np.inf]), _scan([np.inf] * 5),
              _scan([3.0, 1.0, 1.0, 1.0, 1.0])]

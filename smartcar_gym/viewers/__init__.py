@@ -2,6 +2,7 @@
 
 * ``capture``: ``Scene`` and ``Frame`` read from a SmartCarEnv, ``CaptureWrapper`` (into
   ``info``, for vector-env workers), ``EpisodeCollector`` (whole episodes, in order).
+* ``packing``: ``pack``, a finished episode as plain arrays (``Packet``), without ``rerun``.
 * ``rerun_log``: ``RerunSink``, episodes into an ``.rrd`` file and/or Rerun's web viewer.
 * ``rerun_process``: ``RerunProcessSink``, the same from a recorder process of its own (what
   ``smartcar-eval --rerun`` uses: the evaluating process never imports ``rerun``).

@@ -3,7 +3,7 @@
 The evaluating process never imports ``rerun``: a recorder process (``multiprocessing``,
 "spawn") imports it, holds the ``RecordingStream`` and its file and server sinks (a
 ``RerunSink``), and logs each episode that it is sent. The evaluating process only packs a
-finished episode into arrays (``rerun_log.pack``) and pickles it into a pipe, so on a machine
+finished episode into arrays (``packing.pack``) and pickles it into a pipe, so on a machine
 with a core to spare the recording costs an evaluation little wall time. The recording is the
 same as ``RerunSink``'s. The recorder ignores Ctrl-C (SIGINT, which a terminal sends to both
 processes): the evaluating process decides, with ``close`` (the ``.rrd`` appears whole) or
@@ -75,7 +75,7 @@ class RerunProcessSink:
 
     def write(self, episode: Episode) -> None:
         """Send one whole episode to the recorder (it logs it while this process goes on)."""
-        from smartcar_gym.viewers.rerun_log import pack
+        from smartcar_gym.viewers.packing import pack
 
         if self._closed:
             raise ValueError("this Rerun recording is closed")

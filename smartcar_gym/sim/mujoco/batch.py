@@ -61,6 +61,8 @@ class CarBatch:
         self.datas = [copy.copy(d) for _ in range(self.n)]
         self.qpos = np.tile(d.qpos, (self.n, 1))
         self.qvel = np.tile(d.qvel, (self.n, 1))
+        #: cars whose geom poses are older than their positions (stepped since ``_current``)
+        self._stale = np.ones(self.n, dtype=bool)
         self.torque = np.tile(d.qfrc_applied[self.dofs], (self.n, 1))
         self.damping = np.tile(m.dof_damping[self.dofs], (self.n, 1))
         self.threads = max(1, int(threads))
@@ -72,6 +74,7 @@ class CarBatch:
         for i in cars:
             m = self.models[i]
             mujoco.mj_copyData(self.datas[i], tm, td)
+            self._stale[i] = True
             m.dof_damping[:] = tm.dof_damping
             m.opt.timestep = tm.opt.timestep
         self.qpos[cars] = td.qpos
@@ -87,6 +90,7 @@ class CarBatch:
             raise ValueError(f"car {car}'s world has {m.nq} positions and {m.nv} dofs, the "
                              f"batch {self.template_model.nq} and {self.template_model.nv}")
         self.models[car], self.datas[car] = copy.copy(m), copy.copy(d)
+        self._stale[car] = True
         self.qpos[car], self.qvel[car] = d.qpos, d.qvel
         self.torque[car] = d.qfrc_applied[self.dofs]
         self.damping[car] = m.dof_damping[self.dofs]
@@ -148,12 +152,16 @@ class CarBatch:
             mujoco.mj_step(m, d, n)
             qpos[i] = d.qpos
             qvel[i] = d.qvel
+            self._stale[i] = True
 
     def _current(self, car: int) -> tuple[mujoco.MjModel, mujoco.MjData]:
         """Car ``car``'s model and data with every geom's pose computed from its positions
-        (after ``mj_step`` they are those before the step), as ``MujocoSimulator.kinematics``."""
+        (after ``mj_step`` they are those before the step), as ``MujocoSimulator.kinematics``:
+        once per step, however many sensors ask (the laser and the clearance at one instant)."""
         m, d = self.models[car], self.datas[car]
-        mujoco.mj_kinematics(m, d)
+        if self._stale[car]:
+            mujoco.mj_kinematics(m, d)
+            self._stale[car] = False
         return m, d
 
     def _multi_ray(self, cars: list[int], starts: list, units: list, cutoffs: list[float],

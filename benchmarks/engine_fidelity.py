@@ -3,7 +3,7 @@
     python benchmarks/engine_fidelity.py
 
 Each row spawns the shipped car with the shipped controller config afresh on each engine and
-drives it through the emulated ArbotiX base (smartcar_gym/envs/robots/engines_compared.py says
+drives it through the emulated ArbotiX base (smartcar_gym/calibration/engines_compared.py says
 what each row measures). Deterministic: the same numbers on every run.
 """
 
@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import math
 
+from smartcar_gym.calibration.engines_compared import MANEUVERS, relative_difference
 from smartcar_gym.controller import load_controller_config
-from smartcar_gym.envs.robots.engines_compared import MANEUVERS, relative_difference
 from smartcar_gym.model import load_model
 
 

@@ -126,8 +126,8 @@ def levers(steps: int, rounds: int) -> None:
 
 def lever_fidelity(names: tuple[str, ...] | None = None) -> None:
     """The ``--lever-fidelity`` table (of the maneuvers ``names``: spins and coast-down)."""
+    from smartcar_gym.calibration import engines_compared
     from smartcar_gym.controller import load_controller_config
-    from smartcar_gym.envs.robots import engines_compared
     from smartcar_gym.model import load_model
     from smartcar_gym.sim.mujoco import simulator
 

@@ -2,7 +2,7 @@
 
     python benchmarks/fidelity.py [--substeps 0.001 0.002 0.005 0.01]
 
-The scenarios are ``smartcar_gym.envs.robots.fidelity.measure`` (the ones the gates in
+The scenarios are ``smartcar_gym.calibration.fidelity.measure`` (the ones the gates in
 ``tests/test_fidelity.py`` use): steady speed at 0.2 and 0.4 m/s, odometry going straight, a
 30 s spin at 1 rad/s, a coast-down from 0.3 m/s, 20 s of seeded random commands, stability. The
 1 ms column shows how much the 2 ms reference itself moves when refined: tolerances are sized
@@ -15,8 +15,8 @@ import argparse
 import math
 import time
 
+from smartcar_gym.calibration.fidelity import measure
 from smartcar_gym.controller import load_controller_config
-from smartcar_gym.envs.robots.fidelity import measure
 from smartcar_gym.model import load_model
 
 

@@ -15,9 +15,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from smartcar_gym.calibration.maneuvers import random_commands, run
 from smartcar_gym.controller import WheelEncoder, load_controller_config
 from smartcar_gym.envs.robots import SmartCarRobot
-from smartcar_gym.envs.robots.maneuvers import random_commands, run
 from smartcar_gym.envs.smartcar_env import SmartCarEnv
 from smartcar_gym.model import RobotModel, load_model
 from smartcar_gym.sim import Simulator

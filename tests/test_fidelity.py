@@ -1,6 +1,6 @@
 """Fidelity gates: the default event-driven stepping (10 ms substeps) against fixed 2 ms steps.
 
-Both run identical command sequences (``smartcar_gym.envs.robots.fidelity``), under both wheel
+Both run identical command sequences (``smartcar_gym.calibration.fidelity``), under both wheel
 contact models. Tolerances are sized by how much the 2 ms reference itself moves when it is
 refined to 1 ms (``benchmarks/fidelity.py`` prints all three), not pinned to four digits.
 """
@@ -12,9 +12,9 @@ import math
 import numpy as np
 import pytest
 
+from smartcar_gym.calibration.fidelity import Figures, measure
+from smartcar_gym.calibration.maneuvers import random_commands, run
 from smartcar_gym.envs.robots import SmartCarRobot
-from smartcar_gym.envs.robots.fidelity import Figures, measure
-from smartcar_gym.envs.robots.maneuvers import random_commands, run
 from smartcar_gym.sim import Simulator
 
 CONTACTS = ("sphere", "urdf")

@@ -7,7 +7,7 @@ import pytest
 
 pytest.importorskip("smartcar_gym.sim.mujoco", reason="engine='mujoco' needs the mujoco extra")
 
-from smartcar_gym.envs.robots.engines_compared import (  # noqa: E402
+from smartcar_gym.calibration.engines_compared import (  # noqa: E402
     coast_down,
     odometry_error,
     spin_rate,

@@ -7,8 +7,8 @@ import dataclasses
 import numpy as np
 import pytest
 
+from smartcar_gym.calibration.maneuvers import circle_centre_drift, hold, run
 from smartcar_gym.envs.robots import SmartCarRobot, drive
-from smartcar_gym.envs.robots.maneuvers import circle_centre_drift, hold, run
 
 
 def _turn(robot: SmartCarRobot, angular_z: float, seconds: float):

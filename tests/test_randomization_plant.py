@@ -7,12 +7,12 @@ import math
 import numpy as np
 import pytest
 
+from smartcar_gym.calibration.maneuvers import Sample, hold, run
 from smartcar_gym.controller import WheelEncoder
 from smartcar_gym.controller.encoder_faults import FaultyEncoder
 from smartcar_gym.controller.latency import CommandDelay
 from smartcar_gym.envs.randomization import Randomization
 from smartcar_gym.envs.robots import SmartCarRobot
-from smartcar_gym.envs.robots.maneuvers import Sample, hold, run
 from smartcar_gym.envs.robots.variation import Variation
 from smartcar_gym.sim import Simulator
 from smartcar_gym.sim.body import BASE

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 from git_trees import package_at
 
+from smartcar_gym.calibration.maneuvers import hold, random_commands, run
 from smartcar_gym.envs.robots import SmartCarRobot, drive
-from smartcar_gym.envs.robots.maneuvers import hold, random_commands, run
 from smartcar_gym.sim import Simulator
 from smartcar_gym.sim.simulator import seconds_to_ns
 

@@ -15,9 +15,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from smartcar_gym.calibration.drives import Driver, Plan
+from smartcar_gym.calibration.maneuvers import Sample, hold, random_commands, run
 from smartcar_gym.controller import ArbotixConfig, load_controller_config
 from smartcar_gym.controller.config_yaml import calibrated_config_path
-from smartcar_gym.envs.robots.maneuvers import Sample, hold, random_commands, run
 from smartcar_gym.envs.robots.smartcar import SmartCarRobot
 from smartcar_gym.model import RobotModel
 from smartcar_gym.sim.clock import DEFAULT_MAX_SUBSTEP_S

@@ -12,14 +12,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from smartcar_gym.controller import ArbotixConfig
-from smartcar_gym.envs.robots.maneuvers import (
+from smartcar_gym.calibration.maneuvers import (
     Sample,
     circle_centre_drift,
     hold,
     random_commands,
     run,
 )
+from smartcar_gym.controller import ArbotixConfig
 from smartcar_gym.envs.robots.smartcar import SmartCarRobot
 from smartcar_gym.model import RobotModel
 from smartcar_gym.sim.clock import EventClock

@@ -65,8 +65,9 @@ class Driver:
     def __init__(self, model: RobotModel, config: ArbotixConfig,
                  variation: Variation | None = None, wheel_contact: str = "sphere",
                  max_substep_s: float = 0.01, ground_friction: float = 1.0,
-                 engine: str = DEFAULT_ENGINE) -> None:
+                 engine: str = DEFAULT_ENGINE, sim_options: dict | None = None) -> None:
         self.model = model
+        self.sim_options = dict(sim_options or {})
         self.engine = engine
         self.config = config
         self.variation = variation
@@ -85,7 +86,7 @@ class Driver:
     def run(self, name: str, steer: Callable[[_Leg], list[tuple[float, float, str]]]) -> Run:
         """Spawn afresh, drive the legs ``steer`` lists, come to rest, record."""
         sim = make_simulator(self.engine, max_substep_s=self.max_substep_s,
-                             ground_friction=self.ground_friction)
+                             ground_friction=self.ground_friction, **self.sim_options)
         try:
             robot = SmartCarRobot(sim, self.model, self.config, wheel_contact=self.wheel_contact)
             if self.variation is not None:  # each drive its own noise

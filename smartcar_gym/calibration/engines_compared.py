@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -20,8 +21,7 @@ from smartcar_gym.controller import ArbotixConfig, load_controller_config
 from smartcar_gym.controller.config_yaml import calibrated_config_path
 from smartcar_gym.envs.robots.smartcar import SmartCarRobot
 from smartcar_gym.model import RobotModel
-from smartcar_gym.sim.clock import DEFAULT_MAX_SUBSTEP_S
-from smartcar_gym.sim.engines import make_simulator
+from smartcar_gym.sim.engines import default_max_substep, make_simulator
 
 SETTLE_S = 3.0  # a twist held this long has reached its steady state
 MEASURE_S = 2.0  # ... measured over the following seconds
@@ -32,16 +32,17 @@ ODOMETRY_SEED = 2026
 
 @dataclass(frozen=True)
 class Maneuver:
-    """One row: a name, a unit and how to measure it on (model, config, engine)."""
+    """One row: a name, a unit and how to measure it on (model, config, engine, and the
+    engine's simulator options, e.g. ``planar_params``)."""
 
     name: str
     unit: str
-    measure: Callable[[RobotModel, ArbotixConfig, str], float]
+    measure: Callable[..., float]
 
 
 def _drive(model: RobotModel, config: ArbotixConfig, engine: str,
-           commands: list) -> list[Sample]:
-    sim = make_simulator(engine, max_substep_s=DEFAULT_MAX_SUBSTEP_S)
+           commands: list, **options: Any) -> list[Sample]:
+    sim = make_simulator(engine, max_substep_s=default_max_substep(engine), **options)
     try:
         robot = SmartCarRobot(sim, model, config)
         robot.spawn()
@@ -52,10 +53,10 @@ def _drive(model: RobotModel, config: ArbotixConfig, engine: str,
 
 def steady_speed(linear_m_s: float) -> Maneuver:
     """Ground-truth speed (m/s) with ``cmd_vel`` linear.x held, after ``SETTLE_S``."""
-    def measure(model: RobotModel, config: ArbotixConfig, engine: str) -> float:
+    def measure(model: RobotModel, config: ArbotixConfig, engine: str, **options: Any) -> float:
         rate = config.rate_hz
-        samples = _drive(model, config, engine, hold((linear_m_s, 0.0), SETTLE_S + MEASURE_S,
-                                                     rate))
+        commands = hold((linear_m_s, 0.0), SETTLE_S + MEASURE_S, rate)
+        samples = _drive(model, config, engine, commands, **options)
         first, last = samples[-round(MEASURE_S * rate) - 1], samples[-1]
         return math.hypot(last.x - first.x, last.y - first.y) / (last.t - first.t)
 
@@ -64,10 +65,10 @@ def steady_speed(linear_m_s: float) -> Maneuver:
 
 def spin_rate(angular_rad_s: float) -> Maneuver:
     """Ground-truth turn rate (rad/s) with ``cmd_vel`` angular.z held, after ``SETTLE_S``."""
-    def measure(model: RobotModel, config: ArbotixConfig, engine: str) -> float:
+    def measure(model: RobotModel, config: ArbotixConfig, engine: str, **options: Any) -> float:
         rate = config.rate_hz
-        samples = _drive(model, config, engine, hold((0.0, angular_rad_s), SETTLE_S + MEASURE_S,
-                                                     rate))
+        commands = hold((0.0, angular_rad_s), SETTLE_S + MEASURE_S, rate)
+        samples = _drive(model, config, engine, commands, **options)
         first, last = samples[-round(MEASURE_S * rate) - 1], samples[-1]
         return (last.yaw - first.yaw) / (last.t - first.t)
 
@@ -79,10 +80,11 @@ def umbmark(direction: int, side_m: float = 1.0, calibrated: bool = False) -> Ma
     counter-clockwise (1) or clockwise (-1); the distance (m) from the true end to the start.
     ``calibrated``: with the shipped calibrated YAML (``base_width`` 0.33 m, the car's effective
     track) instead of the given config."""
-    def measure(model: RobotModel, config: ArbotixConfig, engine: str) -> float:
+    def measure(model: RobotModel, config: ArbotixConfig, engine: str, **options: Any) -> float:
         if calibrated:
             config = load_controller_config(calibrated_config_path())
-        drive = Driver(model, config, max_substep_s=DEFAULT_MAX_SUBSTEP_S, engine=engine)
+        drive = Driver(model, config, max_substep_s=default_max_substep(engine), engine=engine,
+                       sim_options=options)
         x, y, _ = drive.square(Plan(square_side_m=side_m), direction).true_end
         return math.hypot(x, y)
 
@@ -93,10 +95,10 @@ def umbmark(direction: int, side_m: float = 1.0, calibrated: bool = False) -> Ma
 
 def coast_down(linear_m_s: float = 0.3) -> Maneuver:
     """Distance (m) from a stop command (cmd_vel 0) at ``linear_m_s`` steady to rest."""
-    def measure(model: RobotModel, config: ArbotixConfig, engine: str) -> float:
+    def measure(model: RobotModel, config: ArbotixConfig, engine: str, **options: Any) -> float:
         rate = config.rate_hz
         commands = hold((linear_m_s, 0.0), SETTLE_S, rate) + hold((0.0, 0.0), 3.0, rate)
-        samples = _drive(model, config, engine, commands)
+        samples = _drive(model, config, engine, commands, **options)
         stop = round(SETTLE_S * rate) - 1
         rest = next((s for s in samples[stop + 1:] if s.speed < AT_REST_M_S), samples[-1])
         return math.hypot(rest.x - samples[stop].x, rest.y - samples[stop].y)
@@ -107,9 +109,9 @@ def coast_down(linear_m_s: float = 0.3) -> Maneuver:
 def odometry_error(seconds: float = ODOMETRY_DRIVE_S, seed: int = ODOMETRY_SEED) -> Maneuver:
     """Distance (m) between odometry and ground truth after ``seconds`` of seeded random
     twists (the same on every engine)."""
-    def measure(model: RobotModel, config: ArbotixConfig, engine: str) -> float:
+    def measure(model: RobotModel, config: ArbotixConfig, engine: str, **options: Any) -> float:
         commands = random_commands(seconds, config.rate_hz, seed)
-        end = _drive(model, config, engine, commands)[-1]
+        end = _drive(model, config, engine, commands, **options)[-1]
         return math.hypot(end.odom_x - end.x, end.odom_y - end.y)
 
     return Maneuver(f"odometry vs ground truth after a {seconds:g} s drive", "m", measure)
@@ -125,9 +127,18 @@ MANEUVERS: tuple[Maneuver, ...] = (
 
 
 def compare(model: RobotModel, config: ArbotixConfig, engines: tuple[str, ...],
-            maneuvers: tuple[Maneuver, ...] = MANEUVERS) -> dict[str, dict[str, float]]:
-    """maneuver name -> engine -> its number."""
-    return {m.name: {e: float(m.measure(model, config, e)) for e in engines} for m in maneuvers}
+            maneuvers: tuple[Maneuver, ...] = MANEUVERS,
+            options: dict[str, dict[str, Any]] | None = None) -> dict[str, dict[str, float]]:
+    """maneuver name -> column -> its number. ``engines`` are engine names, or column names
+    that ``options`` maps to ``{"engine": name, **simulator options}`` (e.g. two planar
+    columns with different ``planar_params``)."""
+    options = options or {}
+
+    def number(m: Maneuver, column: str) -> float:
+        spec = dict(options.get(column, {"engine": column}))
+        return float(m.measure(model, config, spec.pop("engine"), **spec))
+
+    return {m.name: {e: number(m, e) for e in engines} for m in maneuvers}
 
 
 def relative_difference(value: float, reference: float) -> float:

@@ -30,9 +30,17 @@ from smartcar_gym.envs.robots.smartcar import Pose2D, SmartCarRobot
 from smartcar_gym.envs.tasks.reach import GoalReachingTask
 from smartcar_gym.model import RobotModel, load_model
 from smartcar_gym.model.contact import check_wheel_contact
-from smartcar_gym.sim.clock import DEFAULT_MAX_SUBSTEP_S, EventClock, check_max_substep
-from smartcar_gym.sim.engines import DEFAULT_ENGINE, check_engine, make_simulator
+from smartcar_gym.sim.clock import EventClock, check_max_substep
+from smartcar_gym.sim.engines import (
+    DEFAULT_ENGINE,
+    check_engine,
+    default_max_substep,
+    make_simulator,
+    substep_range,
+)
 from smartcar_gym.sim.markers import SceneMarkers
+from smartcar_gym.sim.planar.params import PlanarParams
+from smartcar_gym.sim.planar.params import resolve as resolve_planar
 
 MAX_RENDER_PX = 4096  # 8000 x 8000 took 2.4 GB and minutes per frame
 #: the rows of SmartCar-v0's observation, in order (entries come from robot, task and env)
@@ -232,10 +240,18 @@ class SmartCarEnv(gym.Env):
         randomize: str | os.PathLike | dict | Randomization | None = None,
         engine: str | None = None,
         stop_speed: float | None = None,
+        planar_params: str | os.PathLike | dict | PlanarParams | None = None,
     ) -> None:
+        self.engine = DEFAULT_ENGINE if engine is None else check_engine(engine)
+        if self.engine == "planar":  # it draws rgb_array pictures only, no GUI
+            self.metadata = {**self.metadata, "render_modes": RenderModes(["rgb_array"])}
         checks.one_of("render_mode", render_mode, list(self.metadata["render_modes"]),
                       none_ok=True)
-        self.engine = DEFAULT_ENGINE if engine is None else check_engine(engine)
+        if planar_params is not None and self.engine != "planar":
+            raise ValueError(f"planar_params is the planar engine's; pass engine='planar' "
+                             f"(engine is {self.engine!r})")
+        #: the planar engine's free parameters (None on the other engines)
+        self.planar_params = resolve_planar(planar_params) if self.engine == "planar" else None
         checks.one_of("controller_mode", controller_mode, MODES, none_ok=True)
         self.render_mode = render_mode
         self.wheel_contact = check_wheel_contact(wheel_contact)
@@ -244,7 +260,7 @@ class SmartCarEnv(gym.Env):
         self.max_linear = checks.positive_number("max_linear", max_linear)
         self.max_angular = checks.positive_number("max_angular", max_angular)
         half = checks.positive_number("arena_size", arena_size) / 2.0
-        self.max_substep_s = self._substep(max_substep_s, physics_hz)
+        self.max_substep_s = self._substep(max_substep_s, physics_hz, self.engine)
         size = f"rgb_array images are at most {MAX_RENDER_PX} px a side"
         self.render_width = checks.positive_int("render_width", render_width, MAX_RENDER_PX, size)
         self.render_height = checks.positive_int("render_height", render_height, MAX_RENDER_PX,
@@ -292,11 +308,12 @@ class SmartCarEnv(gym.Env):
         return declare_observation(observed_wheels(self.robot_model), self.task)
 
     @staticmethod
-    def _substep(max_substep_s: float | None, physics_hz: float | None) -> float:
+    def _substep(max_substep_s: float | None, physics_hz: float | None,
+                 engine: str = DEFAULT_ENGINE) -> float:
         if physics_hz is None:
             if max_substep_s is None:
-                return DEFAULT_MAX_SUBSTEP_S
-            return check_max_substep(max_substep_s)
+                return default_max_substep(engine)
+            return check_max_substep(max_substep_s, allowed=substep_range(engine))
         if max_substep_s is not None:
             raise ValueError(
                 f"pass max_substep_s or physics_hz, not both (got max_substep_s={max_substep_s!r}, "
@@ -325,7 +342,8 @@ class SmartCarEnv(gym.Env):
     def _open(self) -> None:
         """Connect a fresh simulator (its own world) with the robot and the markers."""
         self.sim = make_simulator(self.engine, max_substep_s=self.max_substep_s,
-                                  gui=self.render_mode == "human")
+                                  gui=self.render_mode == "human",
+                                  planar_params=self.planar_params)
         self.robot = SmartCarRobot(
             self.sim, self.robot_model, self.controller_config, mode=self.controller_mode,
             wheel_contact=self.wheel_contact,

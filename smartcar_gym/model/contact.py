@@ -19,6 +19,8 @@ from smartcar_gym.model.urdf import parse_xml, serialize_xml
 
 WheelContact = Literal["sphere", "urdf"]
 WHEEL_CONTACTS: tuple[str, ...] = ("sphere", "urdf")
+#: pybullet's lateral friction of a URDF link that names none
+DEFAULT_FRICTION = 0.5
 
 
 def check_wheel_contact(value: object) -> WheelContact:
@@ -62,3 +64,15 @@ def round_wheel_shapes(root: ElementTree.Element,
             if shape is not None and shape.tag in ("cylinder", "sphere"):
                 yield shape
                 break
+
+
+def link_frictions(text: str, source: str) -> dict[str, float]:
+    """Each link's lateral friction coefficient in URDF ``text`` as pybullet reads it: the
+    link's ``<contact><lateral_friction value=.../>``, or pybullet's default
+    ``DEFAULT_FRICTION``; a contact multiplies the two bodies' coefficients."""
+    frictions = {}
+    for link in parse_xml(text, source).findall("link"):
+        element = link.find("contact/lateral_friction")
+        value = DEFAULT_FRICTION if element is None else float(element.get("value", "0.5"))
+        frictions[link.get("name", "")] = value
+    return frictions

@@ -47,9 +47,11 @@ def seconds_to_ns(seconds: float) -> int:
     return round(seconds * NS_PER_S)
 
 
-def check_max_substep(value: object, name: str = "max_substep_s") -> float:
-    """``value`` as a float in ``MAX_SUBSTEP_RANGE_S``; ValueError naming ``name`` otherwise."""
-    low, high = MAX_SUBSTEP_RANGE_S
+def check_max_substep(value: object, name: str = "max_substep_s",
+                      allowed: tuple[float, float] = MAX_SUBSTEP_RANGE_S) -> float:
+    """``value`` as a float in ``allowed`` (an engine's range; ``MAX_SUBSTEP_RANGE_S`` for
+    pybullet and MuJoCo); ValueError naming ``name`` otherwise."""
+    low, high = allowed
     if (
         isinstance(value, bool)
         or not isinstance(value, int | float | np.floating | np.integer)

@@ -24,12 +24,11 @@ from pathlib import Path
 
 import mujoco
 
+from smartcar_gym.model.contact import DEFAULT_FRICTION  # noqa: F401 (pybullet's default)
 from smartcar_gym.model.errors import ModelError
 
 GROUP_WORLD, GROUP_COLLISION, GROUP_VISUAL, GROUP_HIDDEN = 0, 1, 2, 3
 ROBOT_PRIORITY = 1
-#: pybullet's lateral friction of a URDF link that names none
-DEFAULT_FRICTION = 0.5
 #: the robot's contacts' (time constant s, damping ratio): stiffer than MuJoCo's (0.02, 1)
 CONTACT_SOLREF = (0.005, 1.0)
 #: the robot's contacts' solver impedance: harder than MuJoCo's (0.9, 0.95, 0.001, 0.5, 2)
@@ -86,17 +85,10 @@ def car_spec_from_text(text: str, source: str | os.PathLike, free: bool = True) 
 
 
 def link_frictions(urdf_path: str | os.PathLike) -> dict[str, float]:
-    """Each link's lateral friction coefficient as pybullet reads it: the link's
-    ``<contact><lateral_friction value=.../>`` or pybullet's default ``DEFAULT_FRICTION``."""
-    from smartcar_gym.model.urdf import parse_xml
+    """Each link's lateral friction coefficient as pybullet reads it (``model.contact``)."""
+    from smartcar_gym.model.contact import link_frictions as read
 
-    root = parse_xml(Path(urdf_path).read_text(encoding="utf-8"), str(urdf_path))
-    frictions = {}
-    for link in root.findall("link"):
-        element = link.find("contact/lateral_friction")
-        value = DEFAULT_FRICTION if element is None else float(element.get("value", "0.5"))
-        frictions[link.get("name", "")] = value
-    return frictions
+    return read(Path(urdf_path).read_text(encoding="utf-8"), str(urdf_path))
 
 
 def has_visuals(spec: mujoco.MjSpec) -> bool:

@@ -1,0 +1,232 @@
+"""The planar car's equations of motion: plain functions of its state and parameters.
+
+One car is a rigid body in the plane (centre of mass ``x, y``, heading ``(c, s)`` = cos, sin
+of its yaw, world-frame velocity ``vx, vy``, yaw rate ``w``) and G wheel groups (a side's
+wheels chained 1:1, or a lone wheel), each one rotational degree of freedom (angle ``phi``,
+speed ``om``). Every value may be a Python float (one car, the single env) or a numpy array of
+N cars (the batch): the functions use nothing but ``+ - * /`` and ``sqrt``, each element
+computed with the same operations in the same order, so a car of a batch is bit for bit the
+same car stepped alone (``tests/test_planar_dynamics.py``).
+
+**Forces.** Each ground contact k (a wheel's lowest point, or a sliding point such as a
+caster ball fixed to the body) at ``(rx, ry)`` from the centre of mass in the body frame slips
+with velocity ``s = v + w x r + rolling * om_g`` (``rolling``: the contact point's velocity
+relative to the body per unit of its wheel group's speed, ``(0, 0)`` for a sliding contact).
+The ground pushes back with a regularised Coulomb force, the gradient of the dissipation
+``D(s) = N_k sqrt(mx^2 sx^2 + my^2 sy^2 + mx^2 eps^2)``:
+
+    F = -N_k (mx^2 sx, my^2 sy) / sqrt(mx^2 sx^2 + my^2 sy^2 + mx^2 eps^2)
+
+(``N_k``: the contact's static normal load; ``mx``, ``my``: its friction coefficients along
+and across the body's x axis; ``eps``: the slip speed at which friction reaches 71 % of its
+Coulomb bound, i.e. the slip stiffness is ``mx N_k / eps``). With ``mx = my`` it is isotropic
+Coulomb friction (the force opposes the slip in any direction, as the physics engines' friction
+cones do); with ``my > mx`` an elliptic cone, whose tyre resists sliding sideways more than
+along its rolling direction. The curve is smooth, tends to Coulomb friction as ``eps`` -> 0,
+and, being a gradient, has a symmetric Jacobian. A wheel group feels its motor (drive torque
+``tau``, back-EMF damping ``b``), the reaction of its contacts, and Coulomb friction ``T`` (the
+gearbox's and the rolling resistance, regularised the same way over ``eps_w`` rad/s).
+
+**Integration.** Linearly implicit (Rosenbrock-) Euler on the velocities: with ``J`` the
+Jacobian of the forces at the start of the substep, ``(M - dt J) du = dt f(u)``. ``M - dt J``
+is symmetric positive definite (friction and damping only take energy out), so the step is
+stable at any ``dt`` however stiff the slip curve; the stiff slip modes are damped toward
+their quasi-steady state instead of ringing. The system is solved exactly: the wheel groups
+couple only through the body, so they are eliminated first (a Schur complement) and the 3x3
+body system is solved by cofactors. Positions follow with the new velocities (symplectic
+Euler); the heading turns by ``dt w`` as a Cayley rotation (``(c, s)`` stays a unit vector,
+to rounding, without a trigonometric call, whose last bit numpy's vector code and libm may
+disagree on). A substep of ``dt = 0`` changes nothing, bit for bit: a batch steps the cars whose
+interval has ended with ``dt = 0`` while the others finish theirs.
+
+**Layout.** A car is three flat sequences, indexed the same way whether they hold floats (a
+Python list: one car), ``(N,)`` arrays (rows of an ``(S, N)`` array: N cars at once in numpy)
+or float64 scalars (one car's row in the compiled loop, ``jit.py``):
+
+* ``state`` (``state_size(G)``): x, y, c, s, vx, vy, w, then each group's angle, then speed;
+* ``car`` (``car_size(G)``): mass, yaw inertia, eps^2, eps_w^2, then each group's spin
+  inertia, then its Coulomb torque;
+* ``contacts``: K rows of ``CONTACT_FIELDS``; ``groups``: each contact's wheel group (-1:
+  sliding), shared by all cars;
+* ``drive`` (2G): each group's motor drive torque (N m), then its back-EMF damping
+  (N m s/rad), from the board's PWM.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+
+Value = Any  # a float, or an (N,) float64 array of cars
+#: one contact's row: position from the centre of mass (body frame, m), rolling velocity per
+#: rad/s of its group (m/rad), normal load (N), friction coefficients along and across x
+CONTACT_FIELDS = ("x", "y", "roll_x", "roll_y", "load", "friction_x", "friction_y")
+BODY = ("x", "y", "c", "s", "vx", "vy", "w")
+CAR = ("mass", "yaw_inertia", "eps2", "eps_w2")
+
+
+def state_size(groups: int) -> int:
+    """Length of a car's state with ``groups`` wheel groups."""
+    return len(BODY) + 2 * groups
+
+
+def car_size(groups: int) -> int:
+    """Length of a car's parameters with ``groups`` wheel groups."""
+    return len(CAR) + 2 * groups
+
+
+def make_substep(sqrt: Callable[[Value], Value]) -> Callable[..., None]:
+    """The substep function with this ``sqrt``: ``math.sqrt`` for floats (and the compiled
+    loop), ``numpy.sqrt`` for arrays of cars. Both are IEEE's correctly rounded square root."""
+
+    def substep(state: Any, car: Any, contacts: Any, groups: Sequence[int], drive: Any,
+                dt: Value) -> None:
+        """Advance ``state`` (in place) by ``dt`` s with ``drive``'s motor torques."""
+        c, s, vxw, vyw, w = state[2], state[3], state[4], state[5], state[6]
+        vx = c * vxw + s * vyw  # body-frame velocity of the centre of mass
+        vy = c * vyw - s * vxw
+        eps2 = car[2]
+        ng = (len(car) - 4) // 2
+        f1 = f2 = f3 = 0.0
+        a11 = a12 = a13 = a22 = a23 = a33 = 0.0
+        fg = [0.0 * vx] * ng
+        c1 = [0.0 * vx] * ng
+        c2 = [0.0 * vx] * ng
+        c3 = [0.0 * vx] * ng
+        dg = [0.0 * vx] * ng
+        for k in range(len(groups)):
+            row = contacts[k]
+            g = groups[k]
+            rx, ry, kx, ky = row[0], row[1], row[5], row[6]
+            sx = vx - w * ry
+            sy = vy + w * rx
+            if g >= 0:
+                sx = sx + row[2] * state[7 + ng + g]
+                sy = sy + row[3] * state[7 + ng + g]
+            ux = kx * sx
+            uy = ky * sy
+            e2 = kx * kx * eps2
+            q2 = ux * ux + uy * uy + e2
+            a = row[4] / sqrt(q2)
+            fx = -a * kx * ux
+            fy = -a * ky * uy
+            h = a / q2
+            d11 = kx * kx * h * (uy * uy + e2)
+            d22 = ky * ky * h * (ux * ux + e2)
+            d12 = -kx * ky * h * ux * uy
+            e1 = d12 * rx - d11 * ry
+            e2 = d22 * rx - d12 * ry
+            f1 = f1 + fx
+            f2 = f2 + fy
+            f3 = f3 + (rx * fy - ry * fx)
+            a11 = a11 + d11
+            a12 = a12 + d12
+            a22 = a22 + d22
+            a13 = a13 + e1
+            a23 = a23 + e2
+            a33 = a33 + (rx * e2 - ry * e1)
+            if g >= 0:
+                wx, wy = row[2], row[3]
+                k1 = d11 * wx + d12 * wy
+                k2 = d12 * wx + d22 * wy
+                fg[g] = fg[g] + (wx * fx + wy * fy)
+                c1[g] = c1[g] + k1
+                c2[g] = c2[g] + k2
+                c3[g] = c3[g] + (rx * k2 - ry * k1)
+                dg[g] = dg[g] + (wx * k1 + wy * k2)
+        # the body's 3x3 block with the wheel groups eliminated (a Schur complement)
+        s11 = car[0] + dt * a11
+        s12 = dt * a12
+        s13 = dt * a13
+        s22 = car[0] + dt * a22
+        s23 = dt * a23
+        s33 = car[1] + dt * a33
+        r1 = dt * f1
+        r2 = dt * f2
+        r3 = dt * f3
+        eps_w2 = car[3]
+        diag = [0.0 * vx] * ng
+        rhs = [0.0 * vx] * ng
+        for g in range(ng):
+            o = state[7 + ng + g]
+            q2 = o * o + eps_w2
+            root = sqrt(q2)
+            coulomb = car[4 + ng + g]
+            b = drive[ng + g]
+            rg = dt * (fg[g] + drive[g] - b * o - coulomb * o / root)
+            dgg = car[4 + g] + dt * (dg[g] + b + coulomb * eps_w2 / (q2 * root))
+            x1 = dt * c1[g]
+            x2 = dt * c2[g]
+            x3 = dt * c3[g]
+            s11 = s11 - x1 * x1 / dgg
+            s12 = s12 - x1 * x2 / dgg
+            s13 = s13 - x1 * x3 / dgg
+            s22 = s22 - x2 * x2 / dgg
+            s23 = s23 - x2 * x3 / dgg
+            s33 = s33 - x3 * x3 / dgg
+            r1 = r1 - x1 * rg / dgg
+            r2 = r2 - x2 * rg / dgg
+            r3 = r3 - x3 * rg / dgg
+            diag[g] = dgg
+            rhs[g] = rg
+        k11 = s22 * s33 - s23 * s23
+        k12 = s13 * s23 - s12 * s33
+        k13 = s12 * s23 - s13 * s22
+        k22 = s11 * s33 - s13 * s13
+        k23 = s12 * s13 - s11 * s23
+        k33 = s11 * s22 - s12 * s12
+        det = s11 * k11 + s12 * k12 + s13 * k13
+        du = (k11 * r1 + k12 * r2 + k13 * r3) / det
+        dv = (k12 * r1 + k22 * r2 + k23 * r3) / det
+        dw = (k13 * r1 + k23 * r2 + k33 * r3) / det
+        for g in range(ng):
+            o = state[7 + ng + g] + (rhs[g] - dt * (c1[g] * du + c2[g] * dv + c3[g] * dw)) \
+                / diag[g]
+            state[7 + ng + g] = o
+            state[7 + g] = state[7 + g] + dt * o
+        vxw = vxw + (c * du - s * dv)
+        vyw = vyw + (s * du + c * dv)
+        w = w + dw
+        half = 0.5 * dt * w
+        h2 = half * half
+        scale = 1.0 / (1.0 + h2)
+        state[0] = state[0] + dt * vxw
+        state[1] = state[1] + dt * vyw
+        state[2] = (c * (1.0 - h2) - 2.0 * half * s) * scale
+        state[3] = (s * (1.0 - h2) + 2.0 * half * c) * scale
+        state[4] = vxw
+        state[5] = vyw
+        state[6] = w
+
+    return substep
+
+
+#: one car in Python floats (lists), and N cars in numpy arrays (rows of (S, N) arrays)
+substep = make_substep(math.sqrt)
+substep_arrays = make_substep(np.sqrt)
+
+
+def static_loads(points: np.ndarray, com: np.ndarray, weight: float) -> np.ndarray:
+    """Each contact's share of ``weight`` (N) for a rigid body at rest on ``points`` ((K, 2),
+    m): force and moment balance about the centre of mass ``com`` (2,), the least-squares
+    (equal springs) split when more than three points share the load.
+
+    ValueError when the points cannot carry the body: fewer than three not on one line, or
+    the centre of mass outside them (a contact would have to pull).
+    """
+    points = np.asarray(points, dtype=float)
+    if len(points) < 3:
+        raise ValueError(f"{len(points)} ground contacts cannot carry a rigid body in the plane "
+                         "(at least three, not on one line)")
+    a = np.vstack([np.ones(len(points)), points[:, 0], points[:, 1]])
+    gram = a @ a.T
+    if np.linalg.cond(gram) > 1e12:
+        raise ValueError("the ground contacts lie on one line: the body would tip over")
+    loads = a.T @ np.linalg.solve(gram, weight * np.array([1.0, com[0], com[1]]))
+    if np.any(loads < -1e-9 * weight):
+        raise ValueError(f"the centre of mass ({com[0]:.4f}, {com[1]:.4f}) m lies outside the "
+                         "ground contacts: the body would tip over")
+    return np.maximum(loads, 0.0)

@@ -82,7 +82,8 @@ class BatchedArbotix:
     """
 
     def __init__(self, configs: ArbotixConfig | Sequence[ArbotixConfig], mode: Mode,
-                 wheel_radius_m: float | Sequence[float], num_cars: int | None = None) -> None:
+                 wheel_radius_m: float | Sequence[float], num_cars: int | None = None,
+                 encoder_phase_ticks: float = 0.0) -> None:
         if mode not in MODES:
             raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
         if isinstance(configs, ArbotixConfig):
@@ -113,6 +114,11 @@ class BatchedArbotix:
             np.asarray(wheel_radius_m, dtype=np.float64), (n,)).copy()
         if not (np.all(self.wheel_radius > 0) and np.all(self.ticks_meter > 0)):
             raise ValueError("wheel_radius_m and ticks_meter must be > 0")
+        if not 0.0 <= encoder_phase_ticks < 1.0:
+            raise ValueError(f"encoder_phase_ticks must be in [0, 1), got "
+                             f"{encoder_phase_ticks!r}")
+        #: where the encoders start within their first tick (``WheelEncoder.reset``)
+        self.encoder_phase_ticks = float(encoder_phase_ticks)
         self._alloc()
 
     def _alloc(self) -> None:
@@ -162,7 +168,11 @@ class BatchedArbotix:
         if self.mode == HARDWARE:
             if angles is None:
                 raise ValueError("hardware mode: reset needs the encoder wheel angles (N, 2)")
-            self.zero_angle[m] = np.asarray(angles, dtype=np.float64)[m]
+            zero = np.asarray(angles, dtype=np.float64)[m]
+            if self.encoder_phase_ticks:  # WheelEncoder.reset's arithmetic
+                zero = zero - self.encoder_phase_ticks / (
+                    self.wheel_radius[m, None] * self.ticks_meter[m, None])
+            self.zero_angle[m] = zero
             self.board_gains[m] = self.gains[m]
             self._set_motors(m, np.zeros((self.n, 2), dtype=np.int64))
         self.ready[m] = True

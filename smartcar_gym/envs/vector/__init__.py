@@ -22,9 +22,12 @@ from smartcar_gym.envs.vector.mujoco import SmartCarMujocoVectorEnv
 from smartcar_gym.envs.vector.mujoco import supports as mujoco_supports
 from smartcar_gym.envs.vector.nav_mujoco import SmartCarNavMujocoVectorEnv
 from smartcar_gym.envs.vector.nav_mujoco import supports as nav_mujoco_supports
+from smartcar_gym.envs.vector.planar import SmartCarGoalPlanarVectorEnv, SmartCarPlanarVectorEnv
+from smartcar_gym.envs.vector.planar import supports as planar_supports
 
-__all__ = ["SmartCarGoalMujocoVectorEnv", "SmartCarLoopVectorEnv", "SmartCarMujocoVectorEnv",
-           "SmartCarNavMujocoVectorEnv", "SmartCarSimVectorEnv",
+__all__ = ["SmartCarGoalMujocoVectorEnv", "SmartCarGoalPlanarVectorEnv", "SmartCarLoopVectorEnv",
+           "SmartCarMujocoVectorEnv", "SmartCarNavMujocoVectorEnv", "SmartCarPlanarVectorEnv",
+           "SmartCarSimVectorEnv",
            "make_vector_env", "smartcar_arrive_v0", "smartcar_goal_v0", "smartcar_nav_v0",
            "smartcar_sim_v0", "smartcar_v0"]
 
@@ -43,6 +46,10 @@ def make_vector_env(env_id: str, num_envs: int = 1, **kwargs: Any) -> gym.vector
     if env_id == "SmartCarSim-v0" and supports(kwargs) is None \
             and kwargs.get("controller_mode", "sim") == "sim":
         return SmartCarSimVectorEnv(num_envs=num_envs, **kwargs)
+    if env_id == "SmartCar-v0" and planar_supports(kwargs) is None:
+        return SmartCarPlanarVectorEnv(num_envs=num_envs, **kwargs)
+    if env_id == "SmartCarGoal-v0" and planar_supports(kwargs) is None:
+        return SmartCarGoalPlanarVectorEnv(num_envs=num_envs, **kwargs)
     if env_id == "SmartCar-v0" and mujoco_supports(kwargs) is None:
         return SmartCarMujocoVectorEnv(num_envs=num_envs, **kwargs)
     if env_id == "SmartCarNav-v0" and nav_mujoco_supports(kwargs) is None:

@@ -75,11 +75,14 @@ class SmartCarMujocoVectorEnv(SmartCarSimVectorEnv):
     env_id = "SmartCar-v0"
     bytes_per_car = BYTES_PER_CAR
     why_not = staticmethod(supports)
+    #: the engine each car runs on, and whether a differential-drive model can be batched
+    engine = "mujoco"
+    differential = False
 
     def __init__(self, num_envs: int = 1, max_episode_steps: int | None = MAX_EPISODE_STEPS,
                  autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
                  num_threads: int | None = None, **kwargs: Any) -> None:
-        kwargs.setdefault("engine", "mujoco")
+        kwargs.setdefault("engine", self.engine)
         why = self.why_not(kwargs)
         if why is not None:
             raise ValueError(f"{type(self).__name__} cannot run {why}; use "
@@ -91,7 +94,7 @@ class SmartCarMujocoVectorEnv(SmartCarSimVectorEnv):
         try:
             if template.controller_mode != HARDWARE:
                 raise ValueError(f"{type(self).__name__} is the hardware mode (PID, motors)")
-            if template.robot_model.drive_kind == "differential":
+            if template.robot_model.drive_kind == "differential" and not self.differential:
                 raise ValueError(f"{type(self).__name__} runs skid-steer bases; a "
                                  "differential-drive model starts its encoders mid-tick "
                                  "(use vectorization_mode='sync')")
@@ -266,9 +269,13 @@ class SmartCarMujocoVectorEnv(SmartCarSimVectorEnv):
         self._read_pose()
         return self._score(self._pose[:, 0], self._pose[:, 1], a, self._up_z < FLIP_UP_Z)
 
-    def _columns(self) -> dict[str, Any]:
+    def _read_wheels(self) -> None:
+        """Every car's wheel joint angles and speeds, into ``_wheels`` and ``_wheel_speed``."""
         self._wheels = self.cars.qpos[:, self._wheel_q]
         self._wheel_speed = self.cars.qvel[:, self._wheel_v]
+
+    def _columns(self) -> dict[str, Any]:
+        self._read_wheels()
         return super()._columns()
 
     def _info(self, mask: np.ndarray, success: np.ndarray) -> dict[str, Any]:

@@ -164,12 +164,15 @@ class SmartCarNavMujocoVectorEnv(SmartCarMujocoVectorEnv):
         proximity terms from each car's clearance."""
         reward, success, failure = super()._advance(a)
         task = self.task
-        self.clearance = self.cars.distances(np.arange(self.num_envs), self._pairs,
-                                             task.proximity_m)
+        self.clearance = self._clearances(task.proximity_m)
         self.collision = self.clearance <= 0.0
         reward = (reward + task.collision_reward(self.collision)
                   + task.proximity_reward(self.clearance))
         return reward, success, failure | self.collision
+
+    def _clearances(self, max_distance_m: float) -> np.ndarray:
+        """Every car's ``nearest_distance`` to its obstacles (``mj_geomDistance``)."""
+        return self.cars.distances(np.arange(self.num_envs), self._pairs, max_distance_m)
 
     def _columns(self) -> dict[str, Any]:
         columns = super()._columns()

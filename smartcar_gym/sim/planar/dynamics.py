@@ -83,8 +83,9 @@ def make_substep(sqrt: Callable[[Value], Value]) -> Callable[..., None]:
     loop), ``numpy.sqrt`` for arrays of cars. Both are IEEE's correctly rounded square root."""
 
     def substep(state: Any, car: Any, contacts: Any, groups: Sequence[int], drive: Any,
-                dt: Value) -> None:
-        """Advance ``state`` (in place) by ``dt`` s with ``drive``'s motor torques."""
+                dt: Value, scratch: Any) -> None:
+        """Advance ``state`` (in place) by ``dt`` s with ``drive``'s motor torques;
+        ``scratch``: 7 rows of G values to work in (``new_scratch``)."""
         c, s, vxw, vyw, w = state[2], state[3], state[4], state[5], state[6]
         vx = c * vxw + s * vyw  # body-frame velocity of the centre of mass
         vy = c * vyw - s * vxw
@@ -92,11 +93,10 @@ def make_substep(sqrt: Callable[[Value], Value]) -> Callable[..., None]:
         ng = (len(car) - 4) // 2
         f1 = f2 = f3 = 0.0
         a11 = a12 = a13 = a22 = a23 = a33 = 0.0
-        fg = [0.0 * vx] * ng
-        c1 = [0.0 * vx] * ng
-        c2 = [0.0 * vx] * ng
-        c3 = [0.0 * vx] * ng
-        dg = [0.0 * vx] * ng
+        fg, c1, c2, c3, dg, diag, rhs = (scratch[0], scratch[1], scratch[2], scratch[3],
+                                         scratch[4], scratch[5], scratch[6])
+        for g in range(ng):
+            fg[g] = c1[g] = c2[g] = c3[g] = dg[g] = 0.0 * vx
         for k in range(len(groups)):
             row = contacts[k]
             g = groups[k]
@@ -148,8 +148,6 @@ def make_substep(sqrt: Callable[[Value], Value]) -> Callable[..., None]:
         r2 = dt * f2
         r3 = dt * f3
         eps_w2 = car[3]
-        diag = [0.0 * vx] * ng
-        rhs = [0.0 * vx] * ng
         for g in range(ng):
             o = state[7 + ng + g]
             q2 = o * o + eps_w2
@@ -193,10 +191,12 @@ def make_substep(sqrt: Callable[[Value], Value]) -> Callable[..., None]:
         half = 0.5 * dt * w
         h2 = half * half
         scale = 1.0 / (1.0 + h2)
+        turned_c = (c * (1.0 - h2) - 2.0 * half * s) * scale  # c, s may be views of state
+        turned_s = (s * (1.0 - h2) + 2.0 * half * c) * scale
         state[0] = state[0] + dt * vxw
         state[1] = state[1] + dt * vyw
-        state[2] = (c * (1.0 - h2) - 2.0 * half * s) * scale
-        state[3] = (s * (1.0 - h2) + 2.0 * half * c) * scale
+        state[2] = turned_c
+        state[3] = turned_s
         state[4] = vxw
         state[5] = vyw
         state[6] = w
@@ -207,6 +207,12 @@ def make_substep(sqrt: Callable[[Value], Value]) -> Callable[..., None]:
 #: one car in Python floats (lists), and N cars in numpy arrays (rows of (S, N) arrays)
 substep = make_substep(math.sqrt)
 substep_arrays = make_substep(np.sqrt)
+
+
+def new_scratch(groups: int) -> list[list[Any]]:
+    """The working rows ``substep`` takes for floats and for arrays (numba's loop takes a
+    ``(7, G)`` array instead)."""
+    return [[0.0] * groups for _ in range(7)]
 
 
 def static_loads(points: np.ndarray, com: np.ndarray, weight: float) -> np.ndarray:

@@ -36,17 +36,22 @@ if COMPILED:
                 drive: np.ndarray, dt: float, n: int) -> None:
         """``n`` substeps of ``dt`` s of one car (1D ``state``, ``car``, ``drive``; ``(K, 7)``
         ``contacts``), in place."""
+        scratch = np.zeros((7, (car.shape[0] - 4) // 2))
         for _ in range(n):
-            _substep(state, car, contacts, groups, drive, dt)
+            _substep(state, car, contacts, groups, drive, dt, scratch)
 
     @numba.njit(cache=True)
     def run_cars(state: np.ndarray, car: np.ndarray, contacts: np.ndarray, groups: np.ndarray,
                  drive: np.ndarray, dt: np.ndarray, n: np.ndarray) -> None:
         """Car i: ``n[i]`` substeps of ``dt[i]`` s; arrays in the batch's layout (``(S, N)``
         state, ``(P, N)`` car, ``(K, 7, N)`` contacts, ``(2G, N)`` drive), in place."""
+        scratch = np.zeros((7, (car.shape[0] - 4) // 2))
         for i in range(state.shape[1]):
-            column = state[:, i]
+            if n[i] == 0:
+                continue
+            column, params = state[:, i], car[:, i]
+            touches, motors, step = contacts[:, :, i], drive[:, i], dt[i]
             for _ in range(n[i]):
-                _substep(column, car[:, i], contacts[:, :, i], groups, drive[:, i], dt[i])
+                _substep(column, params, touches, groups, motors, step, scratch)
 else:
     run_car = run_cars = None

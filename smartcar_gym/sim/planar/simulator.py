@@ -27,7 +27,7 @@ from smartcar_gym.model.errors import ModelError
 from smartcar_gym.sim.body import BASE, LinkDynamics
 from smartcar_gym.sim.clock import EventClock, check_max_substep
 from smartcar_gym.sim.planar import jit
-from smartcar_gym.sim.planar.dynamics import substep
+from smartcar_gym.sim.planar.dynamics import new_scratch, substep
 from smartcar_gym.sim.planar.model import Actuation, Groups, PlanarCar, RobotTables, build_car
 from smartcar_gym.sim.planar.params import PlanarParams, resolve
 
@@ -194,8 +194,9 @@ class PlanarBody:
         m = self.model
         state, car, contacts, groups, drive = (self.state, m.car, m.contacts, m.contact_groups,
                                                self.drive)
+        scratch = new_scratch(len(self.groups.members))
         for _ in range(n):
-            substep(state, car, contacts, groups, drive, dt)
+            substep(state, car, contacts, groups, drive, dt, scratch)
 
     # -- joints --------------------------------------------------------------------------------
     def joint_index(self, joint: str) -> int:

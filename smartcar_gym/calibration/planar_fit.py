@@ -1,0 +1,250 @@
+"""Identify the planar engine's free parameters from recorded drives (``--fit planar``).
+
+Every ``Recording`` (a physics engine's own drives, or a bag's) is replayed on the planar
+engine: the robot spawned at rest at the recording's first true pose, the same ``cmd_vel`` each
+controller period, through the same emulated board, PID and motors. The fit minimises, over all
+recordings, how far the planar car's motion differs from the recorded one, in windows of
+``WINDOW_S``: the displacement and turn over each window, expressed in the body frame of the
+true pose at its start (so an error early in a drive does not count again later), scaled by
+``POSITION_SCALE_M`` and ``YAW_SCALE_RAD``. A recording's windows are weighted so that every
+recording counts alike, whatever its length. scipy's bounded least squares
+(``scipy.optimize.least_squares``, trust region reflective) searches the parameters in log
+space, from the shipped defaults, with finite differences wide enough to step over the board's
+integer dead band.
+
+What each parameter needs to be seen (``EXCITATION``): spins in place (friction, the lateral
+friction ratio), straight driving (the slip stiffness), slow driving (the gearbox's dead band)
+and a stop from speed (rolling resistance). A recording set without one of them is refused
+with the maneuver named, unless those parameters are kept (``keep``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from smartcar_gym.calibration.recording import Recording, replay
+from smartcar_gym.controller import ArbotixConfig
+from smartcar_gym.model import RobotModel
+from smartcar_gym.sim.planar.params import KEYS, RANGES, PlanarParams
+
+WINDOW_S = 0.5
+POSITION_SCALE_M = 0.01  # 2 cm/s of speed error over a window counts 1
+YAW_SCALE_RAD = 0.02  # 0.04 rad/s of turn rate error counts 1
+#: what the fit searches by default (the stiction speed is a numerical regularisation)
+FREE = ("friction_scale", "lateral_friction_ratio", "slip_speed", "gearbox_friction_scale",
+        "rolling_resistance")
+#: rolling_resistance is searched on a linear scale from 0 (log space cannot reach it)
+_LINEAR = ("rolling_resistance",)
+#: a fit whose RMS scaled residual stays above this has not converged
+CONVERGED_RMS = 3.0
+MIN_SECONDS = 2.0  # of a maneuver, in all recordings together, for it to count as seen
+
+
+class FitError(ValueError):
+    """The recordings cannot identify the parameters, or the fit did not converge."""
+
+
+@dataclass(frozen=True)
+class Maneuver:
+    """A kind of motion the fit needs: what it is, how to tell it from the commands (per
+    controller period), and which parameters depend on it."""
+
+    name: str
+    description: str
+    needed_by: tuple[str, ...]
+
+
+EXCITATION = (
+    Maneuver("spin in place", "|linear.x| <= 0.03 m/s, |angular.z| >= 0.3 rad/s",
+             ("friction_scale", "lateral_friction_ratio")),
+    Maneuver("straight driving", "|linear.x| >= 0.15 m/s, |angular.z| <= 0.15 rad/s",
+             ("slip_speed", "lateral_friction_ratio")),
+    Maneuver("slow driving", "0.02 <= |linear.x| <= 0.12 m/s, |angular.z| <= 0.3 rad/s",
+             ("gearbox_friction_scale",)),
+    Maneuver("stop from speed", "cmd_vel (0, 0) or none while truly moving at >= 0.1 m/s",
+             ("rolling_resistance",)),
+)
+
+
+def _classes(recording: Recording) -> dict[str, int]:
+    """How many controller periods of each ``EXCITATION`` maneuver a recording holds."""
+    v, w = recording.commands[:, 0], recording.commands[:, 1]
+    silent = ~np.isfinite(v)
+    v, w = np.nan_to_num(v), np.nan_to_num(w)
+    av, aw = np.abs(v), np.abs(w)
+    step = np.diff(recording.truth[:, :2], axis=0)
+    speed = np.hypot(step[:, 0], step[:, 1]) * recording.rate_hz
+    before = np.concatenate([[0.0], speed[:-1]])  # the true speed when the command arrived
+    stopped = silent | ((av < 1e-3) & (aw < 1e-3))
+    return {
+        "spin in place": int(np.sum(~silent & (av <= 0.03) & (aw >= 0.3))),
+        "straight driving": int(np.sum(~silent & (av >= 0.15) & (aw <= 0.15))),
+        "slow driving": int(np.sum(~silent & (av >= 0.02) & (av <= 0.12) & (aw <= 0.3))),
+        "stop from speed": int(np.sum(stopped & (before >= 0.1))),
+    }
+
+
+def check_excitation(recordings: Sequence[Recording], free: Sequence[str]) -> dict[str, float]:
+    """Seconds of each maneuver in all recordings; FitError naming the first one missing that
+    a free parameter needs (and how to keep those parameters instead)."""
+    seconds = dict.fromkeys((m.name for m in EXCITATION), 0.0)
+    for r in recordings:
+        for name, count in _classes(r).items():
+            seconds[name] += count / r.rate_hz
+    for m in EXCITATION:
+        needs = [p for p in m.needed_by if p in free]
+        enough = MIN_SECONDS if m.name != "stop from speed" else 1.0 / recordings[0].rate_hz
+        if needs and seconds[m.name] < enough:
+            raise FitError(
+                f"too little excitation: the recordings hold {seconds[m.name]:.1f} s of "
+                f"{m.name} ({m.description}; at least {enough:g} s needed) for "
+                f"{', '.join(needs)}; record it, or keep {'it' if len(needs) == 1 else 'them'} "
+                f"with --keep {','.join(needs)}")
+    return seconds
+
+
+def window_motion(truth: np.ndarray, periods: int) -> np.ndarray:
+    """(W, 3): the displacement (body frame of the window's first pose) and the turn over each
+    window of ``periods`` controller periods."""
+    starts = np.arange(0, len(truth) - periods, periods)
+    a, b = truth[starts], truth[starts + periods]
+    dx, dy = b[:, 0] - a[:, 0], b[:, 1] - a[:, 1]
+    c, s = np.cos(a[:, 2]), np.sin(a[:, 2])
+    return np.stack([c * dx + s * dy, -s * dx + c * dy, b[:, 2] - a[:, 2]], axis=1)
+
+
+def residuals(recording: Recording, simulated: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+    """Scaled window residuals of a replay (its true poses and odometry) against its
+    recording, flat: the true motion's, and the odometry's where the recording has it (the
+    wheels' motion: with both, the fit sees how much the tyres slip). Weighted so that a
+    recording counts as one whatever its length."""
+    periods = max(1, round(WINDOW_S * recording.rate_hz))
+    scale = np.array([POSITION_SCALE_M, POSITION_SCALE_M, YAW_SCALE_RAD])
+    parts = [(window_motion(simulated[0], periods) - window_motion(recording.truth, periods))
+             / scale]
+    if recording.odom is not None:
+        parts.append((window_motion(simulated[1], periods)
+                       - window_motion(recording.odom, periods)) / scale)
+    r = np.concatenate(parts)
+    return (r / math.sqrt(max(1, len(r)))).ravel()
+
+
+@dataclass(frozen=True)
+class FitResult:
+    """The fitted parameters, the RMS scaled residual per recording before (the starting
+    parameters) and after, the excitation seen (s per maneuver) and the evaluations made."""
+
+    params: PlanarParams
+    before: dict[str, float]
+    after: dict[str, float]
+    excitation: dict[str, float]
+    evaluations: int
+    free: tuple[str, ...]
+
+    @property
+    def rms(self) -> float:
+        """RMS of the per-recording residuals after the fit."""
+        return float(np.sqrt(np.mean(np.square(list(self.after.values())))))
+
+
+class _Problem:
+    """The least-squares problem: parameters <-> search vector, residuals of all replays."""
+
+    def __init__(self, model: RobotModel, config: ArbotixConfig,
+                 recordings: Sequence[Recording], start: PlanarParams,
+                 free: Sequence[str]) -> None:
+        self.model, self.config = model, config
+        self.recordings = list(recordings)
+        self.start, self.free = start, tuple(free)
+        self.evaluations = 0
+
+    def params(self, x: np.ndarray) -> PlanarParams:
+        values = {k: (float(v) if k in _LINEAR else float(math.exp(v)))
+                  for k, v in zip(self.free, x, strict=True)}
+        return dataclasses.replace(self.start, **values, source="fit")
+
+    def vector(self, params: PlanarParams) -> np.ndarray:
+        return np.array([getattr(params, k) if k in _LINEAR else math.log(getattr(params, k))
+                         for k in self.free])
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        low = [RANGES[k][0] if k in _LINEAR else math.log(max(RANGES[k][0], 1e-6))
+               for k in self.free]
+        high = [RANGES[k][1] if k in _LINEAR else math.log(RANGES[k][1]) for k in self.free]
+        return np.array(low), np.array(high)
+
+    def replays(self, params: PlanarParams) -> list[tuple[np.ndarray, np.ndarray]]:
+        self.evaluations += 1
+        return [replay(self.model, self.config, "planar", r.commands, r.truth[0],
+                       planar_params=params) for r in self.recordings]
+
+    def per_recording(self, params: PlanarParams) -> dict[str, float]:
+        out = {}
+        for r, sim in zip(self.recordings, self.replays(params), strict=True):
+            res = residuals(r, sim)
+            out[r.name] = float(np.sqrt(np.sum(res * res) / (3.0 if r.odom is None else 6.0)))
+        return out
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        params = self.params(x)
+        return np.concatenate([residuals(r, sim) for r, sim in
+                               zip(self.recordings, self.replays(params), strict=True)])
+
+
+def fit(model: RobotModel, config: ArbotixConfig, recordings: Sequence[Recording],
+        start: PlanarParams | None = None, keep: Sequence[str] = (),
+        max_evaluations: int = 200) -> FitResult:
+    """Fit the planar parameters (``FREE`` minus ``keep``) to ``recordings``.
+
+    FitError when the recordings lack a maneuver a free parameter needs, or when the fit ends
+    with an RMS scaled residual above ``CONVERGED_RMS`` (the message gives it).
+    """
+    from scipy.optimize import least_squares
+
+    if not recordings:
+        raise FitError("no recordings to fit to")
+    unknown = sorted(set(keep) - set(KEYS))
+    if unknown:
+        raise FitError(f"--keep {unknown[0]}: not a planar parameter; the parameters are "
+                       f"{', '.join(KEYS)}")
+    free = tuple(k for k in FREE if k not in keep)
+    start = PlanarParams() if start is None else start
+    excitation = check_excitation(recordings, free)
+    problem = _Problem(model, config, recordings, start, free)
+    before = problem.per_recording(start)
+    params = start
+    if free:
+        x0 = problem.vector(start)
+        low, high = problem.bounds()
+        x0 = np.clip(x0, low + 1e-9, high - 1e-9)
+        found = least_squares(problem, x0, bounds=(low, high), diff_step=0.05,
+                              x_scale=1.0, max_nfev=max_evaluations, xtol=1e-3, ftol=1e-4)
+        params = problem.params(found.x)
+    after = problem.per_recording(params)
+    result = FitResult(params, before, after, excitation, problem.evaluations, free)
+    if not result.rms <= CONVERGED_RMS:
+        worst = max(after, key=after.get)
+        raise FitError(f"the fit did not converge: RMS scaled residual {result.rms:.2f} "
+                       f"(at most {CONVERGED_RMS:g} expected; worst: {worst} "
+                       f"{after[worst]:.2f}) after {problem.evaluations} evaluations")
+    return result
+
+
+def describe(result: FitResult) -> dict[str, Any]:
+    """The fit's provenance for the parameter file's ``fit:`` section."""
+    return {
+        "free": list(result.free),
+        "evaluations": result.evaluations,
+        "rms_scaled_residual": round(result.rms, 4),
+        "residual_per_maneuver": {k: [round(result.before[k], 4), round(v, 4)]
+                                  for k, v in result.after.items()},
+        "excitation_s": {k: round(v, 1) for k, v in result.excitation.items()},
+        "residual_scales": {"window_s": WINDOW_S, "position_m": POSITION_SCALE_M,
+                            "yaw_rad": YAW_SCALE_RAD},
+    }

@@ -1,0 +1,118 @@
+"""N planar cars in arrays: the batch behind the planar vector envs and the fit's replays.
+
+Each car is a column: its state ``(S, N)``, its parameters ``(P, N)`` and contacts
+``(K, 7, N)`` in ``dynamics``' layout (every car has the template's wheel groups and contacts;
+the values may differ per car), its motors' drive ``(2G, N)``. ``step`` gives every listed car
+its own number of substeps of its own length, as its single env's clock would: numba's loop
+(``jit.run_cars``) when installed, else ``dynamics.substep_arrays`` over the cars still
+stepping (the others take a substep of 0 s, which changes nothing). A car of the batch is the
+same car as ``PlanarBody`` steps alone, bit for bit.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+from smartcar_gym.sim.planar import jit
+from smartcar_gym.sim.planar.dynamics import new_scratch, substep_arrays
+from smartcar_gym.sim.planar.model import PlanarCar
+from smartcar_gym.sim.planar.simulator import PlanarBody
+
+
+class PlanarBatch:
+    """``n`` copies of a compiled ``PlanarBody`` (the template's robot at its spawn pose)."""
+
+    def __init__(self, body: PlanarBody, n: int) -> None:
+        model = body.compiled()
+        self.n = int(n)
+        self.groups = model.groups
+        self.ng = len(model.groups.members)
+        self.contact_groups = np.array(model.contact_groups, dtype=np.int64)
+        self.com = model.com
+        self.height = body.height
+        self.initial = np.array(body.state, dtype=np.float64)
+        self.state = np.repeat(self.initial[:, None], self.n, axis=1)
+        self.car = np.repeat(np.array(model.car, dtype=np.float64)[:, None], self.n, axis=1)
+        self.contacts = np.repeat(
+            np.array(model.contacts, dtype=np.float64).reshape(-1, 7)[:, :, None], self.n, axis=2)
+        self.drive = np.zeros((2 * self.ng, self.n))
+
+    # -- cars ----------------------------------------------------------------------------------
+    def reset(self, idx: np.ndarray, state: np.ndarray | None = None) -> None:
+        """The listed cars back to the template's spawn (or to ``state``, (S,) or (S, len))."""
+        new = self.initial if state is None else np.asarray(state, dtype=np.float64)
+        self.state[:, idx] = new[:, None] if new.ndim == 1 else new
+        self.drive[:, idx] = 0.0
+
+    def set_model(self, idx: Sequence[int] | np.ndarray, model: PlanarCar) -> None:
+        """Give the listed cars another car's parameters and contacts (same layout)."""
+        if len(model.contacts) != self.contacts.shape[0] or \
+                len(model.groups.members) != self.ng:
+            raise ValueError("a car of the batch must have the template's contacts and groups")
+        self.car[:, idx] = np.array(model.car)[:, None]
+        self.contacts[:, :, idx] = np.array(model.contacts).reshape(-1, 7)[:, :, None]
+
+    def step(self, cars: np.ndarray, nstep: np.ndarray, dt: np.ndarray) -> None:
+        """Car ``cars[k]``: ``nstep[k]`` substeps of ``dt[k]`` s."""
+        if len(cars) == 0:
+            return
+        if jit.COMPILED:
+            n_all = np.zeros(self.n, dtype=np.int64)
+            dt_all = np.zeros(self.n)
+            n_all[cars], dt_all[cars] = nstep, dt
+            jit.run_cars(self.state, self.car, self.contacts, self.contact_groups, self.drive,
+                         dt_all, n_all)
+            return
+        cars, nstep, dt = np.asarray(cars), np.asarray(nstep), np.asarray(dt, dtype=np.float64)
+        everyone = len(cars) == self.n and np.array_equal(cars, np.arange(self.n))
+        if everyone:
+            state, car, contacts, drive = self.state, self.car, self.contacts, self.drive
+        else:  # the listed cars' columns, stepped apart and written back
+            state, car = self.state[:, cars], self.car[:, cars]
+            contacts, drive = self.contacts[:, :, cars], self.drive[:, cars]
+        groups = tuple(int(g) for g in self.contact_groups)
+        scratch = new_scratch(self.ng)
+        for k in range(int(nstep.max())):
+            substep_arrays(state, car, contacts, groups, drive, np.where(nstep > k, dt, 0.0),
+                           scratch)
+        if not everyone:
+            self.state[:, cars] = state
+
+    # -- what the robot reads and writes -------------------------------------------------------
+    def joint_angles(self, joints: Sequence[tuple[int, float]]) -> np.ndarray:
+        """(N, J): each joint's angle (``sign * angle`` of its group), as ``PlanarBody``."""
+        return np.stack([sign * self.state[7 + g] for g, sign in joints], axis=1)
+
+    def joint_speeds(self, joints: Sequence[tuple[int, float]]) -> np.ndarray:
+        """(N, J): each joint's speed."""
+        return np.stack([sign * self.state[7 + self.ng + g] for g, sign in joints], axis=1)
+
+    def pose(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Every car's base link x, y and yaw, with ``PlanarBody.link_pose`` and
+        ``pose_from``'s arithmetic (the yaw through the quaternion, by ``math.atan2``)."""
+        x, y, c, s = self.state[0], self.state[1], self.state[2], self.state[3]
+        cx, cy = self.com[0], self.com[1]
+        px = x - (c * cx - s * cy)
+        py = y - (s * cx + c * cy)
+        qz, qw = yaw_quaternion_arrays(c, s)
+        yaw = list(map(math.atan2, (2.0 * (qw * qz + 0.0 * 0.0)).tolist(),
+                       (1.0 - 2.0 * (0.0 * 0.0 + qz * qz)).tolist()))
+        return px, py, np.array(yaw)
+
+    def speed(self) -> np.ndarray:
+        """Every car's planar speed of the centre of mass (m/s)."""
+        return np.hypot(self.state[4], self.state[5])
+
+
+def yaw_quaternion_arrays(c: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``simulator.yaw_quaternion``'s z and w for arrays of cos and sin (same arithmetic)."""
+    half_c = np.sqrt((1.0 + c) / 2.0)
+    qz_a, qw_a = s / (2.0 * np.where(half_c > 0, half_c, 1.0)), half_c
+    half_s = np.copysign(np.sqrt((1.0 - c) / 2.0), np.where(s != 0.0, s, 1.0))
+    qz_b = half_s
+    qw_b = s / (2.0 * np.where(half_s != 0, half_s, 1.0))
+    front = c > -0.5
+    return np.where(front, qz_a, qz_b), np.where(front, qw_a, qw_b)

@@ -83,8 +83,10 @@ class Driver:
             return self.config.base_width_m
         return self.variation.config(self.config).base_width_m
 
-    def run(self, name: str, steer: Callable[[_Leg], list[tuple[float, float, str]]]) -> Run:
-        """Spawn afresh, drive the legs ``steer`` lists, come to rest, record."""
+    def run(self, name: str, steer: Callable[[_Leg], list[tuple[float, float, str]]],
+            leg: Callable[[SmartCarRobot], _Leg] | None = None) -> Run:
+        """Spawn afresh, drive the legs ``steer`` lists, come to rest, record (``leg``: the
+        class that steers, ``_Leg`` or one that records more)."""
         sim = make_simulator(self.engine, max_substep_s=self.max_substep_s,
                              ground_friction=self.ground_friction, **self.sim_options)
         try:
@@ -94,11 +96,11 @@ class Driver:
                 seed = self.variation.noise_seed + self._count
                 robot.vary(dataclasses.replace(self.variation, noise_seed=seed))
             robot.spawn()
-            leg = _Leg(robot)
-            for target, rate, kind in steer(leg):
-                leg.go(target, rate, kind)
-                leg.rest()
-            return leg.run(name)
+            steering = (leg or _Leg)(robot)
+            for target, rate, kind in steer(steering):
+                steering.go(target, rate, kind)
+                steering.rest()
+            return steering.run(name)
         finally:
             sim.close()
 
@@ -110,14 +112,15 @@ class Driver:
         name = "spin ccw" if direction > 0 else "spin cw"
         return self.run(name, lambda leg: [(turn, plan.turn_rate_rad_s, "turn")])
 
-    def square(self, plan: Plan, direction: int) -> Run:
+    def square(self, plan: Plan, direction: int,
+               leg: Callable[[SmartCarRobot], _Leg] | None = None) -> Run:
         """Borenstein's UMBmark square: 4 legs, each followed by a 90-degree turn in place
         (counter-clockwise for ``direction`` 1, clockwise for -1), by odometry."""
         legs = []
         for _ in range(4):
             legs.append((plan.square_side_m, plan.speed_m_s, "line"))
             legs.append((direction * math.pi / 2, plan.turn_rate_rad_s, "turn"))
-        return self.run("square ccw" if direction > 0 else "square cw", lambda leg: legs)
+        return self.run("square ccw" if direction > 0 else "square cw", lambda _: legs, leg)
 
 
 class _Leg:

@@ -7,10 +7,10 @@ recordings, how far the planar car's motion differs from the recorded one, in wi
 ``WINDOW_S``: the displacement and turn over each window, expressed in the body frame of the
 true pose at its start (so an error early in a drive does not count again later), scaled by
 ``POSITION_SCALE_M`` and ``YAW_SCALE_RAD``. A recording's windows are weighted so that every
-recording counts alike, whatever its length. scipy's bounded least squares
-(``scipy.optimize.least_squares``, trust region reflective) searches the parameters in log
-space, from the shipped defaults, with finite differences wide enough to step over the board's
-integer dead band.
+recording counts alike, whatever its length. The board's integer PID makes the residual a
+staircase of the parameters (a wheel settles on whole ticks per frame), so a gradient search
+stalls at its first step; scipy's differential evolution searches ``SEARCH`` instead, each
+generation's candidates replayed together as one batch of cars (``planar_replay``).
 
 What each parameter needs to be seen (``EXCITATION``): spins in place (friction, the lateral
 friction ratio), straight driving (the slip stiffness), slow driving (the gearbox's dead band)
@@ -28,10 +28,11 @@ from typing import Any
 
 import numpy as np
 
-from smartcar_gym.calibration.recording import Recording, replay
+from smartcar_gym.calibration.planar_replay import FleetReplay
+from smartcar_gym.calibration.recording import Recording
 from smartcar_gym.controller import ArbotixConfig
 from smartcar_gym.model import RobotModel
-from smartcar_gym.sim.planar.params import KEYS, RANGES, PlanarParams
+from smartcar_gym.sim.planar.params import KEYS, PlanarParams
 
 WINDOW_S = 0.5
 POSITION_SCALE_M = 0.01  # 2 cm/s of speed error over a window counts 1
@@ -153,15 +154,23 @@ class FitResult:
         return float(np.sqrt(np.mean(np.square(list(self.after.values())))))
 
 
-class _Problem:
-    """The least-squares problem: parameters <-> search vector, residuals of all replays."""
+#: the box the search explores (log-uniform except rolling resistance), inside ``RANGES``:
+#: slip speeds below 2 mm/s make the car's stops abrupt at 20 ms substeps, and odometry-steered
+#: drives (UMBmark) then jump between discrete outcomes (docs/planar.md)
+SEARCH: dict[str, tuple[float, float]] = {
+    "friction_scale": (0.3, 3.0),
+    "lateral_friction_ratio": (0.7, 1.5),
+    "slip_speed": (0.002, 0.05),
+    "gearbox_friction_scale": (0.3, 3.0),
+    "rolling_resistance": (0.0, 0.05),
+}
 
-    def __init__(self, model: RobotModel, config: ArbotixConfig,
-                 recordings: Sequence[Recording], start: PlanarParams,
-                 free: Sequence[str]) -> None:
-        self.model, self.config = model, config
-        self.recordings = list(recordings)
-        self.start, self.free = start, tuple(free)
+
+class _Search:
+    """Parameters <-> the search vector (log space but for ``_LINEAR``), costs of many."""
+
+    def __init__(self, fleet: FleetReplay, start: PlanarParams, free: Sequence[str]) -> None:
+        self.fleet, self.start, self.free = fleet, start, tuple(free)
         self.evaluations = 0
 
     def params(self, x: np.ndarray) -> PlanarParams:
@@ -169,43 +178,42 @@ class _Problem:
                   for k, v in zip(self.free, x, strict=True)}
         return dataclasses.replace(self.start, **values, source="fit")
 
-    def vector(self, params: PlanarParams) -> np.ndarray:
-        return np.array([getattr(params, k) if k in _LINEAR else math.log(getattr(params, k))
-                         for k in self.free])
+    def bounds(self) -> list[tuple[float, float]]:
+        return [SEARCH[k] if k in _LINEAR else (math.log(SEARCH[k][0]), math.log(SEARCH[k][1]))
+                for k in self.free]
 
-    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        low = [RANGES[k][0] if k in _LINEAR else math.log(max(RANGES[k][0], 1e-6))
-               for k in self.free]
-        high = [RANGES[k][1] if k in _LINEAR else math.log(RANGES[k][1]) for k in self.free]
-        return np.array(low), np.array(high)
-
-    def replays(self, params: PlanarParams) -> list[tuple[np.ndarray, np.ndarray]]:
-        self.evaluations += 1
-        return [replay(self.model, self.config, "planar", r.commands, r.truth[0],
-                       planar_params=params) for r in self.recordings]
-
-    def per_recording(self, params: PlanarParams) -> dict[str, float]:
-        out = {}
-        for r, sim in zip(self.recordings, self.replays(params), strict=True):
-            res = residuals(r, sim)
-            out[r.name] = float(np.sqrt(np.sum(res * res) / (3.0 if r.odom is None else 6.0)))
+    def per_recording(self, candidates: Sequence[PlanarParams]) -> list[dict[str, float]]:
+        """Each candidate's RMS scaled residual per recording."""
+        self.evaluations += len(candidates)
+        out = []
+        for replays in self.fleet.run(candidates):
+            row = {}
+            for r, sim in zip(self.fleet.recordings, replays, strict=True):
+                res = residuals(r, sim)
+                row[r.name] = float(np.sqrt(np.sum(res * res) / (3.0 if r.odom is None
+                                                                   else 6.0)))
+            out.append(row)
         return out
 
-    def __call__(self, x: np.ndarray) -> np.ndarray:
-        params = self.params(x)
-        return np.concatenate([residuals(r, sim) for r, sim in
-                               zip(self.recordings, self.replays(params), strict=True)])
+    def costs(self, xs: np.ndarray) -> np.ndarray:
+        """Sum of squared scaled residuals of each column of ``xs`` (scipy's vectorised
+        call: parameters x candidates)."""
+        xs = np.atleast_2d(np.asarray(xs).T)
+        rows = self.per_recording([self.params(x) for x in xs])
+        return np.array([sum(v * v for v in row.values()) for row in rows])
 
 
 def fit(model: RobotModel, config: ArbotixConfig, recordings: Sequence[Recording],
         start: PlanarParams | None = None, keep: Sequence[str] = (),
-        max_evaluations: int = 200) -> FitResult:
-    """Fit the planar parameters (``FREE`` minus ``keep``) to ``recordings``.
+        generations: int = 40, seed: int = 0) -> FitResult:
+    """Fit the planar parameters (``FREE`` minus ``keep``) to ``recordings``: scipy's
+    differential evolution over ``SEARCH`` (a population of 8 per free parameter, every
+    generation replayed as one batch of cars), at most ``generations`` generations.
 
     FitError when the recordings lack a maneuver a free parameter needs, or when the fit ends
     with an RMS scaled residual above ``CONVERGED_RMS`` (the message gives it).
     """
-    from scipy.optimize import least_squares
+    from scipy.optimize import differential_evolution
 
     if not recordings:
         raise FitError("no recordings to fit to")
@@ -216,23 +224,24 @@ def fit(model: RobotModel, config: ArbotixConfig, recordings: Sequence[Recording
     free = tuple(k for k in FREE if k not in keep)
     start = PlanarParams() if start is None else start
     excitation = check_excitation(recordings, free)
-    problem = _Problem(model, config, recordings, start, free)
-    before = problem.per_recording(start)
-    params = start
-    if free:
-        x0 = problem.vector(start)
-        low, high = problem.bounds()
-        x0 = np.clip(x0, low + 1e-9, high - 1e-9)
-        found = least_squares(problem, x0, bounds=(low, high), diff_step=0.05,
-                              x_scale=1.0, max_nfev=max_evaluations, xtol=1e-3, ftol=1e-4)
-        params = problem.params(found.x)
-    after = problem.per_recording(params)
-    result = FitResult(params, before, after, excitation, problem.evaluations, free)
+    fleet = FleetReplay(model, config, recordings)
+    try:
+        search = _Search(fleet, start, free)
+        params = start
+        if free:
+            found = differential_evolution(
+                search.costs, search.bounds(), popsize=8, maxiter=generations, tol=0.005,
+                seed=seed, polish=False, vectorized=True, updating="deferred", init="sobol")
+            params = search.params(found.x)
+        before, after = search.per_recording([start, params])
+    finally:
+        fleet.close()
+    result = FitResult(params, before, after, excitation, search.evaluations, free)
     if not result.rms <= CONVERGED_RMS:
         worst = max(after, key=after.get)
         raise FitError(f"the fit did not converge: RMS scaled residual {result.rms:.2f} "
                        f"(at most {CONVERGED_RMS:g} expected; worst: {worst} "
-                       f"{after[worst]:.2f}) after {problem.evaluations} evaluations")
+                       f"{after[worst]:.2f}) after {search.evaluations} evaluations")
     return result
 
 

@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from smartcar_gym.calibration.drives import Driver, Plan, _Leg
 from smartcar_gym.calibration.maneuvers import Twist, hold, random_commands
 from smartcar_gym.controller import ArbotixConfig
 from smartcar_gym.envs.robots.smartcar import SmartCarRobot, drive
@@ -121,13 +122,55 @@ def replay(model: RobotModel, config: ArbotixConfig, engine: str, commands: np.n
         sim.close()
 
 
+class _RecordingLeg(_Leg):
+    """A calibration drive's steering that also records what it sent and where the robot was
+    after every period."""
+
+    def __init__(self, robot: SmartCarRobot) -> None:
+        super().__init__(robot)
+        pose, odom = robot.pose(), robot.odometry
+        self.commands: list[tuple[float, float]] = []
+        self.truth = [(pose.x, pose.y, pose.yaw)]
+        self.odom = [(odom.x, odom.y, odom.theta)]
+
+    def step(self, v: float, w: float) -> None:
+        super().step(v, w)  # unwraps the yaw into self.yaw
+        pose, odom = self.robot.pose(), self.robot.odometry
+        self.commands.append((v, w))
+        self.truth.append((pose.x, pose.y, self.yaw))
+        self.odom.append((odom.x, odom.y, odom.theta))
+
+
+def record_square(model: RobotModel, config: ArbotixConfig, engine: str, direction: int = 1,
+                  **options: Any) -> Recording:
+    """Borenstein's UMBmark square (``drives.Driver.square``: steered by odometry, 1 m, 0.2 m/s,
+    1 rad/s) on ``engine``, recorded period by period: the starts and stops of its turns."""
+    legs: list[_RecordingLeg] = []
+
+    def leg(robot: SmartCarRobot) -> _RecordingLeg:
+        legs.append(_RecordingLeg(robot))
+        return legs[-1]
+
+    driver = Driver(model, config, max_substep_s=default_max_substep(engine), engine=engine,
+                    sim_options=options)
+    driver.square(Plan(), direction, leg)
+    done = legs[-1]
+    way = "counter-clockwise" if direction > 0 else "clockwise"
+    return Recording(f"UMBmark square {way}", config.rate_hz, np.array(done.commands),
+                     np.array(done.truth), np.array(done.odom))
+
+
 def record(model: RobotModel, config: ArbotixConfig, engine: str,
-           drives: dict[str, list[Twist]] | None = None, **options: Any) -> list[Recording]:
-    """The fit's drives (``fit_maneuvers`` unless given) on ``engine``, one fresh world each."""
+           drives: dict[str, list[Twist]] | None = None, square: bool = True,
+           **options: Any) -> list[Recording]:
+    """The fit's drives (``fit_maneuvers`` unless given, and the UMBmark square unless not
+    ``square``) on ``engine``, one fresh world each."""
     drives = fit_maneuvers(config.rate_hz) if drives is None else drives
     out = []
     for name, commands in drives.items():
         array = as_array(commands)
         truth, odom = replay(model, config, engine, array, **options)
         out.append(Recording(name, config.rate_hz, array, truth, odom))
+    if square:
+        out.append(record_square(model, config, engine, **options))
     return out

@@ -136,16 +136,8 @@ class PlanarBody:
         return self.model
 
     def _compile(self) -> None:
-        sim = self.sim
-        coulomb: dict[int, float] = {}
-        for joints, forces in self._coulomb.values():
-            for j, f in zip(joints, forces, strict=True):
-                coulomb[j] = coulomb.get(j, 0.0) + f
-        driven = {j for joints, _ in self._held.values() for j in joints}
         try:
-            model = build_car(
-                self.tables, self.ground_z, Actuation(coulomb, list(self._gears), driven),
-                sim.params, sim.ground.friction, sim.gravity_m_s2)
+            model = self.model_with(self.sim.params)
         except ValueError as exc:
             raise ModelError(f"the planar engine cannot simulate it: {exc}",
                              file=self.tables.robot.name) from None
@@ -165,6 +157,26 @@ class PlanarBody:
         self.model, self.groups, self.com, self.state = model, model.groups, model.com, state
         self._dirty = False
         self._drive()
+
+    def model_with(self, params: PlanarParams) -> PlanarCar:
+        """The car this body would be with other free parameters (its masses, contacts and
+        actuation as they are now): what a batch of candidate models steps in a fit."""
+        coulomb: dict[int, float] = {}
+        for joints, forces in self._coulomb.values():
+            for j, f in zip(joints, forces, strict=True):
+                coulomb[j] = coulomb.get(j, 0.0) + f
+        driven = {j for joints, _ in self._held.values() for j in joints}
+        return build_car(self.tables, self.ground_z,
+                         Actuation(coulomb, list(self._gears), driven), params,
+                         self.sim.ground.friction, self.sim.gravity_m_s2)
+
+    def spawn_state(self, x: float, y: float, yaw: float) -> list[float]:
+        """The state of this car at rest with its base link at (x, y) heading ``yaw``."""
+        model = self.compiled()
+        c, s = math.cos(yaw), math.sin(yaw)
+        cx, cy = model.com[0], model.com[1]
+        return [x + c * cx - s * cy, y + s * cx + c * cy, c, s, 0.0, 0.0, 0.0] \
+            + [0.0] * (2 * len(model.groups.members))
 
     def _drive(self) -> None:
         """Each group's motor torque and damping from the joints' held torques and damping."""

@@ -4,15 +4,19 @@
     smartcar-calibrate --controller-config my.yaml --output my_calibrated.yaml
     smartcar-calibrate --model robot.urdf.xacro --package-path ~/ws/src --fit umbmark
     smartcar-calibrate --randomize "{track: 1.1, left_encoder_scale: 1.05}"
+    smartcar-calibrate --fit planar --engine mujoco -o planar_mujoco.yaml
+    smartcar-calibrate --fit planar --bag robot.bag --truth-topic /mocap/pose -o mine.yaml
 
 Drives the car in the simulator, steered by its own odometry: 2 m straight, two revolutions in
 place each way, and Borenstein's UMBmark square (1 m) clockwise and counter-clockwise. Compares
 where odometry says each run ended with the ground truth, fits the effective ``base_width``
 and a ``ticks_meter`` correction, drives again with them, and prints the odometry errors
 before and after. ``--output`` writes the YAML with the two values replaced (layout and
-comments kept). ``--randomize`` makes the simulated car differ from what the YAML claims (the
-env's ``randomize`` factors, drawn once with ``--seed``): in the simulator the encoders
-otherwise count exactly the YAML's ticks_meter.
+comments kept). ``--fit planar`` instead identifies the planar engine's free parameters from
+the drives on ``--engine`` or from a ``--bag`` and writes its parameter file
+(``calibration/planar_cli.py``). ``--randomize`` makes the simulated car differ from what the
+YAML claims (the env's ``randomize`` factors, drawn once with ``--seed``): in the simulator the
+encoders otherwise count exactly the YAML's ticks_meter.
 
 exit status: 0 done; 2 bad input (model, YAML, options) or a car that cannot do the drives,
 with one line on stderr.
@@ -32,6 +36,7 @@ from typing import Any
 import numpy as np
 import yaml
 
+from smartcar_gym.calibration import planar_cli
 from smartcar_gym.calibration.drives import DriveError, Plan
 from smartcar_gym.calibration.estimate import CalibrationError, RunError, umbmark_error
 from smartcar_gym.calibration.procedure import FIT_HELP, FITS, Calibration, calibrate
@@ -80,14 +85,17 @@ def build_parser() -> argparse.ArgumentParser:
                         "from the YAML: a preset (default), a YAML file or a mapping such as "
                         "\"{track: 1.1}\"; drawn once")
     parser.add_argument("--seed", type=int, default=0, help="seed of the --randomize draw")
-    parser.add_argument("--fit", choices=tuple(FITS), default="spin",
-                        help="; ".join(f"{k}: {v}" for k, v in FIT_HELP.items()))
+    parser.add_argument("--fit", choices=(*FITS, "planar"), default="spin",
+                        help="; ".join(f"{k}: {v}" for k, v in FIT_HELP.items())
+                        + "; planar: the planar engine's tyre, rolling and dead-band "
+                          "parameters, from --engine's drives or a --bag (docs/planar.md)")
     parser.add_argument("--speed", type=_positive, default=0.2, help="m/s on straight legs")
     parser.add_argument("--turn-rate", type=_positive, default=1.0, help="rad/s in turns")
     parser.add_argument("--side", type=_positive, default=1.0, help="UMBmark square side (m)")
     parser.add_argument("--output", "-o", type=Path, metavar="FILE",
-                        help="write the calibrated YAML here")
+                        help="write the calibrated YAML (--fit planar: the parameter file) here")
     parser.add_argument("--json", type=Path, metavar="FILE", help="write the figures as JSON")
+    planar_cli.add_arguments(parser)
     return parser
 
 
@@ -128,6 +136,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (ModelError, ControllerConfigError, OSError, ValueError, TypeError,
             yaml.YAMLError) as err:
         parser.error(str(err).replace("\n", " "))
+    if args.fit == "planar":
+        if spec is not None:
+            parser.error("--fit planar fits to the engine's car as it is; --randomize does "
+                         "not apply")
+        return planar_cli.run(args, parser, model, config)
     draw = spec.draw(np.random.default_rng(args.seed)) if spec is not None else None
     plan = Plan(speed_m_s=args.speed, turn_rate_rad_s=args.turn_rate, square_side_m=args.side)
     try:

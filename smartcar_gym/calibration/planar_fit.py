@@ -155,12 +155,13 @@ class FitResult:
 
 
 #: the box the search explores (log-uniform except rolling resistance), inside ``RANGES``:
-#: slip speeds below 2 mm/s make the car's stops abrupt at 20 ms substeps, and odometry-steered
-#: drives (UMBmark) then jump between discrete outcomes (docs/planar.md)
+#: with slip speeds below 5 mm/s the car's turns stop abruptly at 20 ms substeps, and
+#: odometry-steered drives (UMBmark) jump between outcomes 0.5 m apart when a square's side
+#: changes by 2 cm (docs/planar.md)
 SEARCH: dict[str, tuple[float, float]] = {
     "friction_scale": (0.3, 3.0),
     "lateral_friction_ratio": (0.7, 1.5),
-    "slip_speed": (0.002, 0.05),
+    "slip_speed": (0.005, 0.05),
     "gearbox_friction_scale": (0.3, 3.0),
     "rolling_resistance": (0.0, 0.05),
 }

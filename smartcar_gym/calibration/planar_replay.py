@@ -37,46 +37,54 @@ class FleetReplay:
         self.template.reset(seed=0)
         self.body = self.template.robot.body
         self.length = max(len(r.commands) for r in self.recordings)
+        self._venv = None  # the batch, kept while the number of candidates stays the same
 
     def close(self) -> None:
         self.template.close()
+        if self._venv is not None:
+            self._venv.close()
+            self._venv = None
+
+    def _batch(self, n: int):
+        from smartcar_gym.envs.vector.planar import SmartCarPlanarVectorEnv
+
+        if self._venv is None or self._venv.num_envs != n:
+            if self._venv is not None:
+                self._venv.close()
+            self._venv = SmartCarPlanarVectorEnv(num_envs=n, model=self.model,
+                                                 controller_config=self.config, engine="planar")
+        return self._venv
 
     def run(self, candidates: Sequence[PlanarParams]
             ) -> list[list[tuple[np.ndarray, np.ndarray]]]:
         """For each candidate, each recording's replay: (true poses, odometry), each
         (T + 1, 3) for the recording's T commands, as ``recording.replay`` gives them."""
-        from smartcar_gym.envs.vector.planar import SmartCarPlanarVectorEnv
-
         recs, nr = self.recordings, len(self.recordings)
         n = len(candidates) * nr
-        venv = SmartCarPlanarVectorEnv(num_envs=n, model=self.model,
-                                       controller_config=self.config, engine="planar")
-        try:
-            venv.reset(seed=0)
-            cars = venv.cars
-            for c, params in enumerate(candidates):
-                cars.set_model(np.arange(c * nr, (c + 1) * nr), self.body.model_with(params))
-            starts = np.array([self.body.spawn_state(*r.truth[0]) for r in recs]).T
-            cars.reset(np.arange(n), np.tile(starts, (1, len(candidates))))
-            venv.base.reset(0.0, venv._angles())
-            venv._motors_to_wheels(np.ones(n, dtype=bool))
-            commands = np.full((self.length, n, 2), np.nan)
-            for k, r in enumerate(recs):
-                commands[:len(r.commands), k::nr] = r.commands[:, None, :]
-            truth = np.empty((self.length + 1, n, 3))
-            odom = np.empty((self.length + 1, n, 3))
-            yaw = np.array([r.truth[0, 2] for r in recs] * len(candidates))
-            self._record(venv, truth, odom, 0, yaw)
-            for t in range(self.length):
-                sent = np.isfinite(commands[t, :, 0])
-                if sent.any():
-                    venv.base.cmd_vel(np.nan_to_num(commands[t, :, 0]),
-                                      np.nan_to_num(commands[t, :, 1]),
-                                      venv._now / NS_PER_S, sent)
-                venv._run_period()
-                self._record(venv, truth, odom, t + 1, yaw)
-        finally:
-            venv.close()
+        venv = self._batch(n)
+        venv.reset(seed=0)
+        cars = venv.cars
+        for c, params in enumerate(candidates):
+            cars.set_model(np.arange(c * nr, (c + 1) * nr), self.body.model_with(params))
+        starts = np.array([self.body.spawn_state(*r.truth[0]) for r in recs]).T
+        cars.reset(np.arange(n), np.tile(starts, (1, len(candidates))))
+        venv.base.reset(0.0, venv._angles())
+        venv._motors_to_wheels(np.ones(n, dtype=bool))
+        commands = np.full((self.length, n, 2), np.nan)
+        for k, r in enumerate(recs):
+            commands[:len(r.commands), k::nr] = r.commands[:, None, :]
+        truth = np.empty((self.length + 1, n, 3))
+        odom = np.empty((self.length + 1, n, 3))
+        yaw = np.array([r.truth[0, 2] for r in recs] * len(candidates))
+        self._record(venv, truth, odom, 0, yaw)
+        for t in range(self.length):
+            sent = np.isfinite(commands[t, :, 0])
+            if sent.any():
+                venv.base.cmd_vel(np.nan_to_num(commands[t, :, 0]),
+                                  np.nan_to_num(commands[t, :, 1]),
+                                  venv._now / NS_PER_S, sent)
+            venv._run_period()
+            self._record(venv, truth, odom, t + 1, yaw)
         out = []
         for c in range(len(candidates)):
             out.append([(truth[:len(r.commands) + 1, c * nr + k],

@@ -161,10 +161,11 @@ def record_square(model: RobotModel, config: ArbotixConfig, engine: str, directi
 
 
 def record(model: RobotModel, config: ArbotixConfig, engine: str,
-           drives: dict[str, list[Twist]] | None = None, square: bool = True,
+           drives: dict[str, list[Twist]] | None = None, square: bool = False,
            **options: Any) -> list[Recording]:
-    """The fit's drives (``fit_maneuvers`` unless given, and the UMBmark square unless not
-    ``square``) on ``engine``, one fresh world each."""
+    """The fit's drives (``fit_maneuvers`` unless given; with ``square`` the UMBmark square
+    too, which quadruples a fit's time and measured no better: docs/planar.md) on
+    ``engine``, one fresh world each."""
     drives = fit_maneuvers(config.rate_hz) if drives is None else drives
     out = []
     for name, commands in drives.items():

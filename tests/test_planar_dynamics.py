@@ -1,0 +1,154 @@
+"""The planar engine's equations of motion (``sim/planar/dynamics.py``): one function for a car
+in floats, N cars in numpy arrays and numba's loop, bit for bit; hand-derived physics."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from smartcar_gym.sim.planar import jit
+from smartcar_gym.sim.planar.dynamics import (
+    new_scratch,
+    state_size,
+    static_loads,
+    substep,
+    substep_arrays,
+)
+
+# a symmetric four-wheel car: 1.5 kg, wheels 25 mm at (+-0.08, +-0.08) m, friction 0.5
+MASS, IZ, RADIUS, MU = 1.5, 0.012, 0.025, 0.5
+LOAD = MASS * 9.81 / 4
+
+
+def car(slip: float = 0.01, stiction: float = 0.05, inertia: float = 2e-3,
+        coulomb: float = 0.03) -> list[float]:
+    return [MASS, IZ, slip ** 2, stiction ** 2, inertia, inertia, coulomb, coulomb]
+
+
+CONTACTS = [[x, y, -RADIUS, 0.0, LOAD, MU, MU * 1.03]
+            for x, y in ((0.08, 0.08), (-0.08, 0.08), (0.08, -0.08), (-0.08, -0.08))]
+GROUPS = (0, 0, 1, 1)  # left, right
+
+
+def random_states(rng: np.random.Generator, n: int) -> np.ndarray:
+    states = rng.normal(size=(state_size(2), n))
+    yaw = states[2].copy()
+    states[2], states[3] = np.cos(yaw), np.sin(yaw)
+    return states
+
+
+def test_a_car_in_floats_is_a_column_of_the_arrays_bit_for_bit() -> None:
+    rng = np.random.default_rng(0)
+    n = 32
+    states = random_states(rng, n)
+    drive = np.abs(rng.normal(size=(4, n))) * 0.1
+    dt = rng.uniform(0.001, 0.03, n)
+    dt[::5] = 0.0  # cars whose interval has ended take 0 s substeps
+    params = car()
+    batch = states.copy()
+    cars = np.repeat(np.array(params)[:, None], n, axis=1)
+    contacts = np.repeat(np.array(CONTACTS)[:, :, None], n, axis=2)
+    for _ in range(6):
+        substep_arrays(batch, cars, contacts, GROUPS, drive, dt, new_scratch(2))
+    for i in range(n):
+        one = states[:, i].tolist()
+        scratch = new_scratch(2)
+        for _ in range(6):
+            substep(one, params, CONTACTS, GROUPS, drive[:, i].tolist(), float(dt[i]), scratch)
+        assert one == batch[:, i].tolist(), f"car {i}"
+    assert np.array_equal(batch[:, ::5], states[:, ::5]), "a 0 s substep changed a car"
+
+
+@pytest.mark.skipif(not jit.COMPILED, reason="numba (the fast extra) is not installed")
+def test_numbas_loop_is_the_same_function_bit_for_bit() -> None:
+    rng = np.random.default_rng(1)
+    n = 16
+    states = random_states(rng, n)
+    drive = np.abs(rng.normal(size=(4, n))) * 0.1
+    dt = rng.uniform(0.001, 0.03, n)
+    steps = rng.integers(0, 5, n)
+    compiled = states.copy()
+    jit.run_cars(compiled, np.repeat(np.array(car())[:, None], n, axis=1),
+                 np.repeat(np.array(CONTACTS)[:, :, None], n, axis=2),
+                 np.array(GROUPS, dtype=np.int64), drive, dt, steps)
+    for i in range(n):
+        one = states[:, i].tolist()
+        for _ in range(steps[i]):
+            substep(one, car(), CONTACTS, GROUPS, drive[:, i].tolist(), float(dt[i]),
+                    new_scratch(2))
+        assert one == compiled[:, i].tolist(), f"car {i}"
+
+
+def test_a_car_at_rest_without_torque_stays_exactly_at_rest() -> None:
+    state = [0.3, -0.2, 1.0, 0.0, 0.0, 0.0, 0.0, 0.1, -0.4, 0.0, 0.0]
+    before = list(state)
+    for _ in range(50):
+        substep(state, car(), CONTACTS, GROUPS, [0.0, 0.0, 0.0, 0.0], 0.02, new_scratch(2))
+    assert state == before
+
+
+def test_rolling_without_slip_or_friction_keeps_its_speed() -> None:
+    """Body at 0.4 m/s along its heading, wheels at 0.4 / r: no slip, no force, no change."""
+    yaw = 0.7
+    v = 0.4
+    state = [0.0, 0.0, math.cos(yaw), math.sin(yaw), v * math.cos(yaw), v * math.sin(yaw), 0.0,
+             0.0, 0.0, v / RADIUS, v / RADIUS]
+    for _ in range(100):
+        substep(state, car(coulomb=0.0), CONTACTS, GROUPS, [0.0] * 4, 0.01, new_scratch(2))
+    assert math.hypot(state[4], state[5]) == pytest.approx(v, abs=1e-9)
+    assert state[9] == pytest.approx(v / RADIUS, abs=1e-6)
+    assert math.atan2(state[3], state[2]) == pytest.approx(yaw, abs=1e-9)
+    assert math.hypot(state[0], state[1]) == pytest.approx(v * 1.0, rel=1e-6)  # 1 s
+
+
+def test_coast_down_decelerates_as_coulomb_friction_through_rolling_wheels() -> None:
+    """Hand-derived: two groups with Coulomb torque T each, wheels rolling without slip, slow
+    a car of mass m with spin inertia J per group at ``(2 T / r) / (m + 2 J / r^2)``."""
+    coulomb, inertia, v0 = 0.03, 2e-3, 0.3
+    expected = (2 * coulomb / RADIUS) / (MASS + 2 * inertia / RADIUS ** 2)
+    state = [0.0, 0.0, 1.0, 0.0, v0, 0.0, 0.0, 0.0, 0.0, v0 / RADIUS, v0 / RADIUS]
+    t = 0.0
+    for _ in range(20):  # 0.2 s: the car still rolls
+        substep(state, car(slip=0.002, inertia=inertia, coulomb=coulomb), CONTACTS, GROUPS,
+                [0.0] * 4, 0.01, new_scratch(2))
+        t += 0.01
+    assert (v0 - state[4]) / t == pytest.approx(expected, rel=0.02)
+    assert abs(state[5]) < 1e-12 and abs(state[6]) < 1e-12  # straight on
+
+
+def test_a_motor_torque_spins_a_free_wheel_group_as_newton_says() -> None:
+    """A car lifted off the ground (no contacts): a group's torque tau accelerates it at
+    tau / J, minus the back-EMF damping's share (integrated implicitly: exact for a
+    linear system in one step of the linearised Euler)."""
+    tau, damping, inertia, dt = 0.1, 0.01, 2e-3, 0.01
+    state = [0.0] * 7 + [0.0, 0.0, 0.0, 0.0]
+    state[2] = 1.0
+    params = car(inertia=inertia, coulomb=0.0)
+    substep(state, params, [], (), [tau, 0.0, damping, 0.0], dt, new_scratch(2))
+    assert state[9] == pytest.approx(dt * tau / (inertia + dt * damping), rel=1e-12)
+    assert state[10] == 0.0 and state[4] == 0.0
+
+
+def test_static_loads_follow_the_centre_of_mass() -> None:
+    four = np.array([(0.08, 0.08), (-0.08, 0.08), (0.08, -0.08), (-0.08, -0.08)])
+    assert static_loads(four, np.zeros(2), 10.0) == pytest.approx([2.5] * 4)
+    # three points: the casterbot's wheels at x = 0.04, caster at x = -0.08 (determinate):
+    # with the centre of mass at x = 0, the caster carries 0.04 / 0.12 of the weight
+    three = np.array([(0.04, 0.09), (0.04, -0.09), (-0.08, 0.0)])
+    loads = static_loads(three, np.zeros(2), 12.0)
+    assert loads == pytest.approx([4.0, 4.0, 4.0])
+    loads = static_loads(three, np.array([0.01, 0.0]), 12.0)
+    assert loads[2] == pytest.approx(12.0 * 0.03 / 0.12)
+    assert loads.sum() == pytest.approx(12.0)
+
+
+@pytest.mark.parametrize("points, com, message", [
+    ([(0.1, 0.1), (-0.1, 0.1)], (0.0, 0.0), "cannot carry"),
+    ([(0.1, 0.0), (0.0, 0.0), (-0.1, 0.0)], (0.0, 0.0), "one line"),
+    ([(0.1, 0.1), (-0.1, 0.1), (0.0, -0.1)], (0.0, 0.5), "tip over"),
+])
+def test_contacts_that_cannot_carry_the_body_are_refused(points, com, message) -> None:
+    with pytest.raises(ValueError, match=message):
+        static_loads(np.array(points), np.array(com), 10.0)

@@ -1,0 +1,212 @@
+"""The envs on ``engine="planar"``: Gymnasium's checks, determinism, the batch per car bit for
+bit, parameter files, errors, and the physics engines left as they were."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import textwrap
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+import smartcar_gym  # noqa: F401
+from smartcar_gym.sim.planar import jit
+from smartcar_gym.sim.planar.params import PlanarParams, PlanarParamsError, dump, load, resolve
+
+PHYSICS_IDS = ("SmartCar-v0", "SmartCarGoal-v0", "SmartCarArrive-v0", "SmartCarNav-v0")
+FIXTURES = os.path.join(os.path.dirname(__file__), "fixtures")
+CASTERBOT = os.path.join(FIXTURES, "casterbot_description", "urdf", "casterbot.urdf.xacro")
+CASTERBOT_YAML = os.path.join(FIXTURES, "casterbot_description", "config",
+                              "casterbot_arbotix.yaml")
+
+
+@pytest.mark.parametrize("env_id", PHYSICS_IDS)
+def test_gymnasiums_checker_passes_on_planar(env_id: str) -> None:
+    env = gym.make(env_id, engine="planar")
+    try:
+        check_env(env.unwrapped)  # with its render check: rgb_array, the only mode listed
+        assert env.unwrapped.metadata["render_modes"] == ["rgb_array"]
+    finally:
+        env.close()
+
+
+def rollout(env_id: str, seed: int, steps: int = 60, **kwargs) -> list[np.ndarray]:
+    env = gym.make(env_id, engine="planar", **kwargs)
+    obs, _ = env.reset(seed=seed)
+    rng = np.random.default_rng(seed)
+    out = [obs]
+    for _ in range(steps):
+        obs, reward, terminated, truncated, info = env.step(
+            rng.uniform(-1, 1, 2).astype(np.float32))
+        out += [obs, np.array([reward]), info["pose"]]
+        if terminated or truncated:
+            out.append(env.reset()[0])
+    env.close()
+    return out
+
+
+def test_seeded_rollouts_repeat_bit_for_bit() -> None:
+    a, b = rollout("SmartCar-v0", 5), rollout("SmartCar-v0", 5)
+    assert all(np.array_equal(x, y) for x, y in zip(a, b, strict=True))
+    c = rollout("SmartCar-v0", 6)
+    assert not all(np.array_equal(x, y) for x, y in zip(a, c, strict=True))
+
+
+@pytest.mark.skipif(not jit.COMPILED, reason="numba (the fast extra) is not installed")
+def test_the_same_rollout_without_numba() -> None:
+    """``SMARTCAR_GYM_NUMBA=0``: Python floats instead of the compiled loop, same numbers."""
+    code = textwrap.dedent("""
+        import sys, numpy as np
+        sys.path.insert(0, %r)
+        from test_planar_env import rollout
+        np.save(sys.stdout.buffer, np.concatenate([np.ravel(x) for x in rollout(
+            "SmartCar-v0", 5)]))
+    """) % os.path.dirname(__file__)
+    env = {**os.environ, "SMARTCAR_GYM_NUMBA": "0"}
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, env=env,
+                          check=True, timeout=300)
+    import io
+    python = np.load(io.BytesIO(done.stdout))
+    compiled = np.concatenate([np.ravel(x) for x in rollout("SmartCar-v0", 5)])
+    assert np.array_equal(python, compiled)
+
+
+def test_the_car_drives_and_reaches_goals_as_commanded() -> None:
+    """Forward at 0.3 m/s for 3 s from rest: 0.765 m on the planar engine, pybullet's 0.759 m
+    within 2 %: the command reaches the wheels one period late and the car takes about 0.3 s
+    to reach its speed (through the PID), about 0.3 * (3 - 0.1 - 0.35) m."""
+    env = gym.make("SmartCar-v0", engine="planar", goal_range=(2.0, 2.4))
+    env.reset(seed=0, options={"goal": (2.4, 0.0)})
+    for _ in range(30):
+        _, _, _, _, info = env.step(np.array([0.6, 0.0], dtype=np.float32))
+    x, y, yaw = info["pose"]
+    assert x == pytest.approx(0.7587, rel=0.02) and abs(y) < 1e-9 and abs(yaw) < 1e-9
+    assert info["odom_error"] < 0.01
+    env.close()
+
+
+@pytest.mark.parametrize("mode", ["NextStep", "SameStep"])
+@pytest.mark.parametrize("env_id", ["SmartCar-v0", "SmartCarGoal-v0"])
+def test_the_batch_is_n_single_envs_bit_for_bit(env_id: str, mode: str) -> None:
+    n, seed = 3, 11
+    venv = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point",
+                        engine="planar", autoreset_mode=mode, max_episode_steps=25)
+    assert "Planar" in type(venv).__name__
+    envs = [gym.make(env_id, engine="planar", max_episode_steps=25) for _ in range(n)]
+    obs, _ = venv.reset(seed=seed)
+    single = [e.reset(seed=seed + i)[0] for i, e in enumerate(envs)]
+    rng = np.random.default_rng(0)
+    ended = [False] * n
+    episodes = 0
+    for _ in range(120):
+        actions = rng.uniform(-1, 1, (n, 2)).astype(np.float32)
+        obs, reward, terminated, truncated, info = venv.step(actions)
+        for i, env in enumerate(envs):
+            if ended[i]:
+                expect, r, te, tr = env.reset()[0], 0.0, False, False
+                ended[i] = False
+            else:
+                expect, r, te, tr, _ = env.step(actions[i])
+            got = obs
+            if mode == "SameStep" and (te or tr):
+                got = info["final_obs"]
+                expect_now = env.reset()[0]
+                assert equal(car(obs, i), expect_now)
+            assert equal(car(got, i), expect), f"car {i}"
+            assert (reward[i], terminated[i], truncated[i]) == (r, te, tr)
+            if te or tr:
+                episodes += 1
+                ended[i] = mode == "NextStep"
+    assert episodes >= 2  # autoresets were exercised
+    venv.close()
+    for e in envs:
+        e.close()
+
+
+def car(obs, i):
+    return {k: v[i] for k, v in obs.items()} if isinstance(obs, dict) else obs[i]
+
+
+def equal(a, b) -> bool:
+    if isinstance(a, dict):
+        return all(np.array_equal(a[k], b[k]) for k in a)
+    return np.array_equal(a, b)
+
+
+def test_a_differential_drive_robot_is_batched_too() -> None:
+    """The casterbot (two wheels and a sliding caster ball): its encoders start mid-tick in
+    the batch as in the single env."""
+    kwargs = dict(model=CASTERBOT, controller_config=CASTERBOT_YAML, engine="planar")
+    venv = gym.make_vec("SmartCar-v0", num_envs=2, vectorization_mode="vector_entry_point",
+                        **kwargs)
+    envs = [gym.make("SmartCar-v0", **kwargs) for _ in range(2)]
+    obs, _ = venv.reset(seed=3)
+    single = [e.reset(seed=3 + i)[0] for i, e in enumerate(envs)]
+    assert all(np.array_equal(obs[i], single[i]) for i in range(2))
+    actions = np.tile(np.array([[0.5, 0.0]], dtype=np.float32), (2, 1))
+    for _ in range(30):
+        obs, *_ = venv.step(actions)
+        single = [e.step(actions[i])[0] for i, e in enumerate(envs)]
+        assert all(np.array_equal(obs[i], single[i]) for i in range(2))
+    # it drives straight: both wheels alike
+    info = envs[0].unwrapped._info(envs[0].unwrapped.robot.pose(), False)
+    assert abs(info["pose"][1]) < 0.01 and info["pose"][0] > 0.5
+    venv.close()
+
+
+def test_parameter_files_round_trip_and_name_what_is_wrong(tmp_path) -> None:
+    params = PlanarParams(friction_scale=0.9, slip_speed=0.003, rolling_resistance=0.01)
+    path = tmp_path / "fit.yaml"
+    path.write_text(dump(params, {"source": "test"}))
+    assert load(path) == params
+    assert resolve(str(path)) == params
+    assert resolve({"slip_speed": 0.004}).slip_speed == 0.004
+    assert resolve("mujoco").source.endswith("planar_mujoco.yaml")
+    cases = {
+        "planar: {slip_speed: 2.0}\n": "planar.slip_speed: expected a number in",
+        "planar: {frction_scale: 1.0}\n": "planar.frction_scale: unknown key",
+        "planar: [1, 2]\n": "planar: expected a mapping",
+        "slip_speed: 0.01\n": "'planar:' section",
+        "planar: {slip_speed: 0.01}\nextra: 1\n": "extra: unknown section",
+        "planar: {slip_speed: [\n": "not valid YAML",
+    }
+    for text, message in cases.items():
+        path.write_text(text)
+        with pytest.raises(PlanarParamsError, match=message) as caught:
+            load(path)
+        assert str(path) in str(caught.value) and "\n" not in str(caught.value)
+    with pytest.raises(PlanarParamsError, match="cannot read"):
+        load(tmp_path / "missing.yaml")
+
+
+def test_env_arguments_are_checked_in_one_line(tmp_path) -> None:
+    with pytest.raises(ValueError, match="planar_params is the planar engine's"):
+        gym.make("SmartCar-v0", planar_params="mujoco")
+    with pytest.raises(ValueError, match="render_mode"):
+        gym.make("SmartCar-v0", engine="planar", render_mode="human")
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("planar: {lateral_friction_ratio: 0}\n")
+    with pytest.raises(PlanarParamsError, match="lateral_friction_ratio"):
+        gym.make("SmartCar-v0", engine="planar", planar_params=str(bad))
+
+
+def test_rgb_array_is_a_top_down_picture() -> None:
+    env = gym.make("SmartCar-v0", engine="planar", render_mode="rgb_array",
+                   render_width=160, render_height=120)
+    env.reset(seed=0)
+    image = env.render()
+    assert image.shape == (120, 160, 3) and image.dtype == np.uint8
+    colours = {tuple(c) for c in image.reshape(-1, 3)}
+    assert (40, 80, 200) in colours  # the car's base
+    assert len(colours) > 4
+    env.close()
+
+
+def test_the_default_engine_stays_pybullet() -> None:
+    env = gym.make("SmartCar-v0")
+    assert env.unwrapped.sim.engine == "pybullet" and env.unwrapped.planar_params is None
+    env.close()

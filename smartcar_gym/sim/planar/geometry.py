@@ -239,14 +239,17 @@ def cast(origins: Any, directions: Any, max_range: Any, shapes: Shapes2D) -> Ray
     at a single point or along an edge counts as hit; a ray starting strictly inside a shape
     does not hit it (Bullet's rule). Ties go to the lower shape index.
 
-    Vectorised: a broad phase keeps the (car, beam, shape) triples whose ray line passes
-    within a shape's bounding circle (one product per triple, in blocks of cars that fit the
-    cache), the exact tests run on those.
+    Vectorised over cars x beams x shapes: a broad phase keeps the (car, shape, beam) triples
+    whose beam points into the shape's bounding cone (one matrix product per block of cars
+    that fits the cache; blocks, not cars, are looped over), the exact tests run on those
+    alone. A laser's scans are fastest in each car's laser frame, the beams shared:
+    ``cast(np.zeros((N, 2)), beam_angles, range_max, shapes.relative_to(laser_poses))``
+    (no ``(N, B)`` sines and cosines; benchmarks/planar_geometry.py).
     """
     origins = _points("origins", origins)
     n = len(origins)
-    units = _directions(directions, n)
-    b = units.shape[1]
+    beams = _directions(directions, n)  # (N or 1, 2, B)
+    b = beams.shape[2]
     reach = np.asarray(max_range, dtype=float)
     try:
         reach_nb = np.broadcast_to(reach, (n, b))
@@ -266,7 +269,6 @@ def cast(origins: Any, directions: Any, max_range: Any, shapes: Shapes2D) -> Ray
         return RayCast(distance, np.full((n, b), -1, dtype=np.int64), reach)
 
     table, cone, cos = _pair_table(origins, shapes, reach_nb.max(axis=1))
-    beams = np.ascontiguousarray(units.transpose(0, 2, 1))  # (N or 1, 2, B)
     flat_beams = beams.reshape(-1)
     shared = len(beams) == 1
     flat_reach = np.ascontiguousarray(reach_nb).reshape(-1) if reach.ndim else float(reach)
@@ -668,7 +670,8 @@ def _poses(value: Any) -> np.ndarray:
 
 
 def _directions(value: Any, n: int) -> np.ndarray:
-    """``(N or 1, B, 2)`` unit vectors from angles ``(B,)``/``(N, B)`` or unit vectors."""
+    """``(N or 1, 2, B)``: the x and y of unit vectors given as angles ``(B,)``/``(N, B)`` or
+    as ``(1 or N, B, 2)`` unit vectors."""
     directions = np.asarray(value, dtype=float)
     if directions.ndim in (1, 2):
         if directions.ndim == 2 and directions.shape[0] != n:
@@ -677,11 +680,11 @@ def _directions(value: Any, n: int) -> np.ndarray:
         if not np.isfinite(directions).all():
             raise ValueError("directions must be finite")
         angles = directions.reshape(-1 if directions.ndim == 2 else 1, directions.shape[-1])
-        return np.stack([np.cos(angles), np.sin(angles)], axis=-1)
+        return np.stack([np.cos(angles), np.sin(angles)], axis=1)
     if directions.ndim != 3 or directions.shape[2] != 2 or directions.shape[0] not in (1, n):
         raise ValueError(f"directions must be angles (B,) or (N, B), or unit vectors (1, B, 2) "
                          f"or (N, B, 2) with N = {n}, got shape {directions.shape}")
     norm2 = np.einsum("...i,...i->...", directions, directions)
     if not (np.abs(norm2 - 1.0) <= 2e-9).all():
         raise ValueError("directions as vectors must be unit vectors")
-    return directions
+    return np.ascontiguousarray(directions.transpose(0, 2, 1))

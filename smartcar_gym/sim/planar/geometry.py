@@ -27,8 +27,9 @@ Against pybullet (tests/test_planar_geometry.py): ``clearance`` with ``BULLET_BO
 is pybullet's ``getClosestPoints`` within 1e-5 m (GJK's tolerance); with sharp corners (the
 default) within 2 (sqrt(2) - 1) ``BULLET_BOX_MARGIN_M`` = 0.83 mm. ``cast`` is exact (MuJoCo's
 analytic ``mj_ray`` within 1e-12 m); pybullet's ``rayTestBatch`` is not: its hit points lie up
-to 1 mm outside the surfaces (its convex cast's tolerance; exact on most box faces), so its
-ranges are up to 1 mm / cos(incidence) short and grazing rays may differ in what they hit.
+to 1 mm outside the surfaces (its convex cast's tolerance; exact on most box faces: 97 % of
+box hits agree within 1e-6 m, 3 % of cylinder hits), so its ranges are up to
+1 mm / cos(incidence) short, and rays grazing an outline (< 0.1 %) may differ in what they hit.
 """
 
 from __future__ import annotations

@@ -25,6 +25,7 @@ from smartcar_gym.sim.planar.geometry import (
     footprint,
     ray_hits,
 )
+from smartcar_gym.sim.planar.mesh_bounds import mesh_bounds
 from smartcar_gym.sim.rays import cast_rays
 
 FIXTURES = Path(__file__).parent / "fixtures"
@@ -261,6 +262,23 @@ def test_fixture_footprints_upright_cylinders_meshes_and_tilted_wheels():
     wheel = seedlike.links.index("left_front_wheel")
     assert not seedlike.exact[wheel]
     np.testing.assert_allclose(seedlike.shapes.half[0, wheel], [0.01, 0.025], atol=2e-6)
+
+
+def test_mesh_bounds_of_stl_files_and_unread_formats(tmp_path):
+    triangle = np.array([[0, 0, 0], [0.1, -0.2, 0], [0, 0.3, 0.4]], dtype="<f4")
+    binary = tmp_path / "part.stl"
+    binary.write_bytes(b"\0" * 80 + np.uint32(1).tobytes() + np.zeros(3, "<f4").tobytes()
+                       + triangle.tobytes() + b"\0\0")
+    ascii_ = tmp_path / "part_ascii.STL"
+    ascii_.write_text("solid p\nfacet normal 0 0 1\nouter loop\n"
+                      + "".join(f"vertex {x} {y} {z}\n" for x, y, z in triangle.tolist())
+                      + "endloop\nendfacet\nendsolid p\n")
+    for path in (binary, ascii_):
+        low, high = mesh_bounds(path)
+        np.testing.assert_allclose([low, high], [[0, -0.2, 0], [0.1, 0.3, 0.4]], atol=1e-7)
+    (tmp_path / "part.dae").write_text("<COLLADA/>")
+    with pytest.raises(ValueError, match=r"link 'base': collision mesh .*part.dae: .*OBJ and STL"):
+        mesh_bounds(tmp_path / "part.dae", "base")
 
 
 # -- distances and clearances ----------------------------------------------------------------

@@ -41,7 +41,9 @@ from typing import Any
 
 import numpy as np
 
+from smartcar_gym.model.contact import simulated_urdf
 from smartcar_gym.model.kinematics import link_frames, transform
+from smartcar_gym.model.loader import RobotModel
 from smartcar_gym.model.urdf import UrdfRobot, parse_urdf
 from smartcar_gym.sim.rays import RayHits
 
@@ -237,8 +239,8 @@ def cast(origins: Any, directions: Any, max_range: Any, shapes: Shapes2D) -> Ray
     ``(1, B, 2)`` or ``(N, B, 2)``. ``max_range``: the rays' length (m), a number or an array
     broadcastable to ``(N, B)``. ``shapes``: N cars' (or one world's, N = 1) shapes. Exact: ray
     vs oriented rectangle (slabs) and vs circle, nearest hit along each ray; a shape touched
-    at a single point or along an edge counts as hit; a ray starting strictly inside a shape
-    does not hit it (Bullet's rule). Ties go to the lower shape index.
+    at a single point or along a side counts as hit (up to rounding); a ray starting strictly
+    inside a shape does not hit it (Bullet's rule). Ties go to the lower shape index.
 
     Vectorised over cars x beams x shapes: a broad phase keeps the (car, shape, beam) triples
     whose beam points into the shape's bounding cone (one matrix product per block of cars
@@ -504,10 +506,11 @@ class Footprint:
                         np.broadcast_to(local.valid, (n, local.num_shapes)))
 
 
-def footprint(robot: Any, wheel_contact: str = "sphere") -> Footprint:
+def footprint(robot: RobotModel | UrdfRobot | str, wheel_contact: str = "sphere") -> Footprint:
     """The footprint of ``robot``: a ``RobotModel`` (as simulated: drive wheels as spheres for
     ``wheel_contact="sphere"``, see ``model.contact.simulated_urdf``), a parsed ``UrdfRobot``,
-    or URDF text.
+    or URDF text (mesh file names as the model resolved them); ``wheel_contact`` applies to a
+    ``RobotModel`` only.
 
     Every collision shape, with the joints at zero, projected onto the ground plane: a box
     with a vertical axis -> its horizontal rectangle; a sphere -> a circle; a cylinder with a
@@ -516,11 +519,7 @@ def footprint(robot: Any, wheel_contact: str = "sphere") -> Footprint:
     cylinder tilted otherwise -> the smallest rectangle about its projection along one of its
     projected axes (``exact`` False). A wheel spinning about its axis keeps its projection.
     """
-    from smartcar_gym.model.loader import RobotModel
-
     if isinstance(robot, RobotModel):
-        from smartcar_gym.model.contact import simulated_urdf
-
         robot = parse_urdf(simulated_urdf(robot, wheel_contact), str(robot.source))
     elif isinstance(robot, str):
         robot = parse_urdf(robot)

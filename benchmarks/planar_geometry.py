@@ -7,14 +7,15 @@ The shipped laser (``LaserConfig()``: 360 beams, 3.5 m) on N cars at random pose
 it: ``cast`` in the world frame (each car's beams turned by its yaw), ``cast`` in each car's
 laser frame (``Shapes2D.relative_to``: beams shared by every car, the faster form), and
 ``clearance`` of the shipped car's footprint (sphere wheels) within 0.3 m. One car is timed too
-(a single env's scan). Prints the median and the best of ``--repeats`` calls (wall clock; this
-shared machine's speed drifts, the best is the steadier figure).
+(a single env's scan). Prints the median and the best of ``--repeats`` calls (wall clock; on a
+shared machine the best is the steadier figure) and the load average.
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import os
 import statistics
 import time
 import warnings
@@ -27,15 +28,17 @@ from smartcar_gym.model import load_model
 from smartcar_gym.sim.planar.geometry import Shapes2D, cast, clearance, footprint
 
 
-def timed(call, repeats: int) -> tuple[float, float]:
-    """Median and best seconds of ``repeats`` calls (after one warm-up call)."""
+def timed(call, repeats: int) -> tuple[float, float, float]:
+    """Median and best wall-clock seconds of ``repeats`` calls (after one warm-up call), and
+    the best CPU seconds of this process."""
     call()
-    times = []
+    times, cpu = [], []
     for _ in range(repeats):
-        start = time.perf_counter()
+        start, start_cpu = time.perf_counter(), time.process_time()
         call()
         times.append(time.perf_counter() - start)
-    return statistics.median(times), min(times)
+        cpu.append(time.process_time() - start_cpu)
+    return statistics.median(times), min(times), min(cpu)
 
 
 def main() -> None:
@@ -69,9 +72,11 @@ def main() -> None:
     print(f"{n} cars x {len(beams)} beams x {args.obstacles} obstacles "
           f"({100 * hits:.0f} % of the beams hit), {args.repeats} calls each:")
     for name, call in cases.items():
-        median, best = timed(call, args.repeats)
+        median, best, cpu = timed(call, args.repeats)
         per = "" if name == "scan, one car" else f"  ({1e9 * best / n:.0f} ns per car)"
-        print(f"  {name:20s} median {1e3 * median:7.2f} ms  best {1e3 * best:7.2f} ms{per}")
+        print(f"  {name:20s} median {1e3 * median:7.2f} ms  best {1e3 * best:7.2f} ms  "
+              f"(CPU {1e3 * cpu:7.2f} ms){per}")
+    print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs")
 
 
 if __name__ == "__main__":

@@ -98,7 +98,8 @@ def test_the_batch_is_n_single_envs_bit_for_bit(env_id: str, mode: str) -> None:
     assert "Planar" in type(venv).__name__
     envs = [gym.make(env_id, engine="planar", max_episode_steps=25) for _ in range(n)]
     obs, _ = venv.reset(seed=seed)
-    single = [e.reset(seed=seed + i)[0] for i, e in enumerate(envs)]
+    first = [e.reset(seed=seed + i)[0] for i, e in enumerate(envs)]
+    assert all(equal(car(obs, i), first[i]) for i in range(n))
     rng = np.random.default_rng(0)
     ended = [False] * n
     episodes = 0

@@ -22,11 +22,17 @@ from smartcar_gym.envs.vector.mujoco import SmartCarMujocoVectorEnv
 from smartcar_gym.envs.vector.mujoco import supports as mujoco_supports
 from smartcar_gym.envs.vector.nav_mujoco import SmartCarNavMujocoVectorEnv
 from smartcar_gym.envs.vector.nav_mujoco import supports as nav_mujoco_supports
-from smartcar_gym.envs.vector.planar import SmartCarGoalPlanarVectorEnv, SmartCarPlanarVectorEnv
+from smartcar_gym.envs.vector.planar import (
+    SmartCarGoalPlanarVectorEnv,
+    SmartCarNavPlanarVectorEnv,
+    SmartCarPlanarVectorEnv,
+)
+from smartcar_gym.envs.vector.planar import nav_supports as nav_planar_supports
 from smartcar_gym.envs.vector.planar import supports as planar_supports
 
 __all__ = ["SmartCarGoalMujocoVectorEnv", "SmartCarGoalPlanarVectorEnv", "SmartCarLoopVectorEnv",
-           "SmartCarMujocoVectorEnv", "SmartCarNavMujocoVectorEnv", "SmartCarPlanarVectorEnv",
+           "SmartCarMujocoVectorEnv", "SmartCarNavMujocoVectorEnv", "SmartCarNavPlanarVectorEnv",
+           "SmartCarPlanarVectorEnv",
            "SmartCarSimVectorEnv",
            "make_vector_env", "smartcar_arrive_v0", "smartcar_goal_v0", "smartcar_nav_v0",
            "smartcar_sim_v0", "smartcar_v0"]
@@ -50,6 +56,8 @@ def make_vector_env(env_id: str, num_envs: int = 1, **kwargs: Any) -> gym.vector
         return SmartCarPlanarVectorEnv(num_envs=num_envs, **kwargs)
     if env_id == "SmartCarGoal-v0" and planar_supports(kwargs) is None:
         return SmartCarGoalPlanarVectorEnv(num_envs=num_envs, **kwargs)
+    if env_id == "SmartCarNav-v0" and nav_planar_supports(kwargs) is None:
+        return SmartCarNavPlanarVectorEnv(num_envs=num_envs, **kwargs)
     if env_id == "SmartCar-v0" and mujoco_supports(kwargs) is None:
         return SmartCarMujocoVectorEnv(num_envs=num_envs, **kwargs)
     if env_id == "SmartCarNav-v0" and nav_mujoco_supports(kwargs) is None:

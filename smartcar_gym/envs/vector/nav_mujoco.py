@@ -84,12 +84,16 @@ class SmartCarNavMujocoVectorEnv(SmartCarMujocoVectorEnv):
         self.latest_ranges = np.zeros((n, s.laser_config.beams), dtype=np.float32)
         self._laser_rngs: list[np.random.Generator | None] = [None] * n
         self._next_scan = np.zeros(n, dtype=np.int64)
-        self._car_geoms = list(s.robot.body._ids.collision_geoms)
-        self._pairs = [np.zeros((0, 2), dtype=np.int64)] * n
+        self._init_contacts(s)
         self.clearance = np.zeros(n)
         self.collision = np.zeros(n, dtype=bool)
         self.obstacles: list[tuple[Obstacle, ...]] = [()] * n
         self._layout: Any = None
+
+    def _init_contacts(self, s: SmartCarNavEnv) -> None:
+        """What the clearance needs: the car's collision geoms, each car's geom pairs."""
+        self._car_geoms = list(s.robot.body._ids.collision_geoms)
+        self._pairs = [np.zeros((0, 2), dtype=np.int64)] * self.num_envs
 
     def close_extras(self, **kwargs: Any) -> None:
         """Stop the worker threads, free the cars' worlds and the builder's."""

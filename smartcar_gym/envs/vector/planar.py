@@ -1,4 +1,4 @@
-"""SmartCar-v0 and SmartCarGoal-v0 on the planar engine for N cars, all in arrays.
+"""SmartCar-v0, SmartCarGoal-v0 and SmartCarNav-v0 on the planar engine for N cars, in arrays.
 
 The MuJoCo batches' clocks, events, controller and task arithmetic (``vector/mujoco.py``) with
 the planar engine's cars (``sim.planar.batch.PlanarBatch``) in place of MuJoCo's worlds: the
@@ -16,9 +16,11 @@ import numpy as np
 
 from smartcar_gym.controller import HARDWARE
 from smartcar_gym.controller.batched import BatchedArbotix
+from smartcar_gym.envs.nav_env import OBSTACLE_HEIGHT_M, SmartCarNavEnv
 from smartcar_gym.envs.smartcar_env import SmartCarEnv
 from smartcar_gym.envs.vector.goal_mujoco import SmartCarGoalMujocoVectorEnv
 from smartcar_gym.envs.vector.mujoco import SmartCarMujocoVectorEnv
+from smartcar_gym.envs.vector.nav_mujoco import SmartCarNavMujocoVectorEnv
 
 #: measured (4096 cars, SmartCar-v0): about 6 KiB of arrays per car; the margin covers the
 #: per-car generators
@@ -38,6 +40,15 @@ def supports(kwargs: dict[str, Any]) -> str | None:
     if kwargs.get("controller_mode") not in (None, HARDWARE):
         return "controller_mode='sim' steps no physics (SmartCarSim-v0 is batched in numpy)"
     return None
+
+
+def nav_supports(kwargs: dict[str, Any]) -> str | None:
+    """Why the planar Nav batch cannot run these SmartCarNav-v0 kwargs (None: it can)."""
+    why = supports(kwargs)
+    if why is None and kwargs.get("render_mode") is not None:
+        return ("render_mode: the batch's top-down tiles draw no obstacles or scans (the "
+                "single env's picture does)")
+    return why
 
 
 class SmartCarPlanarVectorEnv(SmartCarMujocoVectorEnv):
@@ -158,3 +169,112 @@ class SmartCarGoalPlanarVectorEnv(SmartCarGoalMujocoVectorEnv, SmartCarPlanarVec
     engine="planar")``; otherwise as ``SmartCarPlanarVectorEnv``."""
 
     env_id = "SmartCarGoal-v0"
+
+
+class SmartCarNavPlanarVectorEnv(SmartCarNavMujocoVectorEnv, SmartCarPlanarVectorEnv):
+    """## Description
+
+    ``SmartCarNav-v0`` with ``engine="planar"`` for ``num_envs`` cars at once, per car bit for
+    bit ``gym.make("SmartCarNav-v0", engine="planar")`` (tested): observations (with the scan
+    sectors), rewards (with the collision and proximity terms), ends and ``info``.
+
+    A car's reset builds its episode as its single env does (the builder, a kept
+    ``SmartCarNavEnv``, reset with the car's generator: goal, obstacles, the laser's noise seed,
+    the first scan at t = 0); from there on the physics is ``PlanarBatch``, the laser one
+    ``geometry.cast`` of every scanning car's beams against its own obstacles' outlines (the
+    single env's ``geometry.ray_hits``, vectorised over cars), the clearance one
+    ``geometry.clearance`` of every car's footprint against its obstacles. What the planar
+    batch of SmartCar-v0 cannot run, and any ``render_mode``, falls back to
+    ``SmartCarLoopVectorEnv``.
+    """
+
+    env_id = "SmartCarNav-v0"
+    why_not = staticmethod(nav_supports)
+    bytes_per_car = 64 * 1024  # its obstacles and latest scan besides SmartCar-v0's arrays
+
+    def _init_contacts(self, s: SmartCarNavEnv) -> None:
+        from smartcar_gym.sim.planar.world import footprint_of
+
+        self._footprint = footprint_of(s.robot.body)
+        self._height = OBSTACLE_HEIGHT_M
+        self._shapes: list[Any] = [None] * self.num_envs
+
+    def _new_worlds(self, idx: np.ndarray, goals: np.ndarray | None) -> None:
+        """Each listed car's episode as its single env starts it (goal, obstacles, first
+        scan), built by the builder with the car's generator."""
+        from smartcar_gym.sim.planar.world import obstacle_shapes
+
+        b = self.builder
+        layout, self._layout = self._layout, None
+        for i in idx.tolist():
+            options: dict[str, Any] = {}
+            if goals is not None:
+                options["goal"] = goals[i]
+            if layout is not None:
+                options["obstacles"] = layout
+            b.np_random = self._rng(i)
+            _, info = b.reset(options=options or None)
+            self.goal[i] = b.goal
+            self.latest_ranges[i] = b.laser.latest.ranges
+            self._laser_rngs[i] = b.laser.rng
+            self._next_scan[i] = self.laser.period_ns
+            self.clearance[i], self.collision[i] = info["clearance"], False
+            self.obstacles[i] = b.obstacles
+            self._shapes[i] = obstacle_shapes(b.sim.statics())
+        self.cars.reset(idx)
+
+    def _world_shapes(self, idx: np.ndarray) -> Any:
+        """The listed cars' obstacles as one ``Shapes2D`` (padded to the most obstacles)."""
+        from smartcar_gym.sim.planar.geometry import Shapes2D
+
+        parts = [self._shapes[i] for i in idx.tolist()]
+        m = max(p.num_shapes for p in parts)
+        k = len(parts)
+        kind = np.zeros((k, m), dtype=np.int8)
+        centre, rotation = np.zeros((k, m, 2)), np.tile([1.0, 0.0], (k, m, 1))
+        half, valid = np.ones((k, m, 2)), np.zeros((k, m), dtype=bool)
+        for row, p in enumerate(parts):
+            j = p.num_shapes
+            kind[row, :j], centre[row, :j] = p.kind[0], p.centre[0]
+            rotation[row, :j], half[row, :j], valid[row, :j] = p.rotation[0], p.half[0], True
+        return Shapes2D(kind, centre, rotation, half, valid)
+
+    def _scan(self, idx: np.ndarray) -> None:
+        """``SimulatedLaser.scan`` for the listed cars: ``geometry.ray_hits``' arithmetic over
+        cars, every car against its own obstacles."""
+        from smartcar_gym.model.kinematics import quaternion_matrix
+        from smartcar_gym.sim.planar.batch import yaw_quaternion_arrays
+        from smartcar_gym.sim.planar.geometry import cast
+
+        laser, range_max = self.laser, self.laser.config.range_max
+        cars = self.cars
+        px, py, _ = cars.pose()
+        qz, qw = yaw_quaternion_arrays(cars.state[2][idx], cars.state[3][idx])
+        position = np.stack([px[idx], py[idx], np.full(len(idx), cars.height)], axis=1)
+        zero = np.zeros(len(idx))
+        rotation = quaternion_matrix(np.stack([zero, zero, qz, qw], axis=1))
+        origin, directions = laser.beams(position, rotation)
+        starts = np.broadcast_to(origin[:, None, :], directions.shape)
+        ends = origin[:, None, :] + directions * range_max
+        vec = ends - starts
+        length = np.hypot(vec[..., 0], vec[..., 1])
+        moving = length > 0
+        units = np.where(moving[..., None],
+                         vec[..., :2] / np.where(moving, length, 1.0)[..., None], [1.0, 0.0])
+        found = cast(origin[:, :2], units, length, self._world_shapes(idx))
+        within = moving & (starts[..., 2] >= 0.0) & (starts[..., 2] <= self._height)
+        hit = within & (found.shape >= 0)
+        fraction = np.where(hit, found.distance / np.where(moving, length, 1.0), 1.0)
+        if laser.config.noise_std_m > 0:
+            for k, i in enumerate(idx.tolist()):
+                self.latest_ranges[i] = laser.ranges(fraction[k], hit[k], self._laser_rngs[i])
+        else:
+            self.latest_ranges[idx] = laser.ranges(fraction, hit, None)
+
+    def _clearances(self, max_distance_m: float) -> np.ndarray:
+        """Every car's ``nearest_distance`` to its obstacles: ``geometry.clearance``."""
+        from smartcar_gym.sim.planar.geometry import clearance
+
+        everyone = np.arange(self.num_envs)
+        return clearance(self._footprint, self._pose, self._world_shapes(everyone),
+                         max_distance_m, height=self._height)

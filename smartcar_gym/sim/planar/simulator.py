@@ -72,6 +72,7 @@ class PlanarStatic:
         self.collides = collides
         self.parts = tuple(parts)
         self.friction = 1.0
+        self.hidden_from_rays = False
 
     @property
     def yaw(self) -> float:
@@ -96,7 +97,8 @@ class PlanarStatic:
         self.sim._changed()
 
     def hide_from_rays(self) -> None:
-        self.collides = False
+        """Let ray casts pass through it; its collisions are unchanged."""
+        self.hidden_from_rays = True
 
 
 class PlanarBody:

@@ -30,6 +30,7 @@ from smartcar_gym.agents.hyperparams import (
     policy_class,
     run_int,
 )
+from smartcar_gym.sim.engines import check_engine
 
 DEFAULT_ENV_ID = "SmartCar-v0"
 # Settings that come from the run's config.yaml when resuming and cannot be changed then.
@@ -90,6 +91,12 @@ def new_config(args: argparse.Namespace, command: str) -> dict[str, Any]:
     env_kwargs = {**zoo_keys.env_kwargs(hyperparams.get("env_kwargs")),
                   **dict(args.env_kwargs or [])}  # the command line wins, key by key
     seed = 0 if args.seed is None else args.seed
+    eval_engine = getattr(args, "eval_engine", None) or hyperparams.get("eval_engine")
+    if eval_engine is not None:
+        try:
+            check_engine(eval_engine, "eval_engine")
+        except ValueError as err:
+            raise HyperparamsError(str(err)) from None
     return {
         "algo": algo,
         "env": env_id,
@@ -102,6 +109,9 @@ def new_config(args: argparse.Namespace, command: str) -> dict[str, Any]:
         "hyperparams_file": str(args.hyperparams_file or f"smartcar_gym/config/{algo}.yaml"),
         "eval_freq": 20_000 if args.eval_freq is None else args.eval_freq,
         "eval_episodes": args.eval_episodes or 40,
+        # the engine the evaluations run on (None: the training env's); the best model is
+        # the one that does best there
+        "eval_engine": eval_engine,
         "eval_start": int(timesteps) // 2 if args.eval_start is None else args.eval_start,
         "checkpoint_freq": 50_000 if args.checkpoint_freq is None else args.checkpoint_freq,
         "save_replay_buffer": bool(args.save_replay_buffer),

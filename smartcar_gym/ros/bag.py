@@ -5,7 +5,10 @@
 what the bringup node would publish: ``/odom``, ``/tf``, ``/joint_states``,
 ``/base_pose_ground_truth``, and the ``/cmd_vel`` sent, plus each episode's goal on
 ``/move_base_simple/goal``. Stamps are simulated time: episode ``i`` starts
-``EPISODE_GAP_S`` after the end of episode ``i - 1``, the first at ``START_S``.
+``EPISODE_GAP_S`` after the end of episode ``i - 1``, the first at ``START_S``. Each ``/cmd_vel``
+is stamped ``COMMAND_LAG_NS`` after the controller update whose odometry the policy read: the
+controller acts on it at the next update (stamped at the update itself, a reader could not tell
+whether it arrived before that update fired, and would shift every command by a period).
 
 Messages are serialised by ``rosbags`` (its ROS 1 typestore, the ``ros`` extra), bags written
 by its ``rosbag1.Writer``, MCAP files (ROS 1 profile) by ``mcap``. Debian's ``rosbag info`` and
@@ -31,6 +34,7 @@ ROS_EXTRA = 'pip install "smartcar-gym[ros]"'
 SUFFIXES = (".bag", ".mcap")
 START_S = 1.0  # ROS time 0 means "unset" to many tools
 EPISODE_GAP_S = 1.0
+COMMAND_LAG_NS = 1_000_000  # a command is sent 1 ms after the update it answers
 TF_MESSAGE = "geometry_msgs/TransformStamped[] transforms"
 TOPICS = {  # topic (resolved, as rosbag record writes it) -> message type
     "/odom": "nav_msgs/Odometry",
@@ -193,8 +197,8 @@ def write_bag(
                 while not done:
                     action = policy.act(obs, deterministic)
                     linear, angular = np.clip(action.astype(np.float64), -1.0, 1.0) * scale
-                    now_ns = offset_ns + base.sim.now_ns
-                    writer.write("/cmd_vel", m.twist_message(types, linear, angular), now_ns)
+                    sent_ns = offset_ns + base.sim.now_ns + COMMAND_LAG_NS
+                    writer.write("/cmd_vel", m.twist_message(types, linear, angular), sent_ns)
                     obs, _, terminated, truncated, _ = env.step(action)
                     _state(writer, types, base, offset_ns + base.sim.now_ns)
                     done = terminated or truncated

@@ -14,7 +14,9 @@ topic                    type                         what
 /odom                    nav_msgs/msg/Odometry        the controller's odometry
 /base_pose_ground_truth  nav_msgs/msg/Odometry        the simulator's true pose, in ``world``
 /joint_states            sensor_msgs/msg/JointState   wheel positions, velocities, efforts
-/cmd_vel                 geometry_msgs/msg/Twist      the command sent at each step
+/cmd_vel                 geometry_msgs/msg/Twist      the command sent at each step, stamped
+                                                      ``COMMAND_LAG_NS`` after the update it
+                                                      answers (it acts at the next one)
 /scan                    sensor_msgs/msg/LaserScan    SmartCarNav-v0's laser
 /goal_pose               geometry_msgs/msg/PoseStamped each episode's goal (Nav2's topic)
 ======================== ============================ ============================================
@@ -41,7 +43,7 @@ from smartcar_gym.model.kinematics import matrix_quaternion, quaternion_matrix, 
 from smartcar_gym.model.urdf import UrdfRobot, parse_urdf
 from smartcar_gym.ros import cdr
 from smartcar_gym.ros import messages as m
-from smartcar_gym.ros.bag import EPISODE_GAP_S, ROS_EXTRA, START_S
+from smartcar_gym.ros.bag import COMMAND_LAG_NS, EPISODE_GAP_S, ROS_EXTRA, START_S
 from smartcar_gym.viewers.capture import Episode, Frame, Scene
 
 STORAGES = ("mcap", "sqlite3")
@@ -193,8 +195,8 @@ class Ros2BagSink:
         encode = self._encode
         for i, frame in enumerate(episode.frames):
             now = start + frame.time_ns
-            if i > 0:  # the command the step sent, when it was sent
-                sent = start + episode.frames[i - 1].time_ns
+            if i > 0:  # the command the step sent, just after the update before it
+                sent = start + episode.frames[i - 1].time_ns + COMMAND_LAG_NS
                 self._write_cdr("/cmd_vel", encode.twist(*frame.command), sent)
             odom = frame.odometry
             quaternion = odom.quaternion

@@ -70,6 +70,10 @@ def run(args: argparse.Namespace, parser: argparse.ArgumentParser, model: RobotM
         config: ArbotixConfig) -> int:
     """The ``--fit planar`` path of ``smartcar-calibrate``; returns the exit code."""
     keep = [k.strip() for k in args.keep.split(",") if k.strip()]
+    unknown = [k for k in keep if k not in KEYS]
+    if unknown:
+        parser.error(f"planar fit failed: --keep {unknown[0]}: not a planar parameter; the "
+                     f"parameters are {', '.join(KEYS)}")
     started = time.perf_counter()
     try:
         start = PlanarParams() if args.start is None else resolve(args.start)

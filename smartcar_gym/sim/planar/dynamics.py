@@ -55,6 +55,7 @@ or float64 scalars (one car's row in the compiled loop, ``jit.py``):
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -156,19 +157,23 @@ def make_substep(sqrt: Callable[[Value], Value]) -> Callable[..., None]:
             b = drive[ng + g]
             rg = dt * (fg[g] + drive[g] - b * o - coulomb * o / root)
             dgg = car[4 + g] + dt * (dg[g] + b + coulomb * eps_w2 / (q2 * root))
+            inv = 1.0 / dgg
             x1 = dt * c1[g]
             x2 = dt * c2[g]
             x3 = dt * c3[g]
-            s11 = s11 - x1 * x1 / dgg
-            s12 = s12 - x1 * x2 / dgg
-            s13 = s13 - x1 * x3 / dgg
-            s22 = s22 - x2 * x2 / dgg
-            s23 = s23 - x2 * x3 / dgg
-            s33 = s33 - x3 * x3 / dgg
-            r1 = r1 - x1 * rg / dgg
-            r2 = r2 - x2 * rg / dgg
-            r3 = r3 - x3 * rg / dgg
-            diag[g] = dgg
+            y1 = x1 * inv
+            y2 = x2 * inv
+            y3 = x3 * inv
+            s11 = s11 - x1 * y1
+            s12 = s12 - x1 * y2
+            s13 = s13 - x1 * y3
+            s22 = s22 - x2 * y2
+            s23 = s23 - x2 * y3
+            s33 = s33 - x3 * y3
+            r1 = r1 - y1 * rg
+            r2 = r2 - y2 * rg
+            r3 = r3 - y3 * rg
+            diag[g] = inv
             rhs[g] = rg
         k11 = s22 * s33 - s23 * s23
         k12 = s13 * s23 - s12 * s33
@@ -176,13 +181,13 @@ def make_substep(sqrt: Callable[[Value], Value]) -> Callable[..., None]:
         k22 = s11 * s33 - s13 * s13
         k23 = s12 * s13 - s11 * s23
         k33 = s11 * s22 - s12 * s12
-        det = s11 * k11 + s12 * k12 + s13 * k13
-        du = (k11 * r1 + k12 * r2 + k13 * r3) / det
-        dv = (k12 * r1 + k22 * r2 + k23 * r3) / det
-        dw = (k13 * r1 + k23 * r2 + k33 * r3) / det
+        inv_det = 1.0 / (s11 * k11 + s12 * k12 + s13 * k13)
+        du = (k11 * r1 + k12 * r2 + k13 * r3) * inv_det
+        dv = (k12 * r1 + k22 * r2 + k23 * r3) * inv_det
+        dw = (k13 * r1 + k23 * r2 + k33 * r3) * inv_det
         for g in range(ng):
             o = state[7 + ng + g] + (rhs[g] - dt * (c1[g] * du + c2[g] * dv + c3[g] * dw)) \
-                / diag[g]
+                * diag[g]
             state[7 + ng + g] = o
             state[7 + g] = state[7 + g] + dt * o
         vxw = vxw + (c * du - s * dv)
@@ -213,6 +218,53 @@ def new_scratch(groups: int) -> list[list[Any]]:
     """The working rows ``substep`` takes for floats and for arrays (numba's loop takes a
     ``(7, G)`` array instead)."""
     return [[0.0] * groups for _ in range(7)]
+
+
+# -- numba's compiled loops (jit.py). They live here, with the function they compile: numba
+# keeps compiled code on disk until the file of the cached function changes, so a change to
+# the substep function must change this file's stamp too.
+try:  # pragma: no branch - one of the two, per installation
+    import numba
+except ImportError:  # the fast extra is not installed: Python floats and numpy arrays
+    numba = None
+
+#: whether the compiled loops below are used (numba installed and not switched off)
+COMPILED = numba is not None and os.environ.get("SMARTCAR_GYM_NUMBA", "1") != "0"
+
+if COMPILED:
+    _compiled_substep = numba.njit(cache=True)(make_substep(math.sqrt))
+
+    @numba.njit(cache=True)
+    def run_car(state: np.ndarray, car: np.ndarray, contacts: np.ndarray, groups: np.ndarray,
+                drive: np.ndarray, dt: float, n: int) -> None:
+        """``n`` substeps of ``dt`` s of one car (1D ``state``, ``car``, ``drive``; ``(K, 7)``
+        ``contacts``), in place."""
+        scratch = np.zeros((7, (car.shape[0] - 4) // 2))
+        for _ in range(n):
+            _compiled_substep(state, car, contacts, groups, drive, dt, scratch)
+
+    @numba.njit(cache=True)
+    def run_cars(state: np.ndarray, car: np.ndarray, contacts: np.ndarray, groups: np.ndarray,
+                 drive: np.ndarray, dt: np.ndarray, n: np.ndarray) -> None:
+        """Car i: ``n[i]`` substeps of ``dt[i]`` s; arrays in the batch's layout (``(S, N)``
+        state, ``(P, N)`` car, ``(K, 7, N)`` contacts, ``(2G, N)`` drive), in place."""
+        scratch = np.zeros((7, (car.shape[0] - 4) // 2))
+        # each car's columns gathered into contiguous buffers (the batch is laid out by
+        # quantity for numpy; a car's values are N apart), stepped, and its state put back
+        column, params = np.empty(state.shape[0]), np.empty(car.shape[0])
+        touches, motors = np.empty(contacts.shape[:2]), np.empty(drive.shape[0])
+        for i in range(state.shape[1]):
+            if n[i] == 0:
+                continue
+            column[:] = state[:, i]
+            params[:] = car[:, i]
+            touches[:, :] = contacts[:, :, i]
+            motors[:] = drive[:, i]
+            for _ in range(n[i]):
+                _compiled_substep(column, params, touches, groups, motors, dt[i], scratch)
+            state[:, i] = column
+else:
+    run_car = run_cars = None
 
 
 def static_loads(points: np.ndarray, com: np.ndarray, weight: float) -> np.ndarray:

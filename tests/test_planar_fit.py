@@ -1,0 +1,118 @@
+"""Identifying the planar engine (``calibration/planar_fit.py``, ``smartcar-calibrate --fit
+planar``): known parameters recovered, batched replays equal to single ones, one-line errors."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from smartcar_gym.calibration import planar_fit
+from smartcar_gym.calibration.cli import main
+from smartcar_gym.calibration.planar_fit import FitError, check_excitation, fit
+from smartcar_gym.calibration.planar_replay import FleetReplay
+from smartcar_gym.calibration.recording import Recording, record, replay
+from smartcar_gym.sim.planar.params import PlanarParams, load
+
+TRUE = PlanarParams(friction_scale=0.8, lateral_friction_ratio=1.1, slip_speed=0.01,
+                    rolling_resistance=0.02, gearbox_friction_scale=1.2)
+
+
+@pytest.fixture(scope="module")
+def planar_drives(shipped_model, shipped_config) -> list[Recording]:
+    """The fit's own drives on a planar car with known parameters (``TRUE``)."""
+    return record(shipped_model, shipped_config, "planar", planar_params=TRUE)
+
+
+def test_a_batched_replay_is_the_single_replay_bit_for_bit(shipped_model, shipped_config,
+                                                             planar_drives) -> None:
+    fleet = FleetReplay(shipped_model, shipped_config, planar_drives[:3])
+    try:
+        out = fleet.run([TRUE, PlanarParams()])
+    finally:
+        fleet.close()
+    for c, params in enumerate((TRUE, PlanarParams())):
+        for r, (truth, odom) in zip(planar_drives[:3], out[c], strict=True):
+            single = replay(shipped_model, shipped_config, "planar", r.commands, r.truth[0],
+                            planar_params=params)
+            assert np.array_equal(single[1], odom)
+            assert np.array_equal(single[0][:, :2], truth[:, :2])
+            assert np.allclose(single[0][:, 2], truth[:, 2], rtol=0, atol=1e-12)
+    # the true parameters retrace the recordings exactly
+    assert np.array_equal(out[0][0][0][:, :2], planar_drives[0].truth[:, :2])
+
+
+def test_the_fit_recovers_known_parameters(shipped_model, shipped_config, planar_drives):
+    result = fit(shipped_model, shipped_config, planar_drives, generations=12)
+    p = result.params
+    assert p.friction_scale == pytest.approx(TRUE.friction_scale, rel=0.08)
+    assert p.lateral_friction_ratio == pytest.approx(TRUE.lateral_friction_ratio, rel=0.04)
+    assert p.gearbox_friction_scale == pytest.approx(TRUE.gearbox_friction_scale, rel=0.25)
+    assert result.rms < 0.15
+    assert result.rms < 0.5 * np.sqrt(np.mean(np.square(list(result.before.values()))))
+    assert result.free == planar_fit.FREE
+
+
+def test_kept_parameters_stay_and_unknown_ones_are_named(shipped_model, shipped_config,
+                                                          planar_drives):
+    keep = [k for k in planar_fit.FREE if k != "friction_scale"]
+    start = dataclasses.replace(TRUE, friction_scale=1.0)
+    result = fit(shipped_model, shipped_config, planar_drives, start=start, keep=keep,
+                 generations=4)
+    for key in keep:
+        assert getattr(result.params, key) == getattr(TRUE, key)
+    assert result.params.friction_scale == pytest.approx(0.8, rel=0.05)
+    with pytest.raises(FitError, match="--keep slip: not a planar parameter"):
+        fit(shipped_model, shipped_config, planar_drives, keep=["slip"])
+
+
+def test_too_little_excitation_names_the_missing_maneuver(planar_drives) -> None:
+    straight = [r for r in planar_drives if r.name.startswith("straight")]
+    with pytest.raises(FitError, match="too little excitation.* of spin in place") as caught:
+        check_excitation(straight, planar_fit.FREE)
+    assert "--keep friction_scale,lateral_friction_ratio" in str(caught.value)
+    seconds = check_excitation(planar_drives, planar_fit.FREE)
+    assert seconds["spin in place"] >= 9.0 and seconds["stop from speed"] > 0
+
+
+def test_a_fit_that_cannot_converge_gives_its_residual(shipped_model, shipped_config,
+                                                       planar_drives):
+    """Recordings whose ground truth turns the other way than the odometry: no parameters
+    explain them."""
+    mirrored = [dataclasses.replace(r, truth=r.truth * np.array([1.0, -1.0, -1.0]))
+                for r in planar_drives]
+    with pytest.raises(FitError, match=r"did not converge: RMS scaled residual \d+\.\d\d"):
+        fit(shipped_model, shipped_config, mirrored, generations=2)
+
+
+def test_the_command_line_writes_a_parameter_file(tmp_path, capsys, planar_drives) -> None:
+    start = tmp_path / "true.yaml"
+    from smartcar_gym.sim.planar.params import dump
+
+    start.write_text(dump(TRUE))
+    out = tmp_path / "fit.yaml"
+    code = main(["--fit", "planar", "--engine", "planar", "--start", str(start),
+                 "--keep", ",".join(k for k in planar_fit.FREE if k != "slip_speed"),
+                 "--generations", "3", "-o", str(out)])
+    assert code == 0
+    text = capsys.readouterr().out
+    assert "residual (RMS, scaled)" in text and "spin 1 rad/s" in text and "wrote" in text
+    fitted = load(out)
+    assert fitted.friction_scale == TRUE.friction_scale
+    assert fitted.slip_speed == pytest.approx(TRUE.slip_speed, rel=0.3)
+    assert "fit:" in out.read_text()
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--fit", "planar", "--engine", "planar"], "needs --start"),
+    (["--fit", "planar", "--keep", "nonsense"], "--keep nonsense: not a planar parameter"),
+    (["--fit", "planar", "--bag", "missing.bag"], "missing.bag"),
+    (["--fit", "planar", "--start", "nothere.yaml"], "nothere.yaml: cannot read"),
+])
+def test_the_command_line_refuses_bad_input_in_one_line(argv, message, capsys) -> None:
+    with pytest.raises(SystemExit) as stop:
+        main(argv)
+    assert stop.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert message in err

@@ -211,3 +211,57 @@ def test_the_default_engine_stays_pybullet() -> None:
     env = gym.make("SmartCar-v0")
     assert env.unwrapped.sim.engine == "pybullet" and env.unwrapped.planar_params is None
     env.close()
+
+
+def test_the_nav_batch_is_n_single_envs_bit_for_bit() -> None:
+    """Lasers (noisy, at 13 Hz: scans between the controller's updates), clearance, the
+    collision and proximity terms, autoresets with new obstacles."""
+    n, seed = 3, 8
+    kwargs = dict(engine="planar", laser={"noise_std_m": 0.01, "rate_hz": 13.0},
+                  proximity_penalty=1.0, max_episode_steps=40)
+    venv = gym.make_vec("SmartCarNav-v0", num_envs=n, vectorization_mode="vector_entry_point",
+                        **kwargs)
+    assert type(venv).__name__ == "SmartCarNavPlanarVectorEnv"
+    envs = [gym.make("SmartCarNav-v0", **kwargs) for _ in range(n)]
+    obs, info = venv.reset(seed=seed)
+    for i, env in enumerate(envs):
+        single, single_info = env.reset(seed=seed + i)
+        assert np.array_equal(obs[i], single)
+        assert info["clearance"][i] == single_info["clearance"]
+    rng = np.random.default_rng(1)
+    ended, episodes = [False] * n, 0
+    for _ in range(150):
+        actions = rng.uniform(-1, 1, (n, 2)).astype(np.float32)
+        obs, reward, terminated, truncated, info = venv.step(actions)
+        for i, env in enumerate(envs):
+            if ended[i]:
+                expect, r, te, tr = env.reset()[0], 0.0, False, False
+            else:
+                expect, r, te, tr, single_info = env.step(actions[i])
+                assert info["clearance"][i] == single_info["clearance"]
+                assert info["collision"][i] == single_info["collision"]
+            assert np.array_equal(obs[i], expect), f"car {i}"
+            assert (reward[i], terminated[i], truncated[i]) == (r, te, tr)
+            ended[i] = te or tr
+            episodes += ended[i]
+    assert episodes >= 3
+    venv.close()
+    for env in envs:
+        env.close()
+
+
+def test_the_laser_sees_what_pybullets_sees() -> None:
+    """The same layout and pose: the planar scan's ranges equal pybullet's to its ray-cast
+    tolerance (pybullet's hit points lie up to a millimetre off the surfaces)."""
+    layout = [{"shape": "box", "position": [0.8, 0.1], "size": [0.3, 0.2], "yaw": 0.4},
+              {"shape": "cylinder", "position": [-0.5, 0.7], "size": [0.25]}]
+    scans = []
+    for engine in ("pybullet", "planar"):
+        env = gym.make("SmartCarNav-v0", engine=engine, obstacle_layout=layout)
+        env.reset(seed=0)
+        scans.append(env.unwrapped.laser.latest.ranges)
+        env.close()
+    finite = np.isfinite(scans[0])
+    assert np.array_equal(finite, np.isfinite(scans[1]))
+    assert finite.sum() > 20
+    assert np.max(np.abs(scans[0][finite] - scans[1][finite])) < 2e-3

@@ -119,13 +119,16 @@ class SmartCarGoalEnv(GoalRewards, SmartCarEnv):
 
     ``gym.make_vec("SmartCarGoal-v0", num_envs=N, vectorization_mode="vector_entry_point")``:
     with ``engine="mujoco"``, N cars in C (``SmartCarGoalMujocoVectorEnv``, bit for bit N of
-    this env, ``Dict`` observations of ``(N, ...)`` arrays, ``compute_reward`` for HER); on
+    this env, ``Dict`` observations of ``(N, ...)`` arrays, ``compute_reward`` for HER); with
+    ``engine="planar"`` in arrays (``SmartCarGoalPlanarVectorEnv``, bit for bit too); on
     pybullet, or with ``randomize`` or ``controller_mode="sim"``, N single envs stepped in a
     loop (``SmartCarLoopVectorEnv``); both with the smartcar vector conventions
     (docs/vector.md).
 
     ## Version History
 
+    * v0 (0.4.0): ``engine="planar"`` and ``planar_params`` (SmartCar-v0's arguments;
+      docs/planar.md).
     * v0 (0.3.0): ``engine="mujoco"`` (SmartCar-v0's argument; docs/engines.md).
     * v0 (0.2.0): initial version.
     """

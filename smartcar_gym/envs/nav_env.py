@@ -140,12 +140,17 @@ class SmartCarNavEnv(SmartCarEnv):
     ``gym.make_vec("SmartCarNav-v0", num_envs=N, vectorization_mode="vector_entry_point")``:
     with ``engine="mujoco"``, N cars in C (``SmartCarNavMujocoVectorEnv``: each car's world
     built at its reset as here, then its physics, laser and clearance stepped in C; bit for
-    bit N of this env); on pybullet, or with ``randomize``, a ``render_mode`` or
+    bit N of this env); with ``engine="planar"``, N cars in arrays
+    (``SmartCarNavPlanarVectorEnv``: the same resets, then the laser and clearance against
+    each car's obstacle outlines; bit for bit too); on pybullet, or with ``randomize``, a
+    ``render_mode`` or
     ``controller_mode="sim"``, N single envs stepped in a loop (``SmartCarLoopVectorEnv``);
     both with the smartcar vector conventions (docs/vector.md).
 
     ## Version History
 
+    * v0 (0.4.0): ``engine="planar"`` and ``planar_params`` (SmartCar-v0's arguments;
+      docs/planar.md): the laser and the clearance from the obstacles' exact outlines.
     * v0 (0.3.0): ``engine="mujoco"`` (SmartCar-v0's argument; docs/engines.md).
     * v0 (0.2.0): initial version.
     """

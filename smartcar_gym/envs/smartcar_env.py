@@ -180,6 +180,7 @@ class SmartCarEnv(gym.Env):
     |                   |                | the tolerance; None: on entering it (docs/ros.md)    |
     | max_substep_s     | 0.01           | longest physics substep between events (s), in       |
     |                   |                | [1e-4, 0.02]; 0.002 gives fixed 500 Hz stepping      |
+    |                   |                | (planar: 0.02 by default, up to 0.05)                |
     | physics_hz        | None           | deprecated: ``max_substep_s = 1 / physics_hz``       |
     | wheel_contact     | "sphere"       | drive wheels touch the ground as spheres of their    |
     |                   |                | radius (one contact each, faster) or "urdf": the     |
@@ -189,9 +190,14 @@ class SmartCarEnv(gym.Env):
     |                   |                | "default" (the shipped preset), a dict               |
     |                   |                | ``{factor: [low, high]}`` or a YAML file of one;     |
     |                   |                | drawn per episode (docs/sim2real.md)                 |
-    | engine            | "pybullet"     | physics engine: "pybullet" or "mujoco" (the          |
-    |                   |                | ``mujoco`` extra; docs/engines.md). SmartCarSim-v0   |
-    |                   |                | steps no physics: its engine only holds the body     |
+    | engine            | "pybullet"     | physics engine: "pybullet", "mujoco" (the ``mujoco`` |
+    |                   |                | extra; docs/engines.md) or "planar" (a rigid car on  |
+    |                   |                | identified tyres, in arrays; docs/planar.md).        |
+    |                   |                | SmartCarSim-v0 steps no physics: its engine only     |
+    |                   |                | holds the body                                       |
+    | planar_params     | None           | engine="planar"'s parameters: None (the shipped fit  |
+    |                   |                | to pybullet), "mujoco" (the fit to MuJoCo), a file   |
+    |                   |                | of ``smartcar-calibrate --fit planar`` or a dict     |
 
     ## Vector envs
 
@@ -199,13 +205,19 @@ class SmartCarEnv(gym.Env):
     cars in one process (docs/vector.md): SmartCarSim-v0 in numpy arrays
     (``SmartCarSimVectorEnv``, bit for bit N single envs), SmartCar-v0, SmartCarNav-v0 and
     SmartCarGoal-v0 with ``engine="mujoco"`` in C (``SmartCarMujocoVectorEnv``,
-    ``SmartCarNavMujocoVectorEnv``, ``SmartCarGoalMujocoVectorEnv``, bit for bit too), on
+    ``SmartCarNavMujocoVectorEnv``, ``SmartCarGoalMujocoVectorEnv``, bit for bit too) and
+    with ``engine="planar"`` in arrays (``SmartCarPlanarVectorEnv``,
+    ``SmartCarNavPlanarVectorEnv``, ``SmartCarGoalPlanarVectorEnv``, bit for bit too), on
     pybullet or with options the batches lack (``randomize``, ``stop_speed``, the GUI) as N
     single envs in a loop (``SmartCarLoopVectorEnv``). Gymnasium 1.x autoreset (``"NextStep"``, or
     ``autoreset_mode="SameStep"``), car i seeded ``s + i``, ``info["is_success"]`` per car.
 
     ## Version History
 
+    * v0 (0.4.0): ``engine="planar"`` and ``planar_params``: the same car, controller and
+      tasks on a planar skid-steer engine identified from pybullet, MuJoCo or a bag
+      (docs/planar.md); its ``max_substep_s`` defaults to 0.02; ``render_mode="human"`` is
+      pybullet's and MuJoCo's only. pybullet stays the default, its rollouts unchanged.
     * v0 (0.3.0): ``engine="mujoco"``: the same car, controller and tasks on MuJoCo
       (docs/engines.md); pybullet stays the default, its rollouts unchanged bit for bit.
 

@@ -1,12 +1,12 @@
 """N planar cars in arrays: the batch behind the planar vector envs and the fit's replays.
 
 Each car is a column: its state ``(S, N)``, its parameters ``(P, N)`` and contacts
-``(K, 7, N)`` in ``dynamics``' layout (every car has the template's wheel groups and contacts;
+``(K, NC, N)`` in ``dynamics``' layout (every car has the template's wheel groups and contacts;
 the values may differ per car), its motors' drive ``(2G, N)``. ``step`` gives every listed car
 its own number of substeps of its own length, as its single env's clock would: numba's loop
 (``jit.run_cars``) when installed, else ``dynamics.substep_arrays`` over the cars still
-stepping (the others take a substep of 0 s, which changes nothing). A car of the batch is the
-same car as ``PlanarBody`` steps alone, bit for bit.
+stepping (their columns taken out and put back). A car of the batch is the same car as
+``PlanarBody`` steps alone, bit for bit.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from smartcar_gym.sim.planar import jit
-from smartcar_gym.sim.planar.dynamics import new_scratch, substep_arrays
+from smartcar_gym.sim.planar.dynamics import NC, new_scratch, substep_arrays
 from smartcar_gym.sim.planar.model import PlanarCar
 from smartcar_gym.sim.planar.simulator import PlanarBody
 
@@ -37,7 +37,7 @@ class PlanarBatch:
         self.state = np.repeat(self.initial[:, None], self.n, axis=1)
         self.car = np.repeat(np.array(model.car, dtype=np.float64)[:, None], self.n, axis=1)
         self.contacts = np.repeat(
-            np.array(model.contacts, dtype=np.float64).reshape(-1, 7)[:, :, None], self.n, axis=2)
+            np.array(model.contacts, dtype=np.float64).reshape(-1, NC)[:, :, None], self.n, axis=2)
         self.drive = np.zeros((2 * self.ng, self.n))
 
     # -- cars ----------------------------------------------------------------------------------
@@ -53,7 +53,7 @@ class PlanarBatch:
                 len(model.groups.members) != self.ng:
             raise ValueError("a car of the batch must have the template's contacts and groups")
         self.car[:, idx] = np.array(model.car)[:, None]
-        self.contacts[:, :, idx] = np.array(model.contacts).reshape(-1, 7)[:, :, None]
+        self.contacts[:, :, idx] = np.array(model.contacts).reshape(-1, NC)[:, :, None]
 
     def step(self, cars: np.ndarray, nstep: np.ndarray, dt: np.ndarray) -> None:
         """Car ``cars[k]``: ``nstep[k]`` substeps of ``dt[k]`` s."""
@@ -66,20 +66,21 @@ class PlanarBatch:
             jit.run_cars(self.state, self.car, self.contacts, self.contact_groups, self.drive,
                          dt_all, n_all)
             return
-        cars, nstep, dt = np.asarray(cars), np.asarray(nstep), np.asarray(dt, dtype=np.float64)
-        everyone = len(cars) == self.n and np.array_equal(cars, np.arange(self.n))
-        if everyone:
-            state, car, contacts, drive = self.state, self.car, self.contacts, self.drive
-        else:  # the listed cars' columns, stepped apart and written back
-            state, car = self.state[:, cars], self.car[:, cars]
-            contacts, drive = self.contacts[:, :, cars], self.drive[:, cars]
+        cars, nstep = np.asarray(cars), np.asarray(nstep)
+        dt = np.asarray(dt, dtype=np.float64)
         groups = tuple(int(g) for g in self.contact_groups)
         scratch = new_scratch(self.ng)
         for k in range(int(nstep.max())):
-            substep_arrays(state, car, contacts, groups, drive, np.where(nstep > k, dt, 0.0),
-                           scratch)
-        if not everyone:
-            self.state[:, cars] = state
+            going = nstep > k  # the cars with substeps left: each slot steps exactly those
+            idx = cars[going]
+            if len(idx) == self.n and np.array_equal(idx, np.arange(self.n)):
+                substep_arrays(self.state, self.car, self.contacts, groups, self.drive,
+                               dt[going], scratch)
+                continue
+            state = self.state[:, idx]
+            substep_arrays(state, self.car[:, idx], self.contacts[:, :, idx], groups,
+                           self.drive[:, idx], dt[going], scratch)
+            self.state[:, idx] = state
 
     # -- what the robot reads and writes -------------------------------------------------------
     def joint_angles(self, joints: Sequence[tuple[int, float]]) -> np.ndarray:

@@ -36,14 +36,20 @@ couple only through the body, so they are eliminated first (a Schur complement) 
 body system is solved by cofactors. Positions follow with the new velocities (symplectic
 Euler); the heading turns by ``dt w`` as a Cayley rotation (``(c, s)`` stays a unit vector,
 to rounding, without a trigonometric call, whose last bit numpy's vector code and libm may
-disagree on). A substep of ``dt = 0`` changes nothing, bit for bit: a batch steps the cars whose
-interval has ended with ``dt = 0`` while the others finish theirs.
+disagree on).
+
+**Load transfer.** A contact's normal load is its static share of the weight plus its share of
+the moment that the ground's force on the body, acting at the ground, exerts about the centre of
+mass (``load_per_fx``, ``load_per_fy``: from the same force and moment balance as the static
+loads, with the centre of mass's height), from that force at the previous substep; a load that
+would pull is zero. Braking moves load forward, turning moves it outward.
 
 **Layout.** A car is three flat sequences, indexed the same way whether they hold floats (a
 Python list: one car), ``(N,)`` arrays (rows of an ``(S, N)`` array: N cars at once in numpy)
 or float64 scalars (one car's row in the compiled loop, ``jit.py``):
 
-* ``state`` (``state_size(G)``): x, y, c, s, vx, vy, w, then each group's angle, then speed;
+* ``state`` (``state_size(G)``): x, y, c, s, vx, vy, w, then each group's angle, then speed,
+  then the ground's force on the body at the last substep (body frame, N: the load transfer);
 * ``car`` (``car_size(G)``): mass, yaw inertia, eps^2, eps_w^2, then each group's spin
   inertia, then its Coulomb torque;
 * ``contacts``: K rows of ``CONTACT_FIELDS``; ``groups``: each contact's wheel group (-1:
@@ -63,15 +69,19 @@ import numpy as np
 
 Value = Any  # a float, or an (N,) float64 array of cars
 #: one contact's row: position from the centre of mass (body frame, m), rolling velocity per
-#: rad/s of its group (m/rad), normal load (N), friction coefficients along and across x
-CONTACT_FIELDS = ("x", "y", "roll_x", "roll_y", "load", "friction_x", "friction_y")
+#: rad/s of its group (m/rad), static normal load (N), friction coefficients along and across
+#: x, and how its load changes per newton of ground force on the body along x and y (N/N: load
+#: transfer)
+CONTACT_FIELDS = ("x", "y", "roll_x", "roll_y", "load", "friction_x", "friction_y",
+                  "load_per_fx", "load_per_fy")
+NC = len(CONTACT_FIELDS)
 BODY = ("x", "y", "c", "s", "vx", "vy", "w")
 CAR = ("mass", "yaw_inertia", "eps2", "eps_w2")
 
 
 def state_size(groups: int) -> int:
     """Length of a car's state with ``groups`` wheel groups."""
-    return len(BODY) + 2 * groups
+    return len(BODY) + 2 * groups + 2
 
 
 def car_size(groups: int) -> int:
@@ -92,6 +102,8 @@ def make_substep(sqrt: Callable[[Value], Value]) -> Callable[..., None]:
         vy = c * vyw - s * vxw
         eps2 = car[2]
         ng = (len(car) - 4) // 2
+        fxp = state[7 + 2 * ng]  # the ground's force at the last substep: the load transfer
+        fyp = state[8 + 2 * ng]
         f1 = f2 = f3 = 0.0
         a11 = a12 = a13 = a22 = a23 = a33 = 0.0
         fg, c1, c2, c3, dg, diag, rhs = (scratch[0], scratch[1], scratch[2], scratch[3],
@@ -111,7 +123,9 @@ def make_substep(sqrt: Callable[[Value], Value]) -> Callable[..., None]:
             uy = ky * sy
             e2 = kx * kx * eps2
             q2 = ux * ux + uy * uy + e2
-            a = row[4] / sqrt(q2)
+            load = row[4] + row[7] * fxp + row[8] * fyp
+            load = 0.5 * (load + abs(load))  # a wheel lifted off carries nothing
+            a = load / sqrt(q2)
             fx = -a * kx * ux
             fy = -a * ky * uy
             h = a / q2
@@ -196,6 +210,8 @@ def make_substep(sqrt: Callable[[Value], Value]) -> Callable[..., None]:
         half = 0.5 * dt * w
         h2 = half * half
         scale = 1.0 / (1.0 + h2)
+        state[7 + 2 * ng] = f1
+        state[8 + 2 * ng] = f2
         turned_c = (c * (1.0 - h2) - 2.0 * half * s) * scale  # c, s may be views of state
         turned_s = (s * (1.0 - h2) + 2.0 * half * c) * scale
         state[0] = state[0] + dt * vxw
@@ -237,7 +253,7 @@ if COMPILED:
     @numba.njit(cache=True)
     def run_car(state: np.ndarray, car: np.ndarray, contacts: np.ndarray, groups: np.ndarray,
                 drive: np.ndarray, dt: float, n: int) -> None:
-        """``n`` substeps of ``dt`` s of one car (1D ``state``, ``car``, ``drive``; ``(K, 7)``
+        """``n`` substeps of ``dt`` s of one car (1D ``state``, ``car``, ``drive``; ``(K, NC)``
         ``contacts``), in place."""
         scratch = np.zeros((7, (car.shape[0] - 4) // 2))
         for _ in range(n):
@@ -247,7 +263,7 @@ if COMPILED:
     def run_cars(state: np.ndarray, car: np.ndarray, contacts: np.ndarray, groups: np.ndarray,
                  drive: np.ndarray, dt: np.ndarray, n: np.ndarray) -> None:
         """Car i: ``n[i]`` substeps of ``dt[i]`` s; arrays in the batch's layout (``(S, N)``
-        state, ``(P, N)`` car, ``(K, 7, N)`` contacts, ``(2G, N)`` drive), in place."""
+        state, ``(P, N)`` car, ``(K, NC, N)`` contacts, ``(2G, N)`` drive), in place."""
         scratch = np.zeros((7, (car.shape[0] - 4) // 2))
         # each car's columns gathered into contiguous buffers (the batch is laid out by
         # quantity for numpy; a car's values are N apart), stepped, and its state put back
@@ -265,6 +281,17 @@ if COMPILED:
             state[:, i] = column
 else:
     run_car = run_cars = None
+
+
+def load_transfer(points: np.ndarray, height: float) -> np.ndarray:
+    """(K, 2): how each contact's load changes per newton of the ground's force on the body
+    along x and along y, for a centre of mass ``height`` m above the ground: the force acts at
+    the ground, so its moment about the centre of mass, ``-height * F``, is what the loads'
+    moments must balance (the same least-squares split as ``static_loads``)."""
+    points = np.asarray(points, dtype=float)
+    a = np.vstack([np.ones(len(points)), points[:, 0], points[:, 1]])
+    moments = np.array([[0.0, 0.0], [-height, 0.0], [0.0, -height]])
+    return a.T @ np.linalg.solve(a @ a.T, moments)
 
 
 def static_loads(points: np.ndarray, com: np.ndarray, weight: float) -> np.ndarray:

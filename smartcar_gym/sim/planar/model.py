@@ -14,7 +14,8 @@ a ``PlanarCar``: the flat sequences the equations of motion take (``dynamics``):
   ``GROUND_TOLERANCE_M``). A wheel's round shape rolls with its group; any other shape slides
   (a caster ball fixed to the body: boxes by their bottom corners, spheres and upright
   cylinders by their lowest point, lying cylinders by their two bottom ends).
-* **loads**: static, from the centre of mass over the contacts (``dynamics.static_loads``).
+* **loads**: static, from the centre of mass over the contacts (``dynamics.static_loads``), and
+  how the ground's force moves them (``dynamics.load_transfer``: the centre of mass's height).
 * **inertia**: the whole robot's mass and yaw inertia about its centre of mass; each group's
   spin inertia is its wheels' inertia about their axles (with the rotor's, which the robot adds
   with ``add_axle_inertia``).
@@ -30,7 +31,7 @@ from smartcar_gym.model.contact import link_frictions
 from smartcar_gym.model.kinematics import link_frames, rpy_matrix
 from smartcar_gym.model.urdf import UrdfRobot, parse_urdf
 from smartcar_gym.sim.body import BASE
-from smartcar_gym.sim.planar.dynamics import static_loads
+from smartcar_gym.sim.planar.dynamics import load_transfer, static_loads
 from smartcar_gym.sim.planar.params import PlanarParams
 
 GROUND_TOLERANCE_M = 1e-3  # a shape whose lowest point is this close to the ground touches it
@@ -256,9 +257,11 @@ def build_car(tables: RobotTables, ground_z: float, actuation: Actuation,
     if not points:
         raise ValueError(f"{tables.robot.name}: no collision shape touches the ground")
     loads = static_loads(np.array(points), com[:2], mass * gravity_m_s2)
+    transfer = load_transfer(np.array(points), float(com[2] - ground_z))
     contacts = [[float(p[0] - com[0]), float(p[1] - com[1]), float(wx), float(wy), float(load),
-                 float(mu), float(mu * params.lateral_friction_ratio)]
-                for p, (_, wx, wy), mu, load in zip(points, rolling, bounds, loads, strict=True)]
+                 float(mu), float(mu * params.lateral_friction_ratio), float(lx), float(ly)]
+                for p, (_, wx, wy), mu, load, (lx, ly)
+                in zip(points, rolling, bounds, loads, transfer, strict=True)]
     group_inertia, coulomb = [], []
     for g, members in enumerate(groups.members):
         spin = 0.0

@@ -27,7 +27,7 @@ from smartcar_gym.model.errors import ModelError
 from smartcar_gym.sim.body import BASE, LinkDynamics
 from smartcar_gym.sim.clock import EventClock, check_max_substep
 from smartcar_gym.sim.planar import jit
-from smartcar_gym.sim.planar.dynamics import new_scratch, substep
+from smartcar_gym.sim.planar.dynamics import NC, new_scratch, state_size, substep
 from smartcar_gym.sim.planar.model import Actuation, Groups, PlanarCar, RobotTables, build_car
 from smartcar_gym.sim.planar.params import PlanarParams, resolve
 
@@ -149,12 +149,12 @@ class PlanarBody:
             x, y, c, s = self._spawn
             cx, cy = model.com[0], model.com[1]
             state = [x + c * cx - s * cy, y + s * cx + c * cy, c, s, 0.0, 0.0, 0.0]
-            state += [0.0] * (2 * ng)
-        elif len(state) != 7 + 2 * ng:
+            state += [0.0] * (2 * ng + 2)
+        elif len(state) != state_size(ng):
             raise RuntimeError("the wheel groups changed after the body started moving")
         if jit.COMPILED:  # numba's loop takes arrays (the same numbers, bit for bit)
             state = np.array(state, dtype=np.float64)
-            self._arrays = (np.array(model.car), np.array(model.contacts).reshape(-1, 7),
+            self._arrays = (np.array(model.car), np.array(model.contacts).reshape(-1, NC),
                             np.array(model.contact_groups, dtype=np.int64))
         self.model, self.groups, self.com, self.state = model, model.groups, model.com, state
         self._dirty = False
@@ -178,7 +178,7 @@ class PlanarBody:
         c, s = math.cos(yaw), math.sin(yaw)
         cx, cy = model.com[0], model.com[1]
         return [x + c * cx - s * cy, y + s * cx + c * cy, c, s, 0.0, 0.0, 0.0] \
-            + [0.0] * (2 * len(model.groups.members))
+            + [0.0] * (2 * len(model.groups.members) + 2)
 
     def _drive(self) -> None:
         """Each group's motor torque and damping from the joints' held torques and damping."""

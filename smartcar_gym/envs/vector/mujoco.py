@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import os
+import warnings
 from typing import Any
 
 import gymnasium as gym
@@ -118,7 +119,7 @@ class SmartCarMujocoVectorEnv(SmartCarSimVectorEnv):
         self._wheel_v = np.asarray(dadr)
         self._encoder_q = np.asarray(ids.addresses(robot._encoder_idx)[0])
         self._encoder_sign = np.array(robot._encoder_signs, dtype=np.float64)
-        self._free_q = ids.free_q
+        self._free_q, self._free_v = ids.free_q, ids.free_v
         self._side = np.array([0 if left else 1 for left in robot._left])
         self._share = np.array(robot._share)
         self._sign = np.array(robot._signs)
@@ -253,8 +254,19 @@ class SmartCarMujocoVectorEnv(SmartCarSimVectorEnv):
             timestep = interval.astype(np.float64) / (nstep * NS_PER_S).astype(np.float64)
             moving = interval > 0
             self.cars.step(cars[moving], nstep[moving], timestep[moving])
+            if self.cars.unstable:
+                self._report_unstable()
             self._now[cars] = target
             pending = active
+
+    def _report_unstable(self) -> None:
+        """A warning per car whose world MuJoCo found unstable (and reset), with its state."""
+        from smartcar_gym.sim.mujoco.mjlog import MujocoWarning, describe
+
+        events, self.cars.unstable = self.cars.unstable, []
+        for car, event in sorted(events, key=lambda e: e[0]):
+            line = describe(event, [(f"car {car}", self._free_q, self._free_v)])
+            warnings.warn(f"{self.env_id} (mujoco): {line}", MujocoWarning, stacklevel=5)
 
     def _advance(self, a: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """One controller period for every car: SmartCarEnv.step's arithmetic, in arrays."""

@@ -7,7 +7,9 @@ same solver warm start), so its physics is bit for bit what ``N`` single envs co
 (``mj_step(model, data, nstep)``: the substeps run in C), the cars split between worker threads
 (MuJoCo releases Python's GIL inside ``mj_step``). What the emulated board changes between
 events (the wheels' motor torque in ``qfrc_applied``, their back-EMF damping in
-``dof_damping``) is written into each car's own model and data before it steps.
+``dof_damping``) is written into each car's own model and data before it steps. A car whose
+world MuJoCo finds unstable (and resets) is listed in ``unstable`` with its state then
+(``mjlog``), for the vector env to report.
 
 A car whose world changes per episode (SmartCarNav-v0's obstacles) gets a copy of the world its
 single env builds (``load``). Its sensors query its own world in C the same way: ``scan`` (the
@@ -29,6 +31,7 @@ from concurrent.futures import ThreadPoolExecutor
 import mujoco
 import numpy as np
 
+from smartcar_gym.sim.mujoco import mjlog
 from smartcar_gym.sim.mujoco.rays import hit_fraction, multi_ray, unit_rays
 from smartcar_gym.sim.mujoco.simulator import MujocoSimulator
 
@@ -67,6 +70,8 @@ class CarBatch:
         self.damping = np.tile(m.dof_damping[self.dofs], (self.n, 1))
         self.threads = max(1, int(threads))
         self._pool: ThreadPoolExecutor | None = None
+        #: (car, what MuJoCo said) for each instability met while stepping, until taken
+        self.unstable: list[tuple[int, mjlog.Instability]] = []
 
     def reset(self, cars: np.ndarray) -> None:
         """Put the listed cars back into the template's state (model values and data)."""
@@ -149,7 +154,9 @@ class CarBatch:
             m.opt.timestep = dt
             d.qfrc_applied[dofs] = torque[i]
             m.dof_damping[dofs] = damping[i]
-            mujoco.mj_step(m, d, n)
+            unstable = mjlog.step(m, d, n)
+            if unstable:
+                self.unstable += [(i, event) for event in unstable]
             qpos[i] = d.qpos
             qvel[i] = d.qvel
             self._stale[i] = True

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+import warnings
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 
@@ -30,6 +31,7 @@ import numpy as np
 from smartcar_gym.sim.body import BASE
 from smartcar_gym.sim.camera import BoxPart
 from smartcar_gym.sim.clock import DEFAULT_MAX_SUBSTEP_S, EventClock, check_max_substep
+from smartcar_gym.sim.mujoco import mjlog
 from smartcar_gym.sim.mujoco.body import Marker, MujocoBody, wxyz
 from smartcar_gym.sim.mujoco.model import (
     CONTACT_SOLIMP,
@@ -45,6 +47,7 @@ from smartcar_gym.sim.rays import RayHits
 
 IMPRATIO = 10.0
 CONVERGED_TOLERANCE = 1e-12  # converge_contacts: the Newton solver's tolerance
+mjlog.install()  # MuJoCo's warnings come here, not into MUJOCO_LOG.TXT
 _SHAPES = {"box": mujoco.mjtGeom.mjGEOM_BOX, "cylinder": mujoco.mjtGeom.mjGEOM_CYLINDER,
            "sphere": mujoco.mjtGeom.mjGEOM_SPHERE}
 
@@ -253,14 +256,24 @@ class MujocoSimulator(EventClock):
             self._views[0].timestep = dt  # m.opt
             self._dt = dt
         if probe is None:
-            mujoco.mj_step(m, d, n)
+            unstable = mjlog.step(m, d, n)
         else:
-            start = self.now_ns
+            start, unstable = self.now_ns, []
             for i in range(n):
-                mujoco.mj_step(m, d)
+                unstable += mjlog.step(m, d)
                 probe((start + interval_ns * (i + 1) / n) / 1e9)
         self._stale = True
         self.physics_steps += n
+        if unstable:
+            self._report(unstable)
+
+    def _report(self, unstable: list[mjlog.Instability]) -> None:
+        """Each instability MuJoCo met in this world as one warning naming the free bodies'
+        state then (what MuJoCo would have written into the working folder)."""
+        bodies = [(b.name, b._ids.free_q, b._ids.free_v) for b in self._bodies.values()
+                  if isinstance(b, MujocoBody) and b.free]
+        for event in unstable:
+            warnings.warn(mjlog.describe(event, bodies), mjlog.MujocoWarning, stacklevel=4)
 
     @property
     def time_step_s(self) -> float:

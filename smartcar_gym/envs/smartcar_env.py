@@ -31,7 +31,12 @@ from smartcar_gym.envs.tasks.reach import GoalReachingTask
 from smartcar_gym.model import RobotModel, load_model
 from smartcar_gym.model.contact import check_wheel_contact
 from smartcar_gym.sim.clock import DEFAULT_MAX_SUBSTEP_S, EventClock, check_max_substep
-from smartcar_gym.sim.engines import DEFAULT_ENGINE, check_engine, make_simulator
+from smartcar_gym.sim.engines import (
+    DEFAULT_ENGINE,
+    check_engine,
+    make_simulator,
+    window_unavailable,
+)
 from smartcar_gym.sim.markers import SceneMarkers
 
 MAX_RENDER_PX = 4096  # 8000 x 8000 took 2.4 GB and minutes per frame
@@ -162,7 +167,10 @@ class SmartCarEnv(gym.Env):
     | controller_mode   | None           | "hardware" (PID, encoders, motors) or "sim"          |
     |                   |                | (kinematic, the driver's ``sim: true``); None: the   |
     |                   |                | YAML's ``sim`` key (hardware unless sim: true)       |
-    | render_mode       | None           | None, "human" (pybullet GUI) or "rgb_array"          |
+    | render_mode       | None           | None, "human" (a window: pybullet's GUI, MuJoCo's    |
+    |                   |                | viewer; needs a display) or "rgb_array"; a MuJoCo    |
+    |                   |                | env lists only "rgb_array" in ``metadata`` where its |
+    |                   |                | viewer cannot open (macOS outside mjpython)          |
     | max_linear        | 0.5            | m/s for a[0] = 1                                     |
     | max_angular       | 2.0            | rad/s for a[1] = 1                                   |
     | goal_range        | (0.5, 1.5)     | min, max goal distance from the start (m)            |
@@ -200,6 +208,8 @@ class SmartCarEnv(gym.Env):
 
     * v0 (0.3.0): ``engine="mujoco"``: the same car, controller and tasks on MuJoCo
       (docs/engines.md); pybullet stays the default, its rollouts unchanged bit for bit.
+      ``render_mode="human"`` opens MuJoCo's viewer. A world MuJoCo finds unstable (and resets)
+      is one ``MujocoWarning`` with the car's state; nothing goes to ``MUJOCO_LOG.TXT``.
 
     * v0 (0.2.0): event-driven stepping (``max_substep_s``, default 0.01 s); ``physics_hz``
       deprecated. ``max_substep_s=0.002`` reproduces 0.1.0's fixed 500 Hz stepping bit for bit.
@@ -233,9 +243,10 @@ class SmartCarEnv(gym.Env):
         engine: str | None = None,
         stop_speed: float | None = None,
     ) -> None:
+        self.engine = DEFAULT_ENGINE if engine is None else check_engine(engine)
+        self.metadata = {**self.metadata, "render_modes": self._render_modes(render_mode)}
         checks.one_of("render_mode", render_mode, list(self.metadata["render_modes"]),
                       none_ok=True)
-        self.engine = DEFAULT_ENGINE if engine is None else check_engine(engine)
         checks.one_of("controller_mode", controller_mode, MODES, none_ok=True)
         self.render_mode = render_mode
         self.wheel_contact = check_wheel_contact(wheel_contact)
@@ -286,6 +297,17 @@ class SmartCarEnv(gym.Env):
         self._distance = 0.0
         self._odometry_error = 0.0
         self._prev_action = np.zeros(2, dtype=np.float32)
+
+    def _render_modes(self, render_mode: Any) -> RenderModes:
+        """The modes this env's engine supports here: without a window (MuJoCo's viewer on
+        macOS outside mjpython), only "rgb_array"; asking for "human" then says why."""
+        why = window_unavailable(self.engine)
+        if why is None:
+            return RenderModes(["human", "rgb_array"])
+        if render_mode == "human":
+            raise ValueError(f"render_mode='human' is not available with engine="
+                             f"{self.engine!r} here: {why}; use render_mode='rgb_array'")
+        return RenderModes(["rgb_array"])
 
     def _declare_observation(self) -> Observation:
         """Robot, task and action entries in ``OBSERVATION_ORDER``."""

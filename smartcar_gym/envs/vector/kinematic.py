@@ -79,6 +79,8 @@ class SmartCarSimVectorEnv(gym.vector.VectorEnv):
     - **Actions**: ``(N, 2)`` in [-1, 1] (clipped); another shape or NaN is one error line.
     - **render()**: with ``render_mode="rgb_array"``, a top-down view of the first cars (up to
       16) tiled in one ``render_width x render_height`` image: arena, goal, car.
+    - **close()**: ``reset()`` reopens a closed env, as it does a single env; ``step()`` before
+      it says so in one line.
     """
 
     metadata = {"render_modes": ["rgb_array"], "autoreset_mode": AutoresetMode.NEXT_STEP}
@@ -154,6 +156,9 @@ class SmartCarSimVectorEnv(gym.vector.VectorEnv):
     def reset(self, *, seed: int | list[int | None] | None = None,
               options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
         n = self.num_envs
+        if self.closed:  # as the single envs: reset() reopens
+            self._reopen()
+            self.closed = False
         if seed is None:
             seeds: list[int | None] = [None] * n
         elif isinstance(seed, int | np.integer):
@@ -175,8 +180,11 @@ class SmartCarSimVectorEnv(gym.vector.VectorEnv):
 
     def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
                                           dict[str, Any]]:
+        if self.closed:
+            raise RuntimeError(f"{type(self).__name__} is closed: call reset() to reopen it "
+                               "before step()")
         if self._needs_reset:
-            raise gym.error.ResetNeeded("SmartCarSimVectorEnv: call reset() before step()")
+            raise gym.error.ResetNeeded(f"{type(self).__name__}: call reset() before step()")
         a = check_actions(actions, self.num_envs)
         restart = self._autoreset.copy() if self.autoreset_mode == AutoresetMode.NEXT_STEP \
             else np.zeros(self.num_envs, dtype=bool)
@@ -220,6 +228,10 @@ class SmartCarSimVectorEnv(gym.vector.VectorEnv):
 
     def close_extras(self, **kwargs: Any) -> None:
         """Nothing to release: no engine, no files."""
+
+    def _reopen(self) -> None:
+        """What ``close_extras`` released, back before ``reset`` starts the cars again (nothing
+        here)."""
 
     # -- the model -----------------------------------------------------------------------------
     def _check_options(self, options: Any) -> np.ndarray | None:

@@ -148,9 +148,14 @@ class SmartCarMujocoVectorEnv(SmartCarSimVectorEnv):
         self._needs_reset = True
 
     def close_extras(self, **kwargs: Any) -> None:
-        """Stop the worker threads and free the cars' worlds."""
+        """Stop the worker threads and free the cars' worlds (``reset`` makes them again)."""
         if getattr(self, "cars", None) is not None:
             self.cars.close()
+        self._needs_reset = True
+
+    def _reopen(self) -> None:
+        """Every car a copy of the settled world again (the batch's template)."""
+        self.cars.reopen()
 
     def render(self) -> np.ndarray | None:
         if self.render_mode is None:

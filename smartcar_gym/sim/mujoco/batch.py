@@ -60,16 +60,21 @@ class CarBatch:
         self.template_model, self.template_data = copy.copy(m), copy.copy(d)
         self.n = int(num_cars)
         self.dofs = np.asarray(wheel_dofs, dtype=np.intp)
-        self.models = [copy.copy(m) for _ in range(self.n)]
-        self.datas = [copy.copy(d) for _ in range(self.n)]
         self.qpos = np.tile(d.qpos, (self.n, 1))
         self.qvel = np.tile(d.qvel, (self.n, 1))
-        #: cars whose geom poses are older than their positions (stepped since ``_current``)
-        self._stale = np.ones(self.n, dtype=bool)
         self.torque = np.tile(d.qfrc_applied[self.dofs], (self.n, 1))
         self.damping = np.tile(m.dof_damping[self.dofs], (self.n, 1))
         self.threads = max(1, int(threads))
         self._pool: ThreadPoolExecutor | None = None
+        self.reopen()
+
+    def reopen(self) -> None:
+        """Every car a copy of the template's world (after ``close``: the worlds again)."""
+        tm, td = self.template_model, self.template_data
+        self.models = [copy.copy(tm) for _ in range(self.n)]
+        self.datas = [copy.copy(td) for _ in range(self.n)]
+        #: cars whose geom poses are older than their positions (stepped since ``_current``)
+        self._stale = np.ones(self.n, dtype=bool)
         #: (car, what MuJoCo said) for each instability met while stepping, until taken
         self.unstable: list[tuple[int, mjlog.Instability]] = []
 
@@ -200,7 +205,8 @@ class CarBatch:
             m.nbuffer + d.narena * 8)
 
     def close(self) -> None:
-        """Stop the worker threads and drop the copies."""
+        """Stop the worker threads and drop the cars' copies (the template stays, for
+        ``reopen``)."""
         if self._pool is not None:
             self._pool.shutdown(wait=True)
             self._pool = None

@@ -200,9 +200,10 @@ class SmartCarEnv(gym.Env):
     (``SmartCarSimVectorEnv``, bit for bit N single envs), SmartCar-v0, SmartCarNav-v0 and
     SmartCarGoal-v0 with ``engine="mujoco"`` in C (``SmartCarMujocoVectorEnv``,
     ``SmartCarNavMujocoVectorEnv``, ``SmartCarGoalMujocoVectorEnv``, bit for bit too), on
-    pybullet or with options the batches lack (``randomize``, ``stop_speed``, the GUI) as N
-    single envs in a loop (``SmartCarLoopVectorEnv``). Gymnasium 1.x autoreset (``"NextStep"``, or
-    ``autoreset_mode="SameStep"``), car i seeded ``s + i``, ``info["is_success"]`` per car.
+    pybullet or with what the batches lack (``randomize``, ``stop_speed``, the GUI, a
+    differential-drive ``model``) as N single envs in a loop (``SmartCarLoopVectorEnv``).
+    Gymnasium 1.x autoreset (``"NextStep"``, or ``autoreset_mode="SameStep"``), car i seeded
+    ``s + i``, ``info["is_success"]`` per car.
 
     ## Version History
 

@@ -15,6 +15,7 @@ from typing import Any
 
 import gymnasium as gym
 
+from smartcar_gym.envs.vector.common import CannotBatch
 from smartcar_gym.envs.vector.goal_mujoco import SmartCarGoalMujocoVectorEnv
 from smartcar_gym.envs.vector.kinematic import SmartCarSimVectorEnv, supports
 from smartcar_gym.envs.vector.loop import SmartCarLoopVectorEnv
@@ -36,19 +37,22 @@ def make_vector_env(env_id: str, num_envs: int = 1, **kwargs: Any) -> gym.vector
     ``engine="mujoco"`` (hardware mode, no ``randomize``, no GUI): ``SmartCarMujocoVectorEnv``
     (MuJoCo in C per car); SmartCarNav-v0 with ``engine="mujoco"`` (the same, and no
     ``render_mode``): ``SmartCarNavMujocoVectorEnv``; SmartCarGoal-v0 with
-    ``engine="mujoco"`` (as SmartCar-v0): ``SmartCarGoalMujocoVectorEnv``; anything else:
+    ``engine="mujoco"`` (as SmartCar-v0): ``SmartCarGoalMujocoVectorEnv``; anything else,
+    differential-drive robots included (the batches run skid-steer bases):
     ``SmartCarLoopVectorEnv``. ``kwargs`` are the single
     env's, plus ``max_episode_steps`` and ``autoreset_mode``.
     """
     if env_id == "SmartCarSim-v0" and supports(kwargs) is None \
             and kwargs.get("controller_mode", "sim") == "sim":
         return SmartCarSimVectorEnv(num_envs=num_envs, **kwargs)
-    if env_id == "SmartCar-v0" and mujoco_supports(kwargs) is None:
-        return SmartCarMujocoVectorEnv(num_envs=num_envs, **kwargs)
-    if env_id == "SmartCarNav-v0" and nav_mujoco_supports(kwargs) is None:
-        return SmartCarNavMujocoVectorEnv(num_envs=num_envs, **kwargs)
-    if env_id == "SmartCarGoal-v0" and mujoco_supports(kwargs) is None:
-        return SmartCarGoalMujocoVectorEnv(num_envs=num_envs, **kwargs)
+    batch = {"SmartCar-v0": (SmartCarMujocoVectorEnv, mujoco_supports),
+             "SmartCarNav-v0": (SmartCarNavMujocoVectorEnv, nav_mujoco_supports),
+             "SmartCarGoal-v0": (SmartCarGoalMujocoVectorEnv, mujoco_supports)}.get(env_id)
+    if batch is not None and batch[1](kwargs) is None:
+        try:
+            return batch[0](num_envs=num_envs, **kwargs)
+        except CannotBatch:  # the robot's drive (differential): the loop runs it
+            pass
     return SmartCarLoopVectorEnv(env_id, num_envs=num_envs, **kwargs)
 
 

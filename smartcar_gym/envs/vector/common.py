@@ -14,6 +14,11 @@ from smartcar_gym import checks
 AUTORESET_MODES = (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP)
 
 
+class CannotBatch(ValueError):
+    """What a batched env cannot run, found once its single env is made (the robot's drive):
+    the ``vector_entry_point`` then falls back to the loop."""
+
+
 def available_memory_bytes() -> int | None:
     """The memory the kernel says is available (``MemAvailable``), None where it says nothing."""
     try:

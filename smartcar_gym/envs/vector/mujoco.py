@@ -15,7 +15,12 @@ from smartcar_gym.controller import HARDWARE
 from smartcar_gym.controller.batched import BatchedArbotix
 from smartcar_gym.envs.smartcar_env import SmartCarEnv
 from smartcar_gym.envs.tasks.reach import FLIP_UP_Z
-from smartcar_gym.envs.vector.common import check_autoreset_mode, check_num_envs, vector_info
+from smartcar_gym.envs.vector.common import (
+    CannotBatch,
+    check_autoreset_mode,
+    check_num_envs,
+    vector_info,
+)
 from smartcar_gym.envs.vector.kinematic import TWO_PI, SmartCarSimVectorEnv
 from smartcar_gym.envs.vector.render import top_down_tiles
 from smartcar_gym.registration import MAX_EPISODE_STEPS
@@ -93,9 +98,9 @@ class SmartCarMujocoVectorEnv(SmartCarSimVectorEnv):
             if template.controller_mode != HARDWARE:
                 raise ValueError(f"{type(self).__name__} is the hardware mode (PID, motors)")
             if template.robot_model.drive_kind == "differential":
-                raise ValueError(f"{type(self).__name__} runs skid-steer bases; a "
-                                 "differential-drive model starts its encoders mid-tick "
-                                 "(use vectorization_mode='sync')")
+                raise CannotBatch(f"{type(self).__name__} runs skid-steer bases; a "
+                                  "differential-drive model starts its encoders mid-tick "
+                                  "(the vector_entry_point falls back to the loop)")
             template.reset(seed=0)
             self._init_from(template, num_threads)
         except BaseException:

@@ -41,6 +41,7 @@ class SmartCarGoalMujocoVectorEnv(GoalRewards, SmartCarMujocoVectorEnv):
 
     single_env = SmartCarGoalEnv
     env_id = "SmartCarGoal-v0"
+    from_settings = ("observation", "_achieved", "_desired")
 
     def __init__(self, num_envs: int = 1,
                  max_episode_steps: int | None = SPECS["SmartCarGoal-v0"].max_episode_steps,

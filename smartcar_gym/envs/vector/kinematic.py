@@ -81,9 +81,12 @@ class SmartCarSimVectorEnv(gym.vector.VectorEnv):
       16) tiled in one ``render_width x render_height`` image: arena, goal, car.
     - **close()**: ``reset()`` reopens a closed env, as it does a single env; ``step()`` before
       it says so in one line.
+    - **Copies** (``copy.deepcopy``, pickle): the whole state, every car's generator included.
     """
 
     metadata = {"render_modes": ["rgb_array"], "autoreset_mode": AutoresetMode.NEXT_STEP}
+    #: attributes taken from ``settings`` (lambdas inside): a copy takes them again
+    from_settings: tuple[str, ...] = ("observation",)
 
     def __init__(self, num_envs: int = 1, max_episode_steps: int | None = MAX_EPISODE_STEPS,
                  autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
@@ -141,6 +144,20 @@ class SmartCarSimVectorEnv(gym.vector.VectorEnv):
         self.single_action_space = s.action_space
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
+
+    # -- copies --------------------------------------------------------------------------------
+    def __getstate__(self) -> dict[str, Any]:
+        """Everything but what is taken from ``settings`` (the single env's own copy keeps
+        its settings and declares its observation again)."""
+        state = self.__dict__.copy()
+        for key in self.from_settings:
+            state.pop(key, None)
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        for key in self.from_settings:
+            setattr(self, key, getattr(self.settings, key))
 
     # -- gymnasium API -------------------------------------------------------------------------
     @property

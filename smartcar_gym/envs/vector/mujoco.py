@@ -72,7 +72,9 @@ class SmartCarMujocoVectorEnv(SmartCarSimVectorEnv):
 
     As ``SmartCarSimVectorEnv`` (autoreset ``"NextStep"`` or ``"SameStep"``, car i seeded
     ``s + i``, ``info`` per car with ``_key`` masks, ``(N, 2)`` actions, ``render()`` tiles the
-    first 16 cars top-down).
+    first 16 cars top-down, ``reset()`` reopens a closed batch). A copy (``copy.deepcopy``,
+    pickle) is as a copy of the single env: the same settings and generators, no worlds of
+    the original's; its first ``reset()`` makes its own.
     """
 
     metadata = {"render_modes": ["rgb_array"], "autoreset_mode": AutoresetMode.NEXT_STEP}
@@ -161,6 +163,14 @@ class SmartCarMujocoVectorEnv(SmartCarSimVectorEnv):
     def _reopen(self) -> None:
         """Every car a copy of the settled world again (the batch's template)."""
         self.cars.reopen()
+
+    def __getstate__(self) -> dict[str, Any]:
+        """A copy keeps the settings, every car's generator and the settled world it was
+        made from, never the cars' worlds or threads: it is closed, and its first ``reset``
+        reopens it (as a copy of a single env gets a world of its own at its first reset)."""
+        state = super().__getstate__()
+        state["closed"], state["_needs_reset"] = True, True
+        return state
 
     def render(self) -> np.ndarray | None:
         if self.render_mode is None:

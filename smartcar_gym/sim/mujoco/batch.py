@@ -204,6 +204,13 @@ class CarBatch:
         return int(m.nbuffer + d.nbuffer) if hasattr(d, "nbuffer") else int(
             m.nbuffer + d.narena * 8)
 
+    def __getstate__(self) -> dict:
+        """The template and the arrays, without the cars' worlds or the worker threads (a
+        copy is closed until ``reopen``)."""
+        state = self.__dict__.copy()
+        state.update(models=[], datas=[], _pool=None, unstable=[])
+        return state
+
     def close(self) -> None:
         """Stop the worker threads and drop the cars' copies (the template stays, for
         ``reopen``)."""

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import os
 import warnings
 from typing import Any
 
@@ -18,12 +17,13 @@ from smartcar_gym.envs.tasks.reach import FLIP_UP_Z
 from smartcar_gym.envs.vector.common import (
     CannotBatch,
     check_autoreset_mode,
+    check_max_episode_steps,
     check_num_envs,
+    check_num_threads,
     vector_info,
 )
 from smartcar_gym.envs.vector.kinematic import TWO_PI, SmartCarSimVectorEnv
 from smartcar_gym.envs.vector.render import top_down_tiles
-from smartcar_gym.registration import MAX_EPISODE_STEPS
 from smartcar_gym.sim.clock import MAX_FIRINGS_PER_INSTANT, NS_PER_S
 
 #: measured with 4.0.0 (256 cars): 0.74 MiB resident per car, mostly its MjData arena
@@ -63,8 +63,9 @@ class SmartCarMujocoVectorEnv(SmartCarSimVectorEnv):
     stepped on its own (no common schedule is assumed).
 
     Made by ``gym.make_vec("SmartCar-v0", num_envs=N, vectorization_mode="vector_entry_point",
-    engine="mujoco", **kwargs)`` with SmartCarEnv's kwargs, plus ``autoreset_mode`` and
-    ``num_threads`` (worker threads stepping the physics; default ``os.cpu_count()``).
+    engine="mujoco", **kwargs)`` with SmartCarEnv's kwargs, plus ``max_episode_steps``,
+    ``autoreset_mode`` and ``num_threads`` (worker threads stepping the physics, an integer
+    >= 1; default ``os.cpu_count()``).
     ``randomize``, ``render_mode="human"``, ``controller_mode="sim"`` and differential-drive
     models fall back to ``SmartCarLoopVectorEnv``.
 
@@ -84,7 +85,7 @@ class SmartCarMujocoVectorEnv(SmartCarSimVectorEnv):
     bytes_per_car = BYTES_PER_CAR
     why_not = staticmethod(supports)
 
-    def __init__(self, num_envs: int = 1, max_episode_steps: int | None = MAX_EPISODE_STEPS,
+    def __init__(self, num_envs: int = 1, max_episode_steps: int | None = None,
                  autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
                  num_threads: int | None = None, **kwargs: Any) -> None:
         kwargs.setdefault("engine", "mujoco")
@@ -94,7 +95,9 @@ class SmartCarMujocoVectorEnv(SmartCarSimVectorEnv):
                              "vectorization_mode='sync' (or the vector_entry_point falls back)")
         self.num_envs = check_num_envs(num_envs, f"{self.env_id} (mujoco)", self.bytes_per_car)
         self.autoreset_mode = check_autoreset_mode(autoreset_mode)
-        self.max_episode_steps = None if max_episode_steps is None else int(max_episode_steps)
+        #: steps before a car's episode is truncated (None: no limit)
+        self.max_episode_steps = check_max_episode_steps(max_episode_steps, self.env_id)
+        num_threads = check_num_threads(num_threads)
         template = self.single_env(**kwargs)
         try:
             if template.controller_mode != HARDWARE:
@@ -115,7 +118,7 @@ class SmartCarMujocoVectorEnv(SmartCarSimVectorEnv):
         its world)."""
         template.close()
 
-    def _init_from(self, s: SmartCarEnv, num_threads: int | None) -> None:
+    def _init_from(self, s: SmartCarEnv, num_threads: int) -> None:
         from smartcar_gym.sim.mujoco.batch import CarBatch
 
         self._take_settings(s)
@@ -131,10 +134,7 @@ class SmartCarMujocoVectorEnv(SmartCarSimVectorEnv):
         self._share = np.array(robot._share)
         self._sign = np.array(robot._signs)
         self.max_substep_ns = sim.max_substep_ns
-        threads = (os.cpu_count() or 1) if num_threads is None else int(num_threads)
-        if threads < 1:
-            raise ValueError(f"num_threads must be >= 1, got {num_threads!r}")
-        self.cars = CarBatch(sim, n, list(dadr), threads)
+        self.cars = CarBatch(sim, n, list(dadr), num_threads)
         wheels = len(self._wheel_q)
         self._wheel_group = np.arange(wheels)
         self.period_ns = robot.update_period_ns

@@ -153,7 +153,10 @@ class Window:
         elif not self._handle.is_running():
             return
         elif model is not self._model:
-            self._handle._sim().load(model, data, "")  # as the viewer's own reload does
+            viewer = self._handle._sim()
+            if viewer is None:  # closed by the user since
+                return
+            viewer.load(model, data, "")  # as the viewer's own reload does
             self._model, self._data = model, data
         handle = self._handle
         model.vis.global_.fovy = fov_deg

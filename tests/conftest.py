@@ -1,4 +1,5 @@
-"""Shared fixtures: the shipped model and controller config, and a robot in a DIRECT world."""
+"""Shared fixtures: the shipped model and controller config, a robot in a DIRECT world, and a
+virtual display (Xvfb) for the windows."""
 
 from __future__ import annotations
 
@@ -12,6 +13,17 @@ from smartcar_gym.controller import ArbotixConfig, load_controller_config
 from smartcar_gym.envs.robots import SmartCarRobot
 from smartcar_gym.model import RobotModel, load_model
 from smartcar_gym.sim import Simulator
+
+
+@pytest.fixture
+def display(monkeypatch) -> Iterator[str]:
+    """A fresh Xvfb server (``tests.xvfb``); DISPLAY points at it for the test."""
+    from tests import xvfb
+
+    with xvfb.start() as name:
+        monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+        monkeypatch.setenv("DISPLAY", name)
+        yield name
 
 
 @pytest.fixture(scope="session")

@@ -2,39 +2,16 @@
 
 from __future__ import annotations
 
-import shutil
-import subprocess
 import time
-from collections.abc import Iterator
 
 import gymnasium as gym
 import numpy as np
-import pytest
 
 import smartcar_gym  # noqa: F401
 from smartcar_gym.sim.bullet import pybullet
+from tests.xvfb import needs_xvfb
 
-pytestmark = pytest.mark.skipif(
-    shutil.which("Xvfb") is None,
-    reason="the pybullet GUI needs a display: apt-get install xvfb (.ci/run does)",
-)
-
-
-@pytest.fixture
-def display(monkeypatch) -> Iterator[str]:
-    """A fresh Xvfb server; DISPLAY points at it for the test."""
-    server = subprocess.Popen(
-        ["Xvfb", "-displayfd", "1", "-screen", "0", "640x480x24", "-nolisten", "tcp"],
-        stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
-    )
-    number = server.stdout.readline().decode().strip()  # Xvfb writes it once it is ready
-    if not number.isdigit():
-        server.kill()
-        pytest.skip(f"Xvfb is installed but did not start (exit {server.wait()})")
-    monkeypatch.setenv("DISPLAY", f":{number}")
-    yield f":{number}"
-    server.terminate()
-    server.wait(timeout=10)
+pytestmark = needs_xvfb
 
 
 def test_human_mode_shows_the_car_and_goal_and_closes_quietly(display, capfd):

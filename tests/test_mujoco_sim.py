@@ -164,14 +164,6 @@ def test_randomize_factors_reach_the_mujoco_model(world, shipped_model, shipped_
     assert robot.pose().z == pytest.approx(robot.spawn_z, abs=5e-4)  # on its bigger wheels
 
 
-def test_human_rendering_is_refused_in_one_line():
-    import gymnasium as gym
-
-    with pytest.raises(RuntimeError, match="^render_mode='human' opens pybullet's GUI; with "
-                                           "engine='mujoco' use render_mode='rgb_array'"):
-        gym.make("SmartCar-v0", engine="mujoco", render_mode="human")
-
-
 def test_one_car_s_spec_from_urdf_text_for_batched_worlds(shipped_model):
     import mujoco
 

@@ -216,3 +216,23 @@ def test_packed_cdr_is_byte_for_byte_what_rosbags_serialises(nav_bag):
         stamp, scan.angle_min, scan.angle_max, scan.angle_increment, scan.time_increment,
         scan.scan_time, scan.range_min, scan.range_max, scan.ranges) == serialised(
         expected, "sensor_msgs/msg/LaserScan")
+
+
+def test_close_is_idempotent_after_close_or_discard(nav_bag, tmp_path):
+    """As ``RerunProcessSink.close``: a second ``close``, or ``close`` after ``discard``, does
+    nothing (it raised rosbags' bare AssertionError)."""
+    from smartcar_gym.ros.bag_ros2 import Ros2BagSink
+
+    _, episodes, _ = nav_bag
+    kept = Ros2BagSink(tmp_path / "kept")
+    kept.write(episodes[0])
+    kept.close()
+    kept.close()
+    connections, rows = _read(tmp_path / "kept")
+    assert {c.topic for c in connections.values()} >= {"/odom", "/tf"} and rows
+    dropped = Ros2BagSink(tmp_path / "dropped")
+    dropped.write(episodes[0])
+    dropped.discard()
+    dropped.close()
+    dropped.discard()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["kept"]  # no bag, no scratch

@@ -3,6 +3,8 @@ single MuJoCo envs, Gymnasium's vector conventions, the fallbacks and bad input.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -19,6 +21,7 @@ from tests.test_vector_batched import rollout  # noqa: E402
 
 N = 6
 EPISODE = 25
+CASTERBOT = Path(__file__).resolve().parent / "fixtures/casterbot_description"
 #: a near goal and a small arena: successes and failures come before the time limit
 SHORT = {"goal_range": (0.25, 0.4), "arena_size": 1.2}
 
@@ -94,6 +97,35 @@ def test_what_mujoco_cannot_batch_falls_back_to_the_loop():
     pybullet.close()
 
 
+@pytest.mark.parametrize("env_id", ["SmartCar-v0", "SmartCarGoal-v0", "SmartCarNav-v0"])
+def test_a_differential_drive_robot_falls_back_to_the_loop(env_id):
+    """The batches run skid-steer bases; the casterbot (two drive wheels and a caster) runs as
+    its single envs in the loop, as the batches' docstrings say."""
+    kwargs = {"model": CASTERBOT / "urdf/casterbot.urdf.xacro",
+              "controller_config": CASTERBOT / "config/casterbot_arbotix.yaml",
+              "engine": "mujoco"}
+    if env_id == "SmartCarNav-v0":
+        kwargs["laser_mount"] = (0.0, 0.0, 0.1, 0.0)
+    envs = gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point", **kwargs)
+    single = gym.make(env_id, **kwargs)
+    try:
+        assert isinstance(envs, SmartCarLoopVectorEnv)
+        obs, _ = envs.reset(seed=3)
+        want, _ = single.reset(seed=3)
+        if isinstance(obs, dict):
+            assert all(np.array_equal(obs[k][0], want[k]) for k in want)
+        else:
+            assert np.array_equal(obs[0], want)
+        envs.step(np.full((2, 2), 0.5))
+    finally:
+        envs.close()
+        single.close()
+    kwargs.pop("laser_mount", None)
+    with pytest.raises(ValueError, match=r"^SmartCarMujocoVectorEnv runs skid-steer bases; a "
+                                         r"differential-drive model"):
+        SmartCarMujocoVectorEnv(num_envs=2, **kwargs)
+
+
 def test_bad_input_is_one_line():
     envs = make(3)
     envs.reset(seed=0)
@@ -106,7 +138,7 @@ def test_bad_input_is_one_line():
         envs.close()
     with pytest.raises(MemoryError, match=r"^SmartCar-v0 \(mujoco\): num_envs=\d+ needs about"):
         make(10**12)
-    with pytest.raises(ValueError, match="num_threads must be >= 1"):
+    with pytest.raises(ValueError, match="^num_threads must be an integer >= 1"):
         make(2, num_threads=0)
 
 

@@ -37,6 +37,7 @@ from smartcar_gym.sim.engines import (
     default_max_substep,
     make_simulator,
     substep_range,
+    window_unavailable,
 )
 from smartcar_gym.sim.markers import SceneMarkers
 from smartcar_gym.sim.planar.params import PlanarParams
@@ -170,7 +171,10 @@ class SmartCarEnv(gym.Env):
     | controller_mode   | None           | "hardware" (PID, encoders, motors) or "sim"          |
     |                   |                | (kinematic, the driver's ``sim: true``); None: the   |
     |                   |                | YAML's ``sim`` key (hardware unless sim: true)       |
-    | render_mode       | None           | None, "human" (pybullet GUI) or "rgb_array"          |
+    | render_mode       | None           | None, "human" (a window: pybullet's GUI, MuJoCo's    |
+    |                   |                | viewer; needs a display) or "rgb_array"; a MuJoCo    |
+    |                   |                | env lists only "rgb_array" in ``metadata`` where its |
+    |                   |                | viewer cannot open (macOS outside mjpython)          |
     | max_linear        | 0.5            | m/s for a[0] = 1                                     |
     | max_angular       | 2.0            | rad/s for a[1] = 1                                   |
     | goal_range        | (0.5, 1.5)     | min, max goal distance from the start (m)            |
@@ -207,10 +211,12 @@ class SmartCarEnv(gym.Env):
     SmartCarGoal-v0 with ``engine="mujoco"`` in C (``SmartCarMujocoVectorEnv``,
     ``SmartCarNavMujocoVectorEnv``, ``SmartCarGoalMujocoVectorEnv``, bit for bit too) and
     with ``engine="planar"`` in arrays (``SmartCarPlanarVectorEnv``,
-    ``SmartCarNavPlanarVectorEnv``, ``SmartCarGoalPlanarVectorEnv``, bit for bit too), on
-    pybullet or with options the batches lack (``randomize``, ``stop_speed``, the GUI) as N
-    single envs in a loop (``SmartCarLoopVectorEnv``). Gymnasium 1.x autoreset (``"NextStep"``, or
-    ``autoreset_mode="SameStep"``), car i seeded ``s + i``, ``info["is_success"]`` per car.
+    ``SmartCarNavPlanarVectorEnv``, ``SmartCarGoalPlanarVectorEnv``, bit for bit too,
+    differential-drive robots included), on pybullet or with what the batches lack
+    (``randomize``, ``stop_speed``, the GUI, a differential-drive ``model`` on MuJoCo) as N
+    single envs in a loop (``SmartCarLoopVectorEnv``). Gymnasium 1.x autoreset
+    (``"NextStep"``, or ``autoreset_mode="SameStep"``), car i seeded ``s + i``,
+    ``info["is_success"]`` per car.
 
     ## Version History
 
@@ -220,6 +226,8 @@ class SmartCarEnv(gym.Env):
       pybullet's and MuJoCo's only. pybullet stays the default, its rollouts unchanged.
     * v0 (0.3.0): ``engine="mujoco"``: the same car, controller and tasks on MuJoCo
       (docs/engines.md); pybullet stays the default, its rollouts unchanged bit for bit.
+      ``render_mode="human"`` opens MuJoCo's viewer. A world MuJoCo finds unstable (and resets)
+      is one ``MujocoWarning`` with the car's state; nothing goes to ``MUJOCO_LOG.TXT``.
 
     * v0 (0.2.0): event-driven stepping (``max_substep_s``, default 0.01 s); ``physics_hz``
       deprecated. ``max_substep_s=0.002`` reproduces 0.1.0's fixed 500 Hz stepping bit for bit.
@@ -255,8 +263,7 @@ class SmartCarEnv(gym.Env):
         planar_params: str | os.PathLike | dict | PlanarParams | None = None,
     ) -> None:
         self.engine = DEFAULT_ENGINE if engine is None else check_engine(engine)
-        if self.engine == "planar":  # it draws rgb_array pictures only, no GUI
-            self.metadata = {**self.metadata, "render_modes": RenderModes(["rgb_array"])}
+        self.metadata = {**self.metadata, "render_modes": self._render_modes(render_mode)}
         checks.one_of("render_mode", render_mode, list(self.metadata["render_modes"]),
                       none_ok=True)
         if planar_params is not None and self.engine != "planar":
@@ -314,6 +321,17 @@ class SmartCarEnv(gym.Env):
         self._distance = 0.0
         self._odometry_error = 0.0
         self._prev_action = np.zeros(2, dtype=np.float32)
+
+    def _render_modes(self, render_mode: Any) -> RenderModes:
+        """The modes this env's engine supports here: without a window (MuJoCo's viewer on
+        macOS outside mjpython), only "rgb_array"; asking for "human" then says why."""
+        why = window_unavailable(self.engine)
+        if why is None:
+            return RenderModes(["human", "rgb_array"])
+        if render_mode == "human":
+            raise ValueError(f"render_mode='human' is not available with engine="
+                             f"{self.engine!r} here: {why}; use render_mode='rgb_array'")
+        return RenderModes(["rgb_array"])
 
     def _declare_observation(self) -> Observation:
         """Robot, task and action entries in ``OBSERVATION_ORDER``."""

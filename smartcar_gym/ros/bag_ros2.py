@@ -279,16 +279,25 @@ class Ros2BagSink:
         return out
 
     def close(self) -> None:
-        """Finish the bag: the folder appears at ``path``."""
-        self._writer.close()
-        os.replace(self._partial, self.path)
-        self._scratch.rmdir()
-        self._closed = True
-
-    def discard(self) -> None:
-        """Stop without leaving a bag (after an error)."""
+        """Finish the bag: the folder appears at ``path``. Idempotent: after ``close`` or
+        ``discard`` it does nothing; if finishing fails, nothing is left and the error is
+        raised."""
         if self._closed:
             return
+        self._closed = True
+        try:
+            self._writer.close()
+            os.replace(self._partial, self.path)
+            self._scratch.rmdir()
+        except BaseException:
+            shutil.rmtree(self._scratch, ignore_errors=True)
+            raise
+
+    def discard(self) -> None:
+        """Stop without leaving a bag (after an error); does nothing once closed."""
+        if self._closed:
+            return
+        self._closed = True
         try:
             self._writer.close()
         except Exception:  # noqa: BLE001 (a half-written bag after the real error)

@@ -61,6 +61,22 @@ def mujoco_simulator_class() -> type:
     return MujocoSimulator
 
 
+def window_unavailable(engine: str) -> str | None:
+    """Why a world of ``engine`` cannot open a window (``render_mode="human"``: pybullet's
+    GUI, MuJoCo's viewer) in this process at all; None where it can, given a display."""
+    if engine == "planar":
+        return "the planar engine draws top-down pictures only (no window)"
+    if engine != "mujoco":
+        return None
+    try:
+        from smartcar_gym.sim.mujoco.window import unavailable
+    except ModuleNotFoundError as exc:
+        if exc.name != "mujoco":
+            raise
+        return None  # making the world says which extra is missing
+    return unavailable()
+
+
 def make_simulator(engine: str = DEFAULT_ENGINE, **options: Any) -> Any:
     """A new simulator of ``engine`` (see ``ENGINES``) with the ``Simulator`` keywords
     (``max_substep_s``, ``gui``, ``gravity_m_s2``, ``ground_friction``, ...)."""

@@ -15,6 +15,7 @@ from typing import Any
 
 import gymnasium as gym
 
+from smartcar_gym.envs.vector.common import CannotBatch
 from smartcar_gym.envs.vector.goal_mujoco import SmartCarGoalMujocoVectorEnv
 from smartcar_gym.envs.vector.kinematic import SmartCarSimVectorEnv, supports
 from smartcar_gym.envs.vector.loop import SmartCarLoopVectorEnv
@@ -45,25 +46,26 @@ def make_vector_env(env_id: str, num_envs: int = 1, **kwargs: Any) -> gym.vector
     ``engine="mujoco"`` (hardware mode, no ``randomize``, no GUI): ``SmartCarMujocoVectorEnv``
     (MuJoCo in C per car); SmartCarNav-v0 with ``engine="mujoco"`` (the same, and no
     ``render_mode``): ``SmartCarNavMujocoVectorEnv``; SmartCarGoal-v0 with
-    ``engine="mujoco"`` (as SmartCar-v0): ``SmartCarGoalMujocoVectorEnv``; anything else:
+    ``engine="mujoco"`` (as SmartCar-v0): ``SmartCarGoalMujocoVectorEnv``; anything else,
+    differential-drive robots included (the batches run skid-steer bases):
     ``SmartCarLoopVectorEnv``. ``kwargs`` are the single
     env's, plus ``max_episode_steps`` and ``autoreset_mode``.
     """
     if env_id == "SmartCarSim-v0" and supports(kwargs) is None \
             and kwargs.get("controller_mode", "sim") == "sim":
         return SmartCarSimVectorEnv(num_envs=num_envs, **kwargs)
-    if env_id == "SmartCar-v0" and planar_supports(kwargs) is None:
-        return SmartCarPlanarVectorEnv(num_envs=num_envs, **kwargs)
-    if env_id == "SmartCarGoal-v0" and planar_supports(kwargs) is None:
-        return SmartCarGoalPlanarVectorEnv(num_envs=num_envs, **kwargs)
-    if env_id == "SmartCarNav-v0" and nav_planar_supports(kwargs) is None:
-        return SmartCarNavPlanarVectorEnv(num_envs=num_envs, **kwargs)
-    if env_id == "SmartCar-v0" and mujoco_supports(kwargs) is None:
-        return SmartCarMujocoVectorEnv(num_envs=num_envs, **kwargs)
-    if env_id == "SmartCarNav-v0" and nav_mujoco_supports(kwargs) is None:
-        return SmartCarNavMujocoVectorEnv(num_envs=num_envs, **kwargs)
-    if env_id == "SmartCarGoal-v0" and mujoco_supports(kwargs) is None:
-        return SmartCarGoalMujocoVectorEnv(num_envs=num_envs, **kwargs)
+    batch = {"SmartCar-v0": ((SmartCarPlanarVectorEnv, planar_supports),
+                             (SmartCarMujocoVectorEnv, mujoco_supports)),
+             "SmartCarNav-v0": ((SmartCarNavPlanarVectorEnv, nav_planar_supports),
+                                (SmartCarNavMujocoVectorEnv, nav_mujoco_supports)),
+             "SmartCarGoal-v0": ((SmartCarGoalPlanarVectorEnv, planar_supports),
+                                 (SmartCarGoalMujocoVectorEnv, mujoco_supports))}.get(env_id, ())
+    for cls, supported in batch:
+        if supported(kwargs) is None:
+            try:
+                return cls(num_envs=num_envs, **kwargs)
+            except CannotBatch:  # the robot's drive (differential): the loop runs it
+                break
     return SmartCarLoopVectorEnv(env_id, num_envs=num_envs, **kwargs)
 
 

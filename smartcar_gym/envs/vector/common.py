@@ -1,4 +1,5 @@
-"""What every smartcar vector env shares: the size check, the action check, the autoreset mode."""
+"""What every smartcar vector env shares: the checks of their arguments (size, threads, episode
+limit, autoreset mode), of ``reset``'s seeds and of ``step``'s actions."""
 
 from __future__ import annotations
 
@@ -12,6 +13,11 @@ from smartcar_gym import checks
 
 #: the autoreset modes the smartcar vector envs implement (Gymnasium 1.x's two automatic ones)
 AUTORESET_MODES = (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP)
+
+
+class CannotBatch(ValueError):
+    """What a batched env cannot run, found once its single env is made (the robot's drive):
+    the ``vector_entry_point`` then falls back to the loop."""
 
 
 def available_memory_bytes() -> int | None:
@@ -57,16 +63,75 @@ def check_autoreset_mode(mode: Any) -> AutoresetMode:
     return mode
 
 
+def check_max_episode_steps(value: Any, env_id: str) -> int | None:
+    """The episode limit ``max_episode_steps`` means, as ``gym.make`` reads it: None is the
+    id's registered limit, -1 no limit (None is returned), a positive integer itself; anything
+    else (0, -5, 2.5) is one line."""
+    from gymnasium.envs.registration import registry
+
+    spec = registry.get(env_id.split(":")[-1])  # "smartcar_gym:SmartCar-v0" as gym.make
+    registered = None if spec is None else spec.max_episode_steps
+    if value is None:
+        return registered
+    if checks.is_whole(value) and (value >= 1 or value == -1):
+        return None if value == -1 else int(value)
+    default = f"{env_id}'s limit, {registered} steps" if registered else "the id's limit"
+    raise ValueError(f"max_episode_steps must be a positive integer, None ({default}) or -1 "
+                     f"(no limit), got {value!r}")
+
+
+def check_num_threads(value: Any) -> int:
+    """``num_threads`` (worker threads stepping the cars' physics): an integer >= 1, None for
+    ``os.cpu_count()``; one line otherwise."""
+    if value is None:
+        return os.cpu_count() or 1
+    if not checks.is_whole(value) or value < 1:
+        raise ValueError(f"num_threads must be an integer >= 1 (worker threads stepping the "
+                         f"physics) or None (one per CPU), got {value!r}")
+    return int(value)
+
+
+def check_seeds(seed: Any, num_envs: int) -> list[int | None]:
+    """Each car's seed from ``reset(seed=...)``: an integer s seeds car i with s + i, a list
+    (one integer or None per car) each car; None keeps every car's generator."""
+    expected = (f"reset(seed=...) must be an integer >= 0, None or a list of {num_envs} "
+                "(an integer or None per car)")
+    if seed is None:
+        return [None] * num_envs
+    if checks.is_whole(seed):
+        if seed < 0:
+            raise ValueError(f"{expected}, got {seed!r}")
+        return [int(seed) + i for i in range(num_envs)]
+    if not isinstance(seed, list | tuple | np.ndarray):
+        raise ValueError(f"{expected}, got {type(seed).__name__} {seed!r}")
+    seeds = list(seed)
+    if len(seeds) != num_envs:
+        raise ValueError(f"reset(seed=[...]) needs {num_envs} seeds (one per car), got "
+                         f"{len(seeds)}")
+    bad = [s for s in seeds if s is not None and not (checks.is_whole(s) and s >= 0)]
+    if bad:
+        raise ValueError(f"{expected}, got {bad[0]!r} in the list")
+    return [None if s is None else int(s) for s in seeds]
+
+
 def check_actions(actions: Any, num_envs: int) -> np.ndarray:
     """An ``(num_envs, 2)`` float64 batch of actions clipped to [-1, 1], as each car's env
-    would take its own; a wrong shape or a NaN/inf is one line naming what was expected."""
+    would take its own; a wrong shape, complex numbers or a NaN/inf is one line naming what
+    was expected."""
     expected = f"actions must be an array of shape ({num_envs}, 2) (linear, angular per car)"
     try:
-        arr = np.asarray(actions, dtype=np.float64)
-    except (TypeError, ValueError) as err:  # ragged rows: "inhomogeneous shape"
+        raw = np.asarray(actions)
+    except ValueError as err:  # ragged rows: "inhomogeneous shape"
         shapes = sorted({np.shape(a) for a in actions}) if isinstance(actions, list | tuple) \
             else None
         raise ValueError(f"{expected}, got a mixed batch (row shapes {shapes})") from err
+    if raw.dtype.kind == "c":  # float64 would drop the imaginary parts with only a warning
+        raise ValueError(f"actions must be real numbers (linear, angular per car), got "
+                         f"complex values ({raw.dtype})")
+    try:
+        arr = raw.astype(np.float64, copy=False)
+    except (TypeError, ValueError) as err:
+        raise ValueError(f"{expected} of numbers, got {raw.dtype} values") from err
     if arr.shape != (num_envs, 2):
         raise ValueError(f"{expected}, got shape {arr.shape}")
     bad = ~np.isfinite(arr).all(axis=1)

@@ -9,7 +9,6 @@ import numpy as np
 
 from smartcar_gym.envs.goal_env import GoalRewards, SmartCarGoalEnv
 from smartcar_gym.envs.vector.mujoco import SmartCarMujocoVectorEnv
-from smartcar_gym.registration import SPECS
 
 
 class SmartCarGoalMujocoVectorEnv(GoalRewards, SmartCarMujocoVectorEnv):
@@ -41,13 +40,9 @@ class SmartCarGoalMujocoVectorEnv(GoalRewards, SmartCarMujocoVectorEnv):
 
     single_env = SmartCarGoalEnv
     env_id = "SmartCarGoal-v0"
+    from_settings = ("observation", "_achieved", "_desired")
 
-    def __init__(self, num_envs: int = 1,
-                 max_episode_steps: int | None = SPECS["SmartCarGoal-v0"].max_episode_steps,
-                 **kwargs: Any) -> None:
-        super().__init__(num_envs, max_episode_steps, **kwargs)
-
-    def _init_from(self, s: SmartCarGoalEnv, num_threads: int | None) -> None:
+    def _init_from(self, s: SmartCarGoalEnv, num_threads: int) -> None:
         super()._init_from(s, num_threads)
         self.goal_task = s.goal_task
         self._achieved, self._desired = s._achieved, s._desired

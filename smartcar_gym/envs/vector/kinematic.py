@@ -18,11 +18,12 @@ from smartcar_gym.envs.smartcar_env import SmartCarEnv
 from smartcar_gym.envs.vector.common import (
     check_actions,
     check_autoreset_mode,
+    check_max_episode_steps,
     check_num_envs,
+    check_seeds,
     vector_info,
 )
 from smartcar_gym.envs.vector.render import top_down_tiles
-from smartcar_gym.registration import MAX_EPISODE_STEPS
 from smartcar_gym.sim.simulator import NS_PER_S, seconds_to_ns
 
 #: measured: 4096 cars hold about 9 MiB of arrays; the margin covers the per-car generators
@@ -71,19 +72,28 @@ class SmartCarSimVectorEnv(gym.vector.VectorEnv):
       the episode and puts its last observation and info in ``info["final_obs"]`` and
       ``info["final_info"]`` (what SB3 expects; ``agents.vec_env`` uses it).
       ``metadata["autoreset_mode"]`` says which.
+    - **Episode limit**: ``max_episode_steps`` as ``gym.make`` reads it: None the id's
+      registered limit (200 steps), -1 none, a positive integer that limit; others refused.
     - **Seeding**: ``reset(seed=s)`` seeds car i with ``s + i`` (a list seeds each car), as
-      ``SyncVectorEnv``; ``reset()`` keeps each car's generator. ``reset(options={"goal":
+      ``SyncVectorEnv``; ``reset()`` keeps each car's generator. A seed that is not an integer
+      >= 0 (or None) is one error line. ``reset(options={"goal":
       (x, y)})`` gives every car that goal, an ``(N, 2)`` array one each.
     - **info**: per car ``is_success``, ``distance``, ``pose``, ``odom_pose``, ``odom_error``
       (as SmartCar-v0), each with its ``_key`` mask.
-    - **Actions**: ``(N, 2)`` in [-1, 1] (clipped); another shape or NaN is one error line.
+    - **Actions**: ``(N, 2)`` real numbers in [-1, 1] (clipped); another shape, complex
+      numbers or NaN is one error line.
     - **render()**: with ``render_mode="rgb_array"``, a top-down view of the first cars (up to
       16) tiled in one ``render_width x render_height`` image: arena, goal, car.
+    - **close()**: ``reset()`` reopens a closed env, as it does a single env; ``step()`` before
+      it says so in one line.
+    - **Copies** (``copy.deepcopy``, pickle): the whole state, every car's generator included.
     """
 
     metadata = {"render_modes": ["rgb_array"], "autoreset_mode": AutoresetMode.NEXT_STEP}
+    #: attributes taken from ``settings`` (lambdas inside): a copy takes them again
+    from_settings: tuple[str, ...] = ("observation",)
 
-    def __init__(self, num_envs: int = 1, max_episode_steps: int | None = MAX_EPISODE_STEPS,
+    def __init__(self, num_envs: int = 1, max_episode_steps: int | None = None,
                  autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
                  **kwargs: Any) -> None:
         why = supports(kwargs)
@@ -92,9 +102,8 @@ class SmartCarSimVectorEnv(gym.vector.VectorEnv):
                              "vectorization_mode='sync' (or the vector_entry_point falls back)")
         self.num_envs = check_num_envs(num_envs, "SmartCarSim-v0", BYTES_PER_CAR)
         self.autoreset_mode = check_autoreset_mode(autoreset_mode)
-        if max_episode_steps is not None:
-            max_episode_steps = int(max_episode_steps)
-        self.max_episode_steps = max_episode_steps
+        #: steps before a car's episode is truncated (None: no limit)
+        self.max_episode_steps = check_max_episode_steps(max_episode_steps, "SmartCarSim-v0")
         kwargs.setdefault("controller_mode", KINEMATIC)
         s = _Settings(**kwargs)
         if s.controller_mode != KINEMATIC:
@@ -140,6 +149,20 @@ class SmartCarSimVectorEnv(gym.vector.VectorEnv):
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
 
+    # -- copies --------------------------------------------------------------------------------
+    def __getstate__(self) -> dict[str, Any]:
+        """Everything but what is taken from ``settings`` (the single env's own copy keeps
+        its settings and declares its observation again)."""
+        state = self.__dict__.copy()
+        for key in self.from_settings:
+            state.pop(key, None)
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        for key in self.from_settings:
+            setattr(self, key, getattr(self.settings, key))
+
     # -- gymnasium API -------------------------------------------------------------------------
     @property
     def np_random(self) -> tuple[np.random.Generator, ...]:
@@ -154,15 +177,10 @@ class SmartCarSimVectorEnv(gym.vector.VectorEnv):
     def reset(self, *, seed: int | list[int | None] | None = None,
               options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
         n = self.num_envs
-        if seed is None:
-            seeds: list[int | None] = [None] * n
-        elif isinstance(seed, int | np.integer):
-            seeds = [int(seed) + i for i in range(n)]
-        else:
-            seeds = list(seed)
-            if len(seeds) != n:
-                raise ValueError(f"reset(seed=[...]) needs {n} seeds (one per car), got "
-                                 f"{len(seeds)}")
+        seeds = check_seeds(seed, n)
+        if self.closed:  # as the single envs: reset() reopens
+            self._reopen()
+            self.closed = False
         for i, s in enumerate(seeds):
             if s is not None or self._rngs[i] is None:
                 self._rngs[i], _ = seeding.np_random(s)
@@ -175,8 +193,11 @@ class SmartCarSimVectorEnv(gym.vector.VectorEnv):
 
     def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
                                           dict[str, Any]]:
+        if self.closed:
+            raise RuntimeError(f"{type(self).__name__} is closed: call reset() to reopen it "
+                               "before step()")
         if self._needs_reset:
-            raise gym.error.ResetNeeded("SmartCarSimVectorEnv: call reset() before step()")
+            raise gym.error.ResetNeeded(f"{type(self).__name__}: call reset() before step()")
         a = check_actions(actions, self.num_envs)
         restart = self._autoreset.copy() if self.autoreset_mode == AutoresetMode.NEXT_STEP \
             else np.zeros(self.num_envs, dtype=bool)
@@ -220,6 +241,10 @@ class SmartCarSimVectorEnv(gym.vector.VectorEnv):
 
     def close_extras(self, **kwargs: Any) -> None:
         """Nothing to release: no engine, no files."""
+
+    def _reopen(self) -> None:
+        """What ``close_extras`` released, back before ``reset`` starts the cars again (nothing
+        here)."""
 
     # -- the model -----------------------------------------------------------------------------
     def _check_options(self, options: Any) -> np.ndarray | None:

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-import os
+import warnings
 from typing import Any
 
 import gymnasium as gym
@@ -14,10 +14,16 @@ from smartcar_gym.controller import HARDWARE
 from smartcar_gym.controller.batched import BatchedArbotix
 from smartcar_gym.envs.smartcar_env import SmartCarEnv
 from smartcar_gym.envs.tasks.reach import FLIP_UP_Z
-from smartcar_gym.envs.vector.common import check_autoreset_mode, check_num_envs, vector_info
+from smartcar_gym.envs.vector.common import (
+    CannotBatch,
+    check_autoreset_mode,
+    check_max_episode_steps,
+    check_num_envs,
+    check_num_threads,
+    vector_info,
+)
 from smartcar_gym.envs.vector.kinematic import TWO_PI, SmartCarSimVectorEnv
 from smartcar_gym.envs.vector.render import top_down_tiles
-from smartcar_gym.registration import MAX_EPISODE_STEPS
 from smartcar_gym.sim.clock import MAX_FIRINGS_PER_INSTANT, NS_PER_S
 
 #: measured with 4.0.0 (256 cars): 0.74 MiB resident per car, mostly its MjData arena
@@ -57,8 +63,9 @@ class SmartCarMujocoVectorEnv(SmartCarSimVectorEnv):
     stepped on its own (no common schedule is assumed).
 
     Made by ``gym.make_vec("SmartCar-v0", num_envs=N, vectorization_mode="vector_entry_point",
-    engine="mujoco", **kwargs)`` with SmartCarEnv's kwargs, plus ``autoreset_mode`` and
-    ``num_threads`` (worker threads stepping the physics; default ``os.cpu_count()``).
+    engine="mujoco", **kwargs)`` with SmartCarEnv's kwargs, plus ``max_episode_steps``,
+    ``autoreset_mode`` and ``num_threads`` (worker threads stepping the physics, an integer
+    >= 1; default ``os.cpu_count()``).
     ``randomize``, ``render_mode="human"``, ``controller_mode="sim"`` and differential-drive
     models fall back to ``SmartCarLoopVectorEnv``.
 
@@ -66,7 +73,9 @@ class SmartCarMujocoVectorEnv(SmartCarSimVectorEnv):
 
     As ``SmartCarSimVectorEnv`` (autoreset ``"NextStep"`` or ``"SameStep"``, car i seeded
     ``s + i``, ``info`` per car with ``_key`` masks, ``(N, 2)`` actions, ``render()`` tiles the
-    first 16 cars top-down).
+    first 16 cars top-down, ``reset()`` reopens a closed batch). A copy (``copy.deepcopy``,
+    pickle) is as a copy of the single env: the same settings and generators, no worlds of
+    the original's; its first ``reset()`` makes its own.
     """
 
     metadata = {"render_modes": ["rgb_array"], "autoreset_mode": AutoresetMode.NEXT_STEP}
@@ -79,7 +88,7 @@ class SmartCarMujocoVectorEnv(SmartCarSimVectorEnv):
     engine = "mujoco"
     differential = False
 
-    def __init__(self, num_envs: int = 1, max_episode_steps: int | None = MAX_EPISODE_STEPS,
+    def __init__(self, num_envs: int = 1, max_episode_steps: int | None = None,
                  autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
                  num_threads: int | None = None, **kwargs: Any) -> None:
         kwargs.setdefault("engine", self.engine)
@@ -89,15 +98,17 @@ class SmartCarMujocoVectorEnv(SmartCarSimVectorEnv):
                              "vectorization_mode='sync' (or the vector_entry_point falls back)")
         self.num_envs = check_num_envs(num_envs, f"{self.env_id} (mujoco)", self.bytes_per_car)
         self.autoreset_mode = check_autoreset_mode(autoreset_mode)
-        self.max_episode_steps = None if max_episode_steps is None else int(max_episode_steps)
+        #: steps before a car's episode is truncated (None: no limit)
+        self.max_episode_steps = check_max_episode_steps(max_episode_steps, self.env_id)
+        num_threads = check_num_threads(num_threads)
         template = self.single_env(**kwargs)
         try:
             if template.controller_mode != HARDWARE:
                 raise ValueError(f"{type(self).__name__} is the hardware mode (PID, motors)")
             if template.robot_model.drive_kind == "differential" and not self.differential:
-                raise ValueError(f"{type(self).__name__} runs skid-steer bases; a "
-                                 "differential-drive model starts its encoders mid-tick "
-                                 "(use vectorization_mode='sync')")
+                raise CannotBatch(f"{type(self).__name__} runs skid-steer bases; a "
+                                  "differential-drive model starts its encoders mid-tick "
+                                  "(the vector_entry_point falls back to the loop)")
             template.reset(seed=0)
             self._init_from(template, num_threads)
         except BaseException:
@@ -110,7 +121,7 @@ class SmartCarMujocoVectorEnv(SmartCarSimVectorEnv):
         its world)."""
         template.close()
 
-    def _init_from(self, s: SmartCarEnv, num_threads: int | None) -> None:
+    def _init_from(self, s: SmartCarEnv, num_threads: int) -> None:
         from smartcar_gym.sim.mujoco.batch import CarBatch
 
         self._take_settings(s)
@@ -121,15 +132,12 @@ class SmartCarMujocoVectorEnv(SmartCarSimVectorEnv):
         self._wheel_v = np.asarray(dadr)
         self._encoder_q = np.asarray(ids.addresses(robot._encoder_idx)[0])
         self._encoder_sign = np.array(robot._encoder_signs, dtype=np.float64)
-        self._free_q = ids.free_q
+        self._free_q, self._free_v = ids.free_q, ids.free_v
         self._side = np.array([0 if left else 1 for left in robot._left])
         self._share = np.array(robot._share)
         self._sign = np.array(robot._signs)
         self.max_substep_ns = sim.max_substep_ns
-        threads = (os.cpu_count() or 1) if num_threads is None else int(num_threads)
-        if threads < 1:
-            raise ValueError(f"num_threads must be >= 1, got {num_threads!r}")
-        self.cars = CarBatch(sim, n, list(dadr), threads)
+        self.cars = CarBatch(sim, n, list(dadr), num_threads)
         wheels = len(self._wheel_q)
         self._wheel_group = np.arange(wheels)
         self.period_ns = robot.update_period_ns
@@ -150,9 +158,22 @@ class SmartCarMujocoVectorEnv(SmartCarSimVectorEnv):
         self._needs_reset = True
 
     def close_extras(self, **kwargs: Any) -> None:
-        """Stop the worker threads and free the cars' worlds."""
+        """Stop the worker threads and free the cars' worlds (``reset`` makes them again)."""
         if getattr(self, "cars", None) is not None:
             self.cars.close()
+        self._needs_reset = True
+
+    def _reopen(self) -> None:
+        """Every car a copy of the settled world again (the batch's template)."""
+        self.cars.reopen()
+
+    def __getstate__(self) -> dict[str, Any]:
+        """A copy keeps the settings, every car's generator and the settled world it was
+        made from, never the cars' worlds or threads: it is closed, and its first ``reset``
+        reopens it (as a copy of a single env gets a world of its own at its first reset)."""
+        state = super().__getstate__()
+        state["closed"], state["_needs_reset"] = True, True
+        return state
 
     def render(self) -> np.ndarray | None:
         if self.render_mode is None:
@@ -256,8 +277,19 @@ class SmartCarMujocoVectorEnv(SmartCarSimVectorEnv):
             timestep = interval.astype(np.float64) / (nstep * NS_PER_S).astype(np.float64)
             moving = interval > 0
             self.cars.step(cars[moving], nstep[moving], timestep[moving])
+            if self.cars.unstable:
+                self._report_unstable()
             self._now[cars] = target
             pending = active
+
+    def _report_unstable(self) -> None:
+        """A warning per car whose world MuJoCo found unstable (and reset), with its state."""
+        from smartcar_gym.sim.mujoco.mjlog import MujocoWarning, describe
+
+        events, self.cars.unstable = self.cars.unstable, []
+        for car, event in sorted(events, key=lambda e: e[0]):
+            line = describe(event, [(f"car {car}", self._free_q, self._free_v)])
+            warnings.warn(f"{self.env_id} (mujoco): {line}", MujocoWarning, stacklevel=5)
 
     def _advance(self, a: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """One controller period for every car: SmartCarEnv.step's arithmetic, in arrays."""

@@ -76,7 +76,7 @@ class SmartCarNavMujocoVectorEnv(SmartCarMujocoVectorEnv):
         """The single env stays: it builds every car's world at the car's resets."""
         self.builder = template
 
-    def _init_from(self, s: SmartCarNavEnv, num_threads: int | None) -> None:
+    def _init_from(self, s: SmartCarNavEnv, num_threads: int) -> None:
         super()._init_from(s, num_threads)
         n = self.num_envs
         self.laser = SimulatedLaser(s.laser_config, s.mount)  # its arithmetic, unattached

@@ -126,7 +126,11 @@ class SmartCarPlanarVectorEnv(SmartCarMujocoVectorEnv):
         self._needs_reset = True
 
     def close_extras(self, **kwargs: Any) -> None:
-        """Nothing to release: arrays only."""
+        """Nothing to release: arrays only (``reset`` starts every car afresh)."""
+        self._needs_reset = True
+
+    def _reopen(self) -> None:
+        """Nothing to rebuild: the cars are arrays, and ``reset`` respawns them all."""
 
     def _angles(self) -> np.ndarray:
         """The encoder wheels' forward-positive angles (N, 2), as ``encoder_angles``."""

@@ -7,7 +7,9 @@ same solver warm start), so its physics is bit for bit what ``N`` single envs co
 (``mj_step(model, data, nstep)``: the substeps run in C), the cars split between worker threads
 (MuJoCo releases Python's GIL inside ``mj_step``). What the emulated board changes between
 events (the wheels' motor torque in ``qfrc_applied``, their back-EMF damping in
-``dof_damping``) is written into each car's own model and data before it steps.
+``dof_damping``) is written into each car's own model and data before it steps. A car whose
+world MuJoCo finds unstable (and resets) is listed in ``unstable`` with its state then
+(``mjlog``), for the vector env to report.
 
 A car whose world changes per episode (SmartCarNav-v0's obstacles) gets a copy of the world its
 single env builds (``load``). Its sensors query its own world in C the same way: ``scan`` (the
@@ -29,6 +31,7 @@ from concurrent.futures import ThreadPoolExecutor
 import mujoco
 import numpy as np
 
+from smartcar_gym.sim.mujoco import mjlog
 from smartcar_gym.sim.mujoco.rays import hit_fraction, multi_ray, unit_rays
 from smartcar_gym.sim.mujoco.simulator import MujocoSimulator
 
@@ -57,16 +60,23 @@ class CarBatch:
         self.template_model, self.template_data = copy.copy(m), copy.copy(d)
         self.n = int(num_cars)
         self.dofs = np.asarray(wheel_dofs, dtype=np.intp)
-        self.models = [copy.copy(m) for _ in range(self.n)]
-        self.datas = [copy.copy(d) for _ in range(self.n)]
         self.qpos = np.tile(d.qpos, (self.n, 1))
         self.qvel = np.tile(d.qvel, (self.n, 1))
-        #: cars whose geom poses are older than their positions (stepped since ``_current``)
-        self._stale = np.ones(self.n, dtype=bool)
         self.torque = np.tile(d.qfrc_applied[self.dofs], (self.n, 1))
         self.damping = np.tile(m.dof_damping[self.dofs], (self.n, 1))
         self.threads = max(1, int(threads))
         self._pool: ThreadPoolExecutor | None = None
+        self.reopen()
+
+    def reopen(self) -> None:
+        """Every car a copy of the template's world (after ``close``: the worlds again)."""
+        tm, td = self.template_model, self.template_data
+        self.models = [copy.copy(tm) for _ in range(self.n)]
+        self.datas = [copy.copy(td) for _ in range(self.n)]
+        #: cars whose geom poses are older than their positions (stepped since ``_current``)
+        self._stale = np.ones(self.n, dtype=bool)
+        #: (car, what MuJoCo said) for each instability met while stepping, until taken
+        self.unstable: list[tuple[int, mjlog.Instability]] = []
 
     def reset(self, cars: np.ndarray) -> None:
         """Put the listed cars back into the template's state (model values and data)."""
@@ -149,7 +159,9 @@ class CarBatch:
             m.opt.timestep = dt
             d.qfrc_applied[dofs] = torque[i]
             m.dof_damping[dofs] = damping[i]
-            mujoco.mj_step(m, d, n)
+            unstable = mjlog.step(m, d, n)
+            if unstable:
+                self.unstable += [(i, event) for event in unstable]
             qpos[i] = d.qpos
             qvel[i] = d.qvel
             self._stale[i] = True
@@ -192,8 +204,16 @@ class CarBatch:
         return int(m.nbuffer + d.nbuffer) if hasattr(d, "nbuffer") else int(
             m.nbuffer + d.narena * 8)
 
+    def __getstate__(self) -> dict:
+        """The template and the arrays, without the cars' worlds or the worker threads (a
+        copy is closed until ``reopen``)."""
+        state = self.__dict__.copy()
+        state.update(models=[], datas=[], _pool=None, unstable=[])
+        return state
+
     def close(self) -> None:
-        """Stop the worker threads and drop the copies."""
+        """Stop the worker threads and drop the cars' copies (the template stays, for
+        ``reopen``)."""
         if self._pool is not None:
             self._pool.shutdown(wait=True)
             self._pool = None

@@ -36,12 +36,7 @@ class OffscreenCamera:
                                f"{INSTALL_HINT}") from None
         self.model = model
         self.option = mujoco.MjvOption()
-        self.option.geomgroup[:] = 0
-        self.option.geomgroup[GROUP_WORLD] = 1
-        if show_collision:
-            self.option.geomgroup[GROUP_COLLISION] = self.option.geomgroup[GROUP_HIDDEN] = 1
-        else:
-            self.option.geomgroup[GROUP_VISUAL] = 1
+        show_groups(self.option, show_collision)
         self.camera = mujoco.MjvCamera()
         self.camera.type = mujoco.mjtCamera.mjCAMERA_FREE
 
@@ -50,25 +45,46 @@ class OffscreenCamera:
               markers: Sequence[Marker]) -> np.ndarray:
         """The picture from an orbit camera as pybullet's ``computeViewMatrixFromYawPitchRoll``
         places it (MuJoCo's azimuth is pybullet's yaw + 90 degrees)."""
-        cam = self.camera
-        cam.lookat[:] = target
-        cam.distance = distance
-        cam.azimuth = yaw_deg + 90.0
-        cam.elevation = pitch_deg
+        point_orbit(self.camera, target, distance, yaw_deg, pitch_deg)
         self.model.vis.global_.fovy = fov_deg
         renderer = self.renderer
-        renderer.update_scene(data, camera=cam, scene_option=self.option)
-        scene = renderer.scene
-        for marker in markers:
-            frame = rotation(marker.orientation)
-            for kind, size, position, quat, rgba in marker.parts:
-                if scene.ngeom >= scene.maxgeom:
-                    break
-                mat = frame @ rotation(quat)
-                mujoco.mjv_initGeom(scene.geoms[scene.ngeom], kind, size,
-                                    marker.position + frame @ position, mat.ravel(), rgba)
-                scene.ngeom += 1
+        renderer.update_scene(data, camera=self.camera, scene_option=self.option)
+        add_markers(renderer.scene, markers)
         return renderer.render().copy()
 
     def close(self) -> None:
         self.renderer.close()
+
+
+def show_groups(option: mujoco.MjvOption, show_collision: bool) -> None:
+    """Draw the world and the robot's visuals, or its collision shapes where it has no
+    visuals (``model.has_visuals``)."""
+    option.geomgroup[:] = 0
+    option.geomgroup[GROUP_WORLD] = 1
+    if show_collision:
+        option.geomgroup[GROUP_COLLISION] = option.geomgroup[GROUP_HIDDEN] = 1
+    else:
+        option.geomgroup[GROUP_VISUAL] = 1
+
+
+def point_orbit(camera: mujoco.MjvCamera, target: Sequence[float], distance: float,
+                yaw_deg: float, pitch_deg: float) -> None:
+    """Place ``camera`` as pybullet's ``computeViewMatrixFromYawPitchRoll`` places its orbit
+    camera (MuJoCo's azimuth is pybullet's yaw + 90 degrees)."""
+    camera.lookat[:] = target
+    camera.distance = distance
+    camera.azimuth = yaw_deg + 90.0
+    camera.elevation = pitch_deg
+
+
+def add_markers(scene: mujoco.MjvScene, markers: Sequence[Marker]) -> None:
+    """Append the visual-only markers' shapes to ``scene`` (as many as it has room for)."""
+    for marker in markers:
+        frame = rotation(marker.orientation)
+        for kind, size, position, quat, rgba in marker.parts:
+            if scene.ngeom >= scene.maxgeom:
+                return
+            mat = frame @ rotation(quat)
+            mujoco.mjv_initGeom(scene.geoms[scene.ngeom], kind, size,
+                                marker.position + frame @ position, mat.ravel(), rgba)
+            scene.ngeom += 1

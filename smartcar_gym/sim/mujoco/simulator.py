@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+import warnings
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 
@@ -30,6 +31,7 @@ import numpy as np
 from smartcar_gym.sim.body import BASE
 from smartcar_gym.sim.camera import BoxPart
 from smartcar_gym.sim.clock import DEFAULT_MAX_SUBSTEP_S, EventClock, check_max_substep
+from smartcar_gym.sim.mujoco import mjlog
 from smartcar_gym.sim.mujoco.body import Marker, MujocoBody, wxyz
 from smartcar_gym.sim.mujoco.model import (
     CONTACT_SOLIMP,
@@ -45,6 +47,7 @@ from smartcar_gym.sim.rays import RayHits
 
 IMPRATIO = 10.0
 CONVERGED_TOLERANCE = 1e-12  # converge_contacts: the Newton solver's tolerance
+mjlog.install()  # MuJoCo's warnings come here, not into MUJOCO_LOG.TXT
 _SHAPES = {"box": mujoco.mjtGeom.mjGEOM_BOX, "cylinder": mujoco.mjtGeom.mjGEOM_CYLINDER,
            "sphere": mujoco.mjtGeom.mjGEOM_SPHERE}
 
@@ -52,9 +55,10 @@ _SHAPES = {"box": mujoco.mjtGeom.mjGEOM_BOX, "cylinder": mujoco.mjtGeom.mjGEOM_C
 class MujocoSimulator(EventClock):
     """A MuJoCo world (gravity, a ground plane) with the event-driven clock.
 
-    Args: as pybullet's ``Simulator``. ``gui`` is refused (MuJoCo renders ``rgb_array``
-    only here); ``solver_iterations`` is pybullet's and unused (MuJoCo's Newton solver stops
-    when it has converged).
+    Args: as pybullet's ``Simulator``. ``gui`` opens MuJoCo's own viewer (``window.Window``)
+    at the first ``point_gui_camera``; without a display it is refused in one line, as
+    pybullet's GUI is. ``solver_iterations`` is pybullet's and unused (MuJoCo's Newton solver
+    stops when it has converged).
     """
 
     engine = "mujoco"
@@ -67,12 +71,15 @@ class MujocoSimulator(EventClock):
         ground_friction: float = 1.0,
         solver_iterations: int = 10,
     ) -> None:
+        self.gui = False
         if gui:
-            raise RuntimeError("render_mode='human' opens pybullet's GUI; with engine='mujoco' "
-                               "use render_mode='rgb_array' (or engine='pybullet')")
+            from smartcar_gym.sim.mujoco.window import start_glfw
+
+            start_glfw()
+            self.gui = True
         self.max_substep_s = check_max_substep(max_substep_s)
         self.max_substep_ns = round(self.max_substep_s * 1e9)
-        self.gui = False
+        self.window = None
         self.gravity_m_s2 = gravity_m_s2
         self.ground_friction = ground_friction
         self.solver_iterations = int(solver_iterations)
@@ -148,7 +155,9 @@ class MujocoSimulator(EventClock):
         yield
 
     def close(self) -> None:
-        """Free the model, the data, the renderer and the scratch folder (idempotent)."""
+        """Close the viewer; free the model, the data, the renderer and the scratch folder
+        (idempotent)."""
+        self._close_window()
         self._close_renderer()
         self.model, self._data, self.spec, self._views = None, None, None, None
         self._bodies, self._sources, self._held, self._markers = {}, [], {}, []
@@ -253,14 +262,24 @@ class MujocoSimulator(EventClock):
             self._views[0].timestep = dt  # m.opt
             self._dt = dt
         if probe is None:
-            mujoco.mj_step(m, d, n)
+            unstable = mjlog.step(m, d, n)
         else:
-            start = self.now_ns
+            start, unstable = self.now_ns, []
             for i in range(n):
-                mujoco.mj_step(m, d)
+                unstable += mjlog.step(m, d)
                 probe((start + interval_ns * (i + 1) / n) / 1e9)
         self._stale = True
         self.physics_steps += n
+        if unstable:
+            self._report(unstable)
+
+    def _report(self, unstable: list[mjlog.Instability]) -> None:
+        """Each instability MuJoCo met in this world as one warning naming the free bodies'
+        state then (what MuJoCo would have written into the working folder)."""
+        bodies = [(b.name, b._ids.free_q, b._ids.free_v) for b in self._bodies.values()
+                  if isinstance(b, MujocoBody) and b.free]
+        for event in unstable:
+            warnings.warn(mjlog.describe(event, bodies), mjlog.MujocoWarning, stacklevel=4)
 
     @property
     def time_step_s(self) -> float:
@@ -394,8 +413,29 @@ class MujocoSimulator(EventClock):
 
     def point_gui_camera(self, target: Sequence[float], distance: float, yaw_deg: float,
                          pitch_deg: float) -> None:
-        """No GUI on MuJoCo: nothing to point."""
+        """Show the world in MuJoCo's viewer (``gui``: opened the first time) from this orbit
+        camera, with the markers; nothing when headless."""
+        if not self.gui:
+            return
+        from smartcar_gym.sim.mujoco.window import Window
+
+        if self.window is None:
+            self.window = Window()
+        self.window.show(self.model_compiled(), self.kinematics(), self._markers, target,
+                         distance, yaw_deg, pitch_deg,
+                         show_collision=not getattr(self, "_visuals", True))
+
+    def _close_window(self) -> None:
+        if getattr(self, "window", None) is not None:
+            self.window.close()
+            self.window = None
+        if getattr(self, "gui", False):
+            from smartcar_gym.sim.mujoco.window import stop_glfw
+
+            self.gui = False
+            stop_glfw()
 
     def __del__(self) -> None:
         with contextlib.suppress(Exception):
+            self._close_window()
             self._close_renderer()

@@ -39,6 +39,9 @@ class PlanarBatch:
         self.contacts = np.repeat(
             np.array(model.contacts, dtype=np.float64).reshape(-1, NC)[:, :, None], self.n, axis=2)
         self.drive = np.zeros((2 * self.ng, self.n))
+        #: worlds the engine found unstable (MuJoCo's batch reports them): the planar
+        #: engine's implicit step has none, so this stays empty
+        self.unstable: list = []
 
     # -- cars ----------------------------------------------------------------------------------
     def reset(self, idx: np.ndarray, state: np.ndarray | None = None) -> None:

@@ -31,6 +31,12 @@ def go_to_goal(obs: np.ndarray) -> np.ndarray:
     return np.array([v, np.clip(1.5 * bearing, -1, 1)], dtype=np.float32)
 
 
+def steer(obs) -> np.ndarray:
+    """A plain function of one observation (or of a Dict space's ``observation``)."""
+    vector = obs["observation"] if isinstance(obs, dict) else obs
+    return np.array([0.8, np.tanh(3.0 * vector[3])], dtype=np.float32)
+
+
 def _dicts(records):
     return [r.to_dict(include_paths=True) for r in records]
 
@@ -54,6 +60,19 @@ def test_batched_records_equal_the_sequential_ones_bit_for_bit(env_id, kwargs):
     if kwargs["max_episode_steps"] > 12:
         ends = {r["success"] for r in want}
         assert ends == {True, False}, ends  # reaching goals and time limits compared
+
+
+@needs_mujoco
+@pytest.mark.parametrize("env_id", ["SmartCarNav-v0", "SmartCarGoal-v0"])
+def test_nav_and_goal_batches_give_the_sequential_records(env_id):
+    """The MuJoCo Nav batch (its own worlds built at each reset) and the Goal batch (Dict
+    observations): the sequential evaluation's records, bit for bit."""
+    common = dict(env_id=env_id, n_episodes=4, seed=1,
+                  env_kwargs={"engine": "mujoco", "max_episode_steps": 15})
+    model = FunctionModel(steer)
+    want = _dicts(evaluate_policy_episodes(model, **common))
+    assert _dicts(evaluate_batched_episodes(model, n_envs=3, **common)) == want
+    assert all(np.isfinite(r["goal"]).all() for r in want)
 
 
 @needs_mujoco

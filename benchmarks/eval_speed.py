@@ -1,11 +1,12 @@
 """Wall time of ``smartcar-eval`` batched against sequential: 1,000 episodes on MuJoCo.
 
     python benchmarks/eval_speed.py [--pretrained default] [--episodes 1000] [--rounds 2]
+    python benchmarks/eval_speed.py --env SmartCarSim-v0 --engine none --no-subproc --rounds 1
 
 Each round runs, one after the other, the same evaluation as the commands a user types:
 
 - ``sequential``: ``smartcar-eval --pretrained NAME --engine mujoco --episodes E`` (one env
-  in the evaluating process: the default);
+  in the evaluating process: the default; ``--env``/``--engine`` change the env);
 - ``subproc x2``: the same with ``--n-envs 2`` (two worker processes: the other way to use two
   cores), unless ``--no-subproc``;
 - ``batched``: the same with ``--vectorization batched`` (64 cars of the MuJoCo batch, two
@@ -38,12 +39,11 @@ MODES = {
 }
 
 
-def run(mode: str, name: str, episodes: int, folder: Path) -> dict:
+def run(mode: str, name: str, episodes: int, folder: Path, env: list[str]) -> dict:
     """One ``smartcar-eval`` command: its wall and CPU seconds and its JSON."""
     out = folder / f"{mode.replace(' ', '_')}.json"
-    argv = [sys.executable, "-m", "smartcar_gym.agents.evaluate", "--pretrained", name,
-            "--engine", "mujoco", "--episodes", str(episodes), "--no-progress", "--json",
-            str(out), *MODES[mode]]
+    argv = [sys.executable, "-m", "smartcar_gym.agents.evaluate", "--pretrained", name, *env,
+            "--episodes", str(episodes), "--no-progress", "--json", str(out), *MODES[mode]]
     load = os.getloadavg()[0]
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
@@ -73,22 +73,26 @@ def main() -> None:
     parser.add_argument("--episodes", type=int, default=1000)
     parser.add_argument("--rounds", type=int, default=2)
     parser.add_argument("--no-subproc", action="store_true", help="leave out --n-envs 2")
+    parser.add_argument("--env", help="env id (default: the policy's, SmartCar-v0)")
+    parser.add_argument("--engine", default="mujoco", help="--engine of the commands, or none")
     parser.add_argument("--out", type=Path, help="write the measurements as JSON")
     args = parser.parse_args()
     modes = [m for m in MODES if not (args.no_subproc and m == "subproc x2")]
+    env = (["--env", args.env] if args.env else []) + (
+        [] if args.engine == "none" else ["--engine", args.engine])
     rows: list[dict] = []
     with tempfile.TemporaryDirectory() as tmp:
         for k in range(args.rounds):
             for mode in modes:
-                row = run(mode, args.pretrained, args.episodes, Path(tmp))
+                row = run(mode, args.pretrained, args.episodes, Path(tmp), env)
                 row["round"] = k
                 rows.append(row)
                 print(f"round {k} {mode}: {row['wall_s']:.1f} s wall, {row['cpu_s']:.1f} s CPU, "
                       f"load {row['load']:.1f}, success {row['record']['success_rate']:.1%}",
                       file=sys.stderr, flush=True)
     sequential = [r for r in rows if r["mode"] == "sequential"]
-    print(f"\n{args.episodes} episodes of SmartCar-v0, --pretrained {args.pretrained}, "
-          f"engine mujoco, {args.rounds} rounds (median; ratio: sequential / this, per round)\n")
+    print(f"\n{args.episodes} episodes, --pretrained {args.pretrained} {' '.join(env)}, "
+          f"{args.rounds} rounds (median; ratio: sequential / this, per round)\n")
     print("| command | wall (s) | CPU (s) | wall ratio | success | load average |")
     print("|---|---:|---:|---:|---:|---:|")
     summary = {}

@@ -119,6 +119,7 @@ def test_cli_batched_json_and_plot_match_the_sequential_evaluation(tmp_path, cap
     assert (got["vectorization"], got["n_envs"], want["vectorization"], want["n_envs"]) == (
         "batched", 3, "subproc", 1)
     assert got["marks"] == want["marks"] == [] and got["passed"] is True
+    assert got["recorded_episodes"] is None  # nothing recorded
     assert got["success_rate"] == want["success_rate"]
     for g, w in zip(got["episode_records"], want["episode_records"], strict=True):
         assert {k: g[k] for k in ("episode", "seed", "success", "length", "goal")} == \

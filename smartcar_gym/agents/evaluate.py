@@ -202,7 +202,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                     else f"{args.pretrained}/{PRETRAINED_MODEL}")),
                 "algo": algo, "env": env_id, "env_kwargs": env_kwargs, "seed": args.seed,
                 "n_envs": args.n_envs, "deterministic": not args.stochastic,
-                "vectorization": args.vectorization, "recorded_episodes": _recorded(args),
+                "vectorization": args.vectorization, "recorded_episodes": _recorded(args)
+                if args.bag or args.rerun or args.rerun_serve else None,
                 "marks": marks, "passed": all(mark["held"] for mark in marks),
                 "normalizer": None if vecnormalize is None else str(vecnormalize),
                 "normalizer_source": source, "warnings": warnings,

@@ -5,12 +5,16 @@
     smartcar-eval --pretrained --episodes 100 --n-envs 4 --video smartcar.gif --plot paths.png
     smartcar-eval --model runs/ppo_SmartCar-v0_s0/model.zip --json results.json
     smartcar-eval --model logs/ppo/SmartCar-v0_1      # an rl-baselines3-zoo run folder
+    smartcar-eval --model model.zip --engine mujoco --vectorization batched --fail-under 95
 
 The episodes are run by ``rollouts.evaluate_policy_episodes`` (episode ``i`` uses seed
 ``seed + i``; the results do not depend on ``n_envs``); ``smartcar_gym.policy.Policy.load``
 finds and loads the model and the normaliser (VecNormalize statistics, a pickle) that may be
 loaded with it (``model_files`` says which).
 ``evaluate_policy_episodes``, ``load_model`` and ``summarize`` can still be imported from here.
+``--vectorization batched`` runs the same episodes on the cars of one vector env
+(``batched_rollouts``); ``--fail-under`` and ``--max-final-distance`` are pass marks (exit
+status 1 when one is missed: docs/ci.md).
 """
 
 from __future__ import annotations
@@ -18,12 +22,14 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
+import math
 import sys
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 from smartcar_gym.agents import EVAL_MODULES, require_train_extra
+from smartcar_gym.agents.batched_rollouts import DEFAULT_BATCH, evaluate_batched_episodes
 from smartcar_gym.agents.env_factory import EnvSetupError, check_env
 from smartcar_gym.agents.hyperparams import (
     ALGOS,
@@ -88,8 +94,27 @@ def build_parser() -> argparse.ArgumentParser:
                         "ones the model's run folder assigns to it)")
     add_engine_argument(parser, what="the evaluation's")
     parser.add_argument("--episodes", type=positive_int_arg, default=100)
-    parser.add_argument("--n-envs", type=positive_int_arg, default=1,
-                        help="envs run in parallel (worker processes when > 1)")
+    parser.add_argument("--n-envs", type=positive_int_arg, default=None,
+                        help="envs run in parallel: worker processes when > 1 (default 1), or "
+                             "with --vectorization batched the cars of the batch (default "
+                             f"{DEFAULT_BATCH})")
+    parser.add_argument("--vectorization", choices=("subproc", "batched"), default="subproc",
+                        help="subproc (default): single envs, in worker processes when "
+                             "--n-envs > 1; batched: --n-envs cars of the id's "
+                             "vector_entry_point in this process (the MuJoCo batches, the numpy "
+                             "SmartCarSim-v0 batch, a loop of single envs elsewhere), all cars' "
+                             "actions from one predict call per step; the same episodes")
+    parser.add_argument("--record-episodes", type=positive_int_arg, metavar="N",
+                        help="with --vectorization batched: --bag and --rerun record the first "
+                             f"N episodes (default {RECORDED_EPISODES}), replayed one at a time "
+                             "in single envs")
+    marks = parser.add_argument_group("pass marks", "A missed mark prints one line naming the "
+                                      "figure and the mark, and the exit status is 1")
+    marks.add_argument("--fail-under", type=percent_arg, metavar="PCT",
+                       help="fail when the success rate is under PCT percent")
+    marks.add_argument("--max-final-distance", type=distance_arg, metavar="M",
+                       help="fail when the mean final distance to the goal (m, ground truth) "
+                            "is over M")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--stochastic", action="store_true",
                         help="sample actions instead of taking the mean action")
@@ -129,6 +154,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     require_train_extra("smartcar-eval", EVAL_MODULES)
     check_outputs(parser, args)
+    _check_vectorization(parser, args)
     env_kwargs = dict(args.env_kwargs)
     if args.engine is not None:
         env_kwargs["engine"] = args.engine
@@ -162,15 +188,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     with contextlib.ExitStack() as stack:
         recorders = _recorders(args, stack)
         try:
-            records = evaluate_policy_episodes(
-                policy, n_episodes=args.episodes, n_envs=args.n_envs,
-                progress=not args.no_progress, recorders=recorders, **common,
-            )
-        except ObservationShapeError as err:
+            records = _evaluate(args, policy, recorders, common)
+        except (ObservationShapeError, EnvSetupError) as err:
             parser.error(str(err))
         outputs: dict[str, Any] = {} if args.random else {"normaliser": vecnormalize or source}
         outputs.update(_close_recorders(recorders))
         summary = summarize(records)
+        marks = check_marks(summary, args)
         if args.json is not None:
             payload = {
                 "model": str(model_path if not args.pretrained else "pretrained:" + (
@@ -178,6 +202,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                     else f"{args.pretrained}/{PRETRAINED_MODEL}")),
                 "algo": algo, "env": env_id, "env_kwargs": env_kwargs, "seed": args.seed,
                 "n_envs": args.n_envs, "deterministic": not args.stochastic,
+                "vectorization": args.vectorization, "recorded_episodes": _recorded(args)
+                if args.bag or args.rerun or args.rerun_serve else None,
+                "marks": marks, "passed": all(mark["held"] for mark in marks),
                 "normalizer": None if vecnormalize is None else str(vecnormalize),
                 "normalizer_source": source, "warnings": warnings,
                 **summary,
@@ -202,14 +229,102 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.bag is not None and args.bag_format == "ros1":
             from smartcar_gym.ros.bag import write_bag
 
-            n_messages = write_bag(policy, args.bag, n_episodes=args.episodes, **common)
+            n_messages = write_bag(policy, args.bag, n_episodes=_recorded(args), **common)
             outputs[f"bag ({n_messages} messages)"] = args.bag
         _print_summary(summary, model_path, env_id, args, outputs)
         for warning in warnings:  # again after the table, where the numbers are read
             print(f"smartcar-eval: warning: {warning}", file=sys.stderr)
+        for mark in marks:
+            print(f"smartcar-eval: {mark['line']}", file=sys.stderr)
         if args.rerun_serve:
             _serve_until_interrupted(recorders)
-    return 0
+    return 0 if all(mark["held"] for mark in marks) else 1
+
+
+# -- batched evaluation and pass marks --------------------------------------------------------
+#: episodes --bag and --rerun record in a batched evaluation without --record-episodes
+RECORDED_EPISODES = 10
+
+
+def percent_arg(text: str) -> float:
+    """argparse type for a percentage from 0 to 100."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not 0.0 <= value <= 100.0:
+        raise argparse.ArgumentTypeError(f"expected a percentage from 0 to 100, got {text!r}")
+    return value
+
+
+def distance_arg(text: str) -> float:
+    """argparse type for a distance in metres (> 0, finite)."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not 0.0 < value < math.inf:
+        raise argparse.ArgumentTypeError(f"expected a distance in metres > 0, got {text!r}")
+    return value
+
+
+def _check_vectorization(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
+    """``--n-envs``'s default for the vectorization; ``--record-episodes`` only when batched."""
+    batched = args.vectorization == "batched"
+    if args.record_episodes is not None and not batched:
+        parser.error("--record-episodes: only with --vectorization batched (otherwise --bag "
+                     "and --rerun record every evaluated episode)")
+    if args.n_envs is None:
+        args.n_envs = DEFAULT_BATCH if batched else 1
+
+
+def _recorded(args: argparse.Namespace) -> int:
+    """How many episodes (the first ones) --bag and --rerun record."""
+    if args.vectorization != "batched":
+        return args.episodes
+    return min(args.episodes, args.record_episodes or RECORDED_EPISODES)
+
+
+def _evaluate(args: argparse.Namespace, policy: Policy, recorders: list[Any],
+              common: dict[str, Any]) -> list[Any]:
+    """The episodes' records: single envs (in worker processes when --n-envs > 1), or one
+    batch; the recorders of a batched evaluation get its first episodes replayed one at a
+    time in single envs (the batch has no simulator to read per car)."""
+    progress = not args.no_progress
+    if args.vectorization != "batched":
+        return evaluate_policy_episodes(policy, n_episodes=args.episodes, n_envs=args.n_envs,
+                                        progress=progress, recorders=recorders, **common)
+    records = evaluate_batched_episodes(policy, n_episodes=args.episodes, n_envs=args.n_envs,
+                                        progress=progress, **common)
+    if recorders:
+        evaluate_policy_episodes(policy, n_episodes=_recorded(args), recorders=recorders,
+                                 **common)
+    return records
+
+
+def check_marks(summary: dict[str, Any], args: argparse.Namespace) -> list[dict[str, Any]]:
+    """The pass marks given (``--fail-under``, ``--max-final-distance``), each with its figure,
+    whether it held and its line for the log."""
+    marks: list[dict[str, Any]] = []
+    if args.fail_under is not None:
+        rate = 100.0 * summary["success_rate"]
+        held = rate + 1e-9 >= args.fail_under
+        marks.append({
+            "option": "--fail-under", "figure": "success_rate_pct", "mark": args.fail_under,
+            "value": rate, "held": held,
+            "line": f"pass mark {'held' if held else 'missed'}: success rate {rate:.1f}% is "
+                    f"{'not ' if held else ''}under --fail-under {args.fail_under:g}% "
+                    f"({summary['episodes']} episodes)"})
+    if args.max_final_distance is not None:
+        mean = summary["mean_final_distance_m"]
+        held = mean <= args.max_final_distance
+        marks.append({
+            "option": "--max-final-distance", "figure": "mean_final_distance_m",
+            "mark": args.max_final_distance, "value": mean, "held": held,
+            "line": f"pass mark {'held' if held else 'missed'}: mean final distance "
+                    f"{mean:.3f} m is {'not ' if held else ''}over --max-final-distance "
+                    f"{args.max_final_distance:g} m ({summary['episodes']} episodes)"})
+    return marks
 
 
 def _recorders(args: argparse.Namespace, stack: contextlib.ExitStack) -> list[Any]:

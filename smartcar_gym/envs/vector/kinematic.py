@@ -78,6 +78,10 @@ class SmartCarSimVectorEnv(gym.vector.VectorEnv):
       ``SyncVectorEnv``; ``reset()`` keeps each car's generator. A seed that is not an integer
       >= 0 (or None) is one error line. ``reset(options={"goal":
       (x, y)})`` gives every car that goal, an ``(N, 2)`` array one each.
+    - **Partial resets**: ``reset(seed=[...], options={"reset_mask": mask})`` resets only the
+      cars of the ``(N,)`` bool ``mask`` (as Gymnasium's own vector envs): the observation
+      holds every car's, ``info`` the reset cars' (its ``_key`` masks are ``mask``), and a
+      reset car is not autoreset at the next step.
     - **info**: per car ``is_success``, ``distance``, ``pose``, ``odom_pose``, ``odom_error``
       (as SmartCar-v0), each with its ``_key`` mask.
     - **Actions**: ``(N, 2)`` real numbers in [-1, 1] (clipped); another shape, complex
@@ -181,15 +185,15 @@ class SmartCarSimVectorEnv(gym.vector.VectorEnv):
         if self.closed:  # as the single envs: reset() reopens
             self._reopen()
             self.closed = False
+        options, mask = self._reset_mask(options)
         for i, s in enumerate(seeds):
-            if s is not None or self._rngs[i] is None:
+            if mask[i] and (s is not None or self._rngs[i] is None):
                 self._rngs[i], _ = seeding.np_random(s)
         goals = self._check_options(options)
-        everyone = np.ones(n, dtype=bool)
-        self._reset_cars(everyone, goals)
-        self._autoreset[:] = False
+        self._reset_cars(mask, goals)
+        self._autoreset[mask] = False
         self._needs_reset = False
-        return self._observe(), self._info(everyone, np.zeros(n, dtype=bool))
+        return self._observe(), self._info(mask, np.zeros(n, dtype=bool))
 
     def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
                                           dict[str, Any]]:
@@ -247,6 +251,22 @@ class SmartCarSimVectorEnv(gym.vector.VectorEnv):
         here)."""
 
     # -- the model -----------------------------------------------------------------------------
+    def _reset_mask(self, options: Any) -> tuple[Any, np.ndarray]:
+        """``options`` without ``"reset_mask"``, and the cars to reset (all without one)."""
+        everyone = np.ones(self.num_envs, dtype=bool)
+        if not isinstance(options, dict) or "reset_mask" not in options:
+            return options, everyone
+        options = dict(options)
+        mask = options.pop("reset_mask")
+        if not (isinstance(mask, np.ndarray) and mask.dtype == np.bool_
+                and mask.shape == (self.num_envs,) and mask.any()):
+            raise ValueError(f"options['reset_mask'] must be a bool array of shape "
+                             f"({self.num_envs},) with a car to reset, got {mask!r}")
+        if self._needs_reset and not mask.all():
+            raise gym.error.ResetNeeded(f"{type(self).__name__}: the first reset() resets every "
+                                        "car (no reset_mask)")
+        return options or None, mask.copy()
+
     def _check_options(self, options: Any) -> np.ndarray | None:
         if options is None:
             return None

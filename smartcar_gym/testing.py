@@ -1,0 +1,191 @@
+"""Policy checks for your own test suite: seeded episodes, their metrics, a success assertion.
+
+::
+
+    from smartcar_gym.policy import Policy
+    from smartcar_gym.testing import assert_success, evaluate
+
+    def test_my_policy_reaches_its_goals():
+        policy = Policy.load("runs/ppo_SmartCar-v0_s0")      # or an SB3 model, or obs -> action
+        assert_success(policy, episodes=50, engine="mujoco", at_least=0.95)
+
+    def test_my_controller():
+        metrics = evaluate(my_controller, "SmartCarSim-v0", episodes=20)
+        assert metrics.mean_final_distance_m < 0.1, metrics.summary_line()
+
+``policy`` is a ``smartcar_gym.policy.Policy`` (its normaliser applies; its env id and env
+kwargs are the defaults), a Stable-Baselines3 model (anything with ``predict(obs,
+deterministic=...)``; pass ``normalizer=`` for its VecNormalize statistics, a pickle: only a
+file you trust), or a plain callable ``obs -> action`` of one observation (called once per
+observation, batched or not). Episode ``i`` is seeded ``seed + i``, as ``smartcar-eval``.
+
+``batched=True`` (the default) runs the episodes as ``smartcar-eval --vectorization batched``:
+``n_envs`` cars (default 64) of the id's ``vector_entry_point`` in this process, so no test needs
+``if __name__ == "__main__"``; ``batched=False`` steps one single env in this process. Both give
+the same records for a callable; an SB3 model's batched actions round differently from a batch
+of one (``agents.batched_rollouts``: the records agree within ``RECORD_TOLERANCE``).
+
+``assert_success`` raises ``AssertionError`` with one line: the env, the success rate against
+the mark, the failed seeds. ``RandomPolicy`` (uniform random actions) is a failing baseline.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from smartcar_gym.agents.batched_rollouts import DEFAULT_BATCH, evaluate_batched_episodes
+from smartcar_gym.agents.rollouts import (
+    EpisodeRecord,
+    RandomPolicy,
+    evaluate_policy_episodes,
+    summarize,
+)
+from smartcar_gym.policy import DEFAULT_ENV_ID, Policy, as_policy
+
+__all__ = ["FunctionModel", "Metrics", "RandomPolicy", "assert_success", "evaluate"]
+
+
+class FunctionModel:
+    """A plain function of one observation seen as an SB3-like model: ``predict`` calls it
+    once per observation of a batch (a dict of batches gives it one dict per car)."""
+
+    observation_space = None
+
+    def __init__(self, fn: Callable[[Any], Any]) -> None:
+        self.fn = fn
+
+    def predict(self, obs: np.ndarray | Mapping[str, np.ndarray],
+                deterministic: bool = True) -> tuple[np.ndarray, None]:
+        if isinstance(obs, Mapping):
+            n = len(next(iter(obs.values())))
+            rows: Sequence[Any] = [{k: v[i] for k, v in obs.items()} for i in range(n)]
+        else:
+            rows = obs
+        actions = [np.asarray(self.fn(row), dtype=np.float32).reshape(-1) for row in rows]
+        return np.stack(actions), None
+
+
+@dataclass(frozen=True)
+class Metrics:
+    """What ``evaluate`` measured: ``smartcar-eval``'s summary, with the episodes' records."""
+
+    env_id: str
+    env_kwargs: dict[str, Any]
+    batched: bool
+    seed: int
+    episodes: int
+    success_rate: float
+    mean_return: float
+    std_return: float
+    mean_time_to_goal_s: float | None
+    mean_final_distance_m: float
+    mean_final_odom_error_m: float
+    mean_length: float
+    records: tuple[EpisodeRecord, ...] = field(repr=False)
+
+    @property
+    def failed_seeds(self) -> list[int]:
+        """The seeds of the episodes that did not reach the goal."""
+        return [r.seed for r in self.records if not r.success]
+
+    def summary_line(self) -> str:
+        """One line: env, success rate, episodes and seeds, mean final distance."""
+        kwargs = ", ".join(f"{k}={v!r}" for k, v in self.env_kwargs.items())
+        how = f"{kwargs}, batched" if self.batched and kwargs else (
+            "batched" if self.batched else kwargs or "single env")
+        return (f"{self.env_id} ({how}): {self.success_rate:.1%} success over {self.episodes} "
+                f"episodes (seeds {self.seed}..{self.seed + self.episodes - 1}), mean final "
+                f"distance {self.mean_final_distance_m:.3f} m")
+
+
+def evaluate(policy: Policy | Any, env_id: str | None = None, *, episodes: int = 20,
+             engine: str | None = None, batched: bool = True, seed: int = 0,
+             n_envs: int | None = None, env_kwargs: Mapping[str, Any] | None = None,
+             deterministic: bool = True,
+             normalizer: str | os.PathLike | None = None) -> Metrics:
+    """Run ``episodes`` seeded episodes (``seed + i``) of ``policy`` on ``env_id`` and return
+    their ``Metrics``.
+
+    ``env_id`` and ``env_kwargs`` default to a ``Policy``'s own (else ``SmartCar-v0``, no
+    kwargs; given ``env_kwargs`` are added to the policy's); ``engine`` (``"pybullet"``,
+    ``"mujoco"``) is the env kwarg of that name. ``n_envs``: cars of the batch (default 64),
+    or single envs (default 1; worker processes when > 1) with ``batched=False``. Bad
+    arguments raise ``ValueError`` or ``TypeError`` with one line naming the argument.
+    """
+    if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 1:
+        raise ValueError(f"episodes: expected an integer >= 1, got {episodes!r}")
+    if n_envs is not None and (isinstance(n_envs, bool) or not isinstance(n_envs, int)
+                               or n_envs < 1):
+        raise ValueError(f"n_envs: expected an integer >= 1, got {n_envs!r}")
+    resolved = _as_policy(policy, normalizer)
+    env_id = env_id or (resolved.env_id if isinstance(policy, Policy) else DEFAULT_ENV_ID)
+    kwargs = {**(resolved.env_kwargs if isinstance(policy, Policy) else {}),
+              **dict(env_kwargs or {})}
+    if engine is not None:
+        kwargs["engine"] = engine
+    common = dict(env_id=env_id, n_episodes=episodes, seed=seed, env_kwargs=kwargs,
+                  deterministic=deterministic)
+    if batched:
+        records = evaluate_batched_episodes(resolved, n_envs=n_envs or DEFAULT_BATCH, **common)
+    else:
+        records = evaluate_policy_episodes(resolved, n_envs=n_envs or 1, **common)
+    summary = summarize(records)
+    return Metrics(env_id=env_id, env_kwargs=kwargs, batched=batched, seed=seed,
+                   episodes=summary["episodes"], success_rate=summary["success_rate"],
+                   mean_return=summary["mean_return"], std_return=summary["std_return"],
+                   mean_time_to_goal_s=summary["mean_time_to_goal_s"],
+                   mean_final_distance_m=summary["mean_final_distance_m"],
+                   mean_final_odom_error_m=summary["mean_final_odom_error_m"],
+                   mean_length=summary["mean_length"], records=tuple(records))
+
+
+def assert_success(policy: Policy | Any, env_id: str | None = None, *, at_least: float = 0.95,
+                   max_final_distance: float | None = None, **kwargs: Any) -> Metrics:
+    """``evaluate(policy, env_id, **kwargs)``, then ``AssertionError`` with one line when the
+    success rate is under ``at_least`` (a fraction: 0.95 for 95 %) or the mean final distance
+    (m) is over ``max_final_distance``; the ``Metrics`` otherwise."""
+    if isinstance(at_least, bool) or not isinstance(at_least, int | float) \
+            or not 0.0 <= at_least <= 1.0:
+        hint = f" (for {at_least}% pass {at_least / 100:g})" if isinstance(
+            at_least, int | float) and 1.0 < at_least <= 100.0 else ""
+        raise ValueError(f"at_least: expected a fraction from 0 to 1, got {at_least!r}{hint}")
+    if max_final_distance is not None and not (
+            isinstance(max_final_distance, int | float) and 0.0 < max_final_distance < math.inf):
+        raise ValueError(f"max_final_distance: expected metres > 0, got {max_final_distance!r}")
+    metrics = evaluate(policy, env_id, **kwargs)
+    problems = []
+    if metrics.success_rate + 1e-12 < at_least:
+        failed = metrics.failed_seeds
+        shown = ", ".join(map(str, failed[:10])) + (", ..." if len(failed) > 10 else "")
+        problems.append(f"success {metrics.success_rate:.1%} is under {at_least:.1%} (failed "
+                        f"seeds: {shown})")
+    if max_final_distance is not None and metrics.mean_final_distance_m > max_final_distance:
+        problems.append(f"mean final distance {metrics.mean_final_distance_m:.3f} m is over "
+                        f"{max_final_distance:g} m")
+    if problems:
+        raise AssertionError(f"{metrics.summary_line()}: {'; '.join(problems)}")
+    return metrics
+
+
+def _as_policy(policy: Any, normalizer: str | os.PathLike | None) -> Policy:
+    """A ``Policy`` of what ``evaluate`` was given (one line naming the argument otherwise)."""
+    if isinstance(policy, Policy):
+        if normalizer is not None:
+            raise ValueError("normalizer: a Policy brings its own; pass normalizer only with "
+                             "an SB3 model")
+        return policy
+    if hasattr(policy, "predict"):
+        return as_policy(policy, normalizer)
+    if callable(policy):
+        if normalizer is not None:
+            raise ValueError("normalizer: only for an SB3 model; a callable gets the env's "
+                             "raw observations")
+        return Policy(FunctionModel(policy), algo="function")
+    raise TypeError(f"policy: expected a smartcar_gym.policy.Policy, an SB3 model (with "
+                    f"predict) or a callable obs -> action, got {type(policy).__name__}")

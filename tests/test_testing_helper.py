@@ -1,0 +1,97 @@
+"""smartcar_gym.testing: evaluate() and assert_success() for users' own suites, with a Policy,
+an SB3 model or a plain callable."""
+
+from __future__ import annotations
+
+import importlib.util
+
+import numpy as np
+import pytest
+
+from smartcar_gym.policy import Policy
+from smartcar_gym.testing import Metrics, RandomPolicy, assert_success, evaluate
+from tests.test_agents_eval_batched import go_to_goal
+
+NEAR = {"goal_range": [0.3, 0.8], "max_episode_steps": 25}
+needs_mujoco = pytest.mark.skipif(importlib.util.find_spec("mujoco") is None,
+                                  reason="engine='mujoco' needs the mujoco extra")
+
+
+def test_a_callable_is_evaluated_alike_batched_or_not():
+    batched = evaluate(go_to_goal, "SmartCarSim-v0", episodes=6, seed=4, env_kwargs=NEAR)
+    single = evaluate(go_to_goal, "SmartCarSim-v0", episodes=6, seed=4, env_kwargs=NEAR,
+                      batched=False)
+    assert isinstance(batched, Metrics) and batched.batched and not single.batched
+    assert [r.to_dict(include_paths=True) for r in batched.records] == \
+        [r.to_dict(include_paths=True) for r in single.records]
+    assert batched.success_rate == single.success_rate == 0.5
+    assert batched.failed_seeds == single.failed_seeds and len(batched.failed_seeds) == 3
+    assert batched.mean_final_distance_m == single.mean_final_distance_m
+    assert batched.summary_line() == (
+        "SmartCarSim-v0 (goal_range=[0.3, 0.8], max_episode_steps=25, batched): 50.0% success "
+        f"over 6 episodes (seeds 4..9), mean final distance "
+        f"{batched.mean_final_distance_m:.3f} m")
+
+
+def test_the_random_policy_fails_in_one_line():
+    with pytest.raises(AssertionError) as failure:
+        assert_success(RandomPolicy(0), "SmartCarSim-v0", episodes=3, at_least=0.95,
+                       max_final_distance=0.2, env_kwargs={"max_episode_steps": 10})
+    message = str(failure.value)
+    assert "\n" not in message
+    assert message.startswith("SmartCarSim-v0 (max_episode_steps=10, batched): 0.0% success "
+                              "over 3 episodes (seeds 0..2), mean final distance ")
+    assert "success 0.0% is under 95.0% (failed seeds: 0, 1, 2); mean final distance" in message
+    assert message.endswith("m is over 0.2 m")
+
+
+def test_assert_success_returns_the_metrics_when_the_mark_holds():
+    metrics = assert_success(go_to_goal, "SmartCarSim-v0", episodes=4, at_least=0.5,
+                             env_kwargs={"goal_range": [0.3, 0.8]})
+    assert metrics.success_rate == 1.0 and metrics.episodes == 4 and metrics.seed == 0
+    assert metrics.mean_time_to_goal_s == pytest.approx(0.1 * metrics.mean_length)
+
+
+@needs_mujoco
+def test_a_policy_and_its_bare_sb3_model_with_the_named_normaliser_give_the_same_records():
+    policy = Policy.load("mujoco")
+    kwargs = dict(episodes=3, env_kwargs={"max_episode_steps": 40}, n_envs=3)
+    whole = evaluate(policy, **kwargs)
+    assert whole.env_id == "SmartCar-v0"
+    assert whole.env_kwargs == {"engine": "mujoco", "max_episode_steps": 40}  # the policy's
+    bare = evaluate(policy.model, engine="mujoco", normalizer=policy.normalizer_path, **kwargs)
+    assert [r.to_dict(include_paths=True) for r in bare.records] == \
+        [r.to_dict(include_paths=True) for r in whole.records]
+    assert whole.success_rate >= 2 / 3
+
+
+@pytest.mark.parametrize(("call", "error", "line"), [
+    (lambda: evaluate(42), TypeError, "policy: expected a smartcar_gym.policy.Policy, an SB3 "
+                                      "model (with predict) or a callable obs -> action, got "
+                                      "int"),
+    (lambda: evaluate(go_to_goal, episodes=0), ValueError, "episodes: expected an integer >= "
+                                                           "1, got 0"),
+    (lambda: evaluate(go_to_goal, n_envs=2.5), ValueError, "n_envs: expected an integer >= 1, "
+                                                           "got 2.5"),
+    (lambda: evaluate(go_to_goal, normalizer="stats.pkl"), ValueError, "normalizer: only for "
+                                                                       "an SB3 model"),
+    (lambda: assert_success(go_to_goal, at_least=95), ValueError, "at_least: expected a "
+                                                                  "fraction from 0 to 1, got "
+                                                                  "95 (for 95% pass 0.95)"),
+    (lambda: assert_success(go_to_goal, max_final_distance=-1), ValueError,
+     "max_final_distance: expected metres > 0, got -1"),
+])
+def test_bad_arguments_are_one_line_naming_the_argument(call, error, line):
+    with pytest.raises(error) as raised:
+        call()
+    assert str(raised.value).startswith(line) and "\n" not in str(raised.value)
+
+
+def test_a_dict_observation_reaches_the_callable_one_car_at_a_time():
+    from smartcar_gym.testing import FunctionModel
+
+    seen = []
+    model = FunctionModel(lambda obs: seen.append(obs) or np.zeros(2))
+    actions, _ = model.predict({"a": np.arange(6.0).reshape(3, 2), "b": np.ones((3, 1))})
+    assert actions.shape == (3, 2) and actions.dtype == np.float32
+    assert [o["a"].tolist() for o in seen] == [[0.0, 1.0], [2.0, 3.0], [4.0, 5.0]]

@@ -1,0 +1,93 @@
+"""Partial resets of the vector_entry_point envs (``reset(options={"reset_mask": mask})``, what
+``smartcar-eval --vectorization batched`` runs on): the same as Gymnasium's SyncVectorEnv of
+single envs, bit for bit."""
+
+from __future__ import annotations
+
+import importlib.util
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import smartcar_gym  # noqa: F401
+
+N = 3
+MUJOCO = importlib.util.find_spec("mujoco") is not None
+CASES = [
+    ("SmartCarSim-v0", {}),
+    ("SmartCar-v0", {}),  # pybullet: the loop of single envs
+    pytest.param("SmartCar-v0", {"engine": "mujoco"}, marks=pytest.mark.skipif(
+        not MUJOCO, reason="engine='mujoco' needs the mujoco extra")),
+    pytest.param("SmartCarGoal-v0", {"engine": "mujoco"}, marks=pytest.mark.skipif(
+        not MUJOCO, reason="engine='mujoco' needs the mujoco extra")),
+    pytest.param("SmartCarNav-v0", {"engine": "mujoco"}, marks=pytest.mark.skipif(
+        not MUJOCO, reason="engine='mujoco' needs the mujoco extra")),
+]
+#: (steps, then the cars reset and their seeds); car 1's second reset keeps its generator
+SCRIPT = [(4, [True, False, True], [20, None, 21]), (3, [False, True, False], [None, None, 9]),
+          (3, None, None)]
+
+
+def _run(envs: gym.vector.VectorEnv) -> list[tuple]:
+    rng = np.random.default_rng(0)
+    out = [envs.reset(seed=3)]
+    for steps, mask, seeds in SCRIPT:
+        for _ in range(steps):
+            out.append(envs.step(rng.uniform(-1, 1, (N, 2)).astype(np.float32)))
+        if mask is not None:
+            out.append(envs.reset(seed=seeds, options={"reset_mask": np.array(mask)}))
+    return out
+
+
+def _equal(a, b) -> bool:
+    if isinstance(a, dict):
+        return a.keys() == b.keys() and all(_equal(a[k], b[k]) for k in a)
+    return np.array_equal(a, b)
+
+
+@pytest.mark.parametrize(("env_id", "kwargs"), CASES)
+def test_partial_reset_equals_sync_single_envs(env_id, kwargs):
+    kwargs = {"max_episode_steps": 50, **kwargs}
+    numpy_yaw = env_id == "SmartCarSim-v0"
+    batched = gym.make_vec(env_id, num_envs=N, vectorization_mode="vector_entry_point", **kwargs)
+    single = gym.make_vec(env_id, num_envs=N, vectorization_mode="sync", **kwargs)
+    try:
+        got, want = _run(batched), _run(single)
+        for k, (g, w) in enumerate(zip(got, want, strict=True)):
+            obs_g, obs_w = g[0], w[0]
+            assert _equal(obs_g, obs_w), f"call {k}: observations differ"
+            info_g, info_w = g[-1], w[-1]
+            for key in ("is_success", "_is_success", "distance", "_pose"):
+                assert np.array_equal(info_g[key], info_w[key]), f"call {k}: info[{key!r}]"
+            for key in ("pose", "odom_pose"):
+                if numpy_yaw:  # the numpy batch's yaws: docs/vector.md
+                    np.testing.assert_allclose(info_g[key], info_w[key], atol=1e-6)
+                else:
+                    assert np.array_equal(info_g[key], info_w[key]), f"call {k}: info[{key!r}]"
+            if len(g) == 5:
+                for a, b in zip(g[1:4], w[1:4], strict=True):
+                    assert np.array_equal(a, b), f"call {k}: rewards or ends differ"
+        # a partial reset's info holds the reset cars only
+        assert got[5][-1]["_pose"].tolist() == [True, False, True]
+    finally:
+        batched.close()
+        single.close()
+
+
+def test_partial_reset_input_is_checked():
+    envs = gym.make_vec("SmartCarSim-v0", num_envs=N, vectorization_mode="vector_entry_point")
+    try:
+        with pytest.raises(gym.error.ResetNeeded, match="first reset"):
+            envs.reset(options={"reset_mask": np.array([True, False, False])})
+        envs.reset(seed=0)
+        for bad in ([True, False, False], np.array([1, 0, 0]), np.zeros(N, dtype=bool),
+                    np.ones(N + 1, dtype=bool)):
+            with pytest.raises(ValueError, match=r"reset_mask.*bool array of shape \(3,\)"):
+                envs.reset(options={"reset_mask": bad})
+        # the mask may come with a goal
+        obs, _ = envs.reset(options={"reset_mask": np.array([False, True, False]),
+                                     "goal": (0.5, 0.5)})
+        assert obs[1, -2:].tolist() == [0.5, 0.5] and obs[0, -2:].tolist() != [0.5, 0.5]
+    finally:
+        envs.close()

@@ -44,6 +44,7 @@ def _dicts(records):
 @pytest.mark.parametrize(("env_id", "kwargs"), [
     ("SmartCarSim-v0", {}),  # the numpy batch
     pytest.param("SmartCar-v0", {"engine": "mujoco"}, marks=needs_mujoco),  # the MuJoCo batch
+    ("SmartCar-v0", {"engine": "planar"}),  # the planar batch
     ("SmartCar-v0", {"max_episode_steps": 12}),  # pybullet: the loop of single envs
 ])
 def test_batched_records_equal_the_sequential_ones_bit_for_bit(env_id, kwargs):
@@ -62,13 +63,13 @@ def test_batched_records_equal_the_sequential_ones_bit_for_bit(env_id, kwargs):
         assert ends == {True, False}, ends  # reaching goals and time limits compared
 
 
-@needs_mujoco
+@pytest.mark.parametrize("engine", [pytest.param("mujoco", marks=needs_mujoco), "planar"])
 @pytest.mark.parametrize("env_id", ["SmartCarNav-v0", "SmartCarGoal-v0"])
-def test_nav_and_goal_batches_give_the_sequential_records(env_id):
-    """The MuJoCo Nav batch (its own worlds built at each reset) and the Goal batch (Dict
-    observations): the sequential evaluation's records, bit for bit."""
+def test_nav_and_goal_batches_give_the_sequential_records(env_id, engine):
+    """The MuJoCo and planar Nav batches (their own worlds built at each reset) and the Goal
+    batches (Dict observations): the sequential evaluation's records, bit for bit."""
     common = dict(env_id=env_id, n_episodes=4, seed=1,
-                  env_kwargs={"engine": "mujoco", "max_episode_steps": 15})
+                  env_kwargs={"engine": engine, "max_episode_steps": 15})
     model = FunctionModel(steer)
     want = _dicts(evaluate_policy_episodes(model, **common))
     assert _dicts(evaluate_batched_episodes(model, n_envs=3, **common)) == want

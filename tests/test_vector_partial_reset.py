@@ -23,6 +23,9 @@ CASES = [
         not MUJOCO, reason="engine='mujoco' needs the mujoco extra")),
     pytest.param("SmartCarNav-v0", {"engine": "mujoco"}, marks=pytest.mark.skipif(
         not MUJOCO, reason="engine='mujoco' needs the mujoco extra")),
+    ("SmartCar-v0", {"engine": "planar"}),
+    ("SmartCarGoal-v0", {"engine": "planar"}),
+    ("SmartCarNav-v0", {"engine": "planar"}),
 ]
 #: (steps, then the cars reset and their seeds); car 1's second reset keeps its generator
 SCRIPT = [(4, [True, False, True], [20, None, 21]), (3, [False, True, False], [None, None, 9]),

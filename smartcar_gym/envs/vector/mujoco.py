@@ -16,6 +16,7 @@ from smartcar_gym.envs.smartcar_env import SmartCarEnv
 from smartcar_gym.envs.tasks.reach import FLIP_UP_Z
 from smartcar_gym.envs.vector.common import (
     CannotBatch,
+    batch_limits,
     check_autoreset_mode,
     check_max_episode_steps,
     check_num_envs,
@@ -35,15 +36,7 @@ def supports(kwargs: dict[str, Any]) -> str | None:
     """Why ``SmartCarMujocoVectorEnv`` cannot run these SmartCar-v0 kwargs (None: it can)."""
     if kwargs.get("engine") != "mujoco":
         return "only engine='mujoco' is batched in C"
-    if kwargs.get("randomize") is not None:
-        return "randomize (domain randomisation) builds a different world per episode"
-    if kwargs.get("render_mode") == "human":
-        return "render_mode='human' is a GUI"
-    if kwargs.get("stop_speed") is not None:
-        return "stop_speed's arrival terms (SmartCarArrive-v0) are the single env's"
-    if kwargs.get("controller_mode") not in (None, HARDWARE):
-        return "controller_mode='sim' steps no physics (SmartCarSim-v0 is batched in numpy)"
-    return None
+    return batch_limits(kwargs)
 
 
 class SmartCarMujocoVectorEnv(SmartCarSimVectorEnv):
@@ -141,8 +134,14 @@ class SmartCarMujocoVectorEnv(SmartCarSimVectorEnv):
         wheels = len(self._wheel_q)
         self._wheel_group = np.arange(wheels)
         self.period_ns = robot.update_period_ns
+        self._allocate(s, wheels)
+
+    def _allocate(self, s: SmartCarEnv, wheels: int) -> None:
+        """What every physics batch keeps per car, whatever its engine: the boards and
+        controllers, clocks, poses, wheels, goals and episode state."""
+        n = self.num_envs
         self.base = BatchedArbotix(s.controller_config, HARDWARE, s.robot_model.wheel_radius_m,
-                                   num_cars=n)
+                                   num_cars=n, encoder_phase_ticks=s.robot.encoder_phase_ticks)
         self._rngs: list[np.random.Generator | None] = [None] * n
         self._steps = np.zeros(n, dtype=np.int64)
         self._now = np.zeros(n, dtype=np.int64)  # each car's clock (ns since its reset)

@@ -10,8 +10,8 @@ from smartcar_gym.envs.nav_env import SmartCarNavEnv
 from smartcar_gym.envs.sensors.laser import SimulatedLaser
 from smartcar_gym.envs.sensors.scan import SCAN_KEY, scan_sectors
 from smartcar_gym.envs.tasks.obstacles import Obstacle, read_layout
+from smartcar_gym.envs.vector.common import nav_limits
 from smartcar_gym.envs.vector.mujoco import SmartCarMujocoVectorEnv
-from smartcar_gym.envs.vector.mujoco import supports as car_supports
 from smartcar_gym.model.kinematics import quaternion_matrix
 
 #: measured with 4.0.0 (64 cars, 8 obstacles): about 0.8 MiB per car, as SmartCar-v0's
@@ -21,13 +21,9 @@ BYTES_PER_CAR = 1024 * 1024
 def supports(kwargs: dict[str, Any]) -> str | None:
     """Why ``SmartCarNavMujocoVectorEnv`` cannot run these SmartCarNav-v0 kwargs (None: it
     can)."""
-    why = car_supports(kwargs)
-    if why is not None:
-        return why
-    if kwargs.get("render_mode") is not None:
-        return ("render_mode: the batch's top-down tiles draw no obstacles or scans (the "
-                "single env's picture does)")
-    return None
+    if kwargs.get("engine") != "mujoco":
+        return "only engine='mujoco' is batched in C"
+    return nav_limits(kwargs)
 
 
 class SmartCarNavMujocoVectorEnv(SmartCarMujocoVectorEnv):
@@ -127,16 +123,21 @@ class SmartCarNavMujocoVectorEnv(SmartCarMujocoVectorEnv):
             b.np_random = self._rng(i)
             _, info = b.reset(options=options or None)
             self.goal[i] = b.goal
-            self.cars.load(i, b.sim)
             self.latest_ranges[i] = b.laser.latest.ranges
             self._laser_rngs[i] = b.laser.rng
             self._next_scan[i] = self.laser.period_ns
             self.clearance[i], self.collision[i] = info["clearance"], False
             self.obstacles[i] = b.obstacles
-            # nearest_distance's order: per obstacle, per car geom, per obstacle geom
-            self._pairs[i] = np.array(
-                [(g1, g2) for body in b._obstacle_bodies for g1 in self._car_geoms
-                 for g2 in body._ids.collision_geoms], dtype=np.int64).reshape(-1, 2)
+            self._load_world(i, b)
+
+    def _load_world(self, i: int, b: SmartCarNavEnv) -> None:
+        """Car ``i``'s slot becomes a copy of the builder's world (``CarBatch.load``), and its
+        geom pairs the clearance measures."""
+        self.cars.load(i, b.sim)
+        # nearest_distance's order: per obstacle, per car geom, per obstacle geom
+        self._pairs[i] = np.array(
+            [(g1, g2) for body in b._obstacle_bodies for g1 in self._car_geoms
+             for g2 in body._ids.collision_geoms], dtype=np.int64).reshape(-1, 2)
 
     # -- the laser -----------------------------------------------------------------------------
     def _next_due(self) -> np.ndarray:

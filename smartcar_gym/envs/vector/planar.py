@@ -14,10 +14,9 @@ from typing import Any
 
 import numpy as np
 
-from smartcar_gym.controller import HARDWARE
-from smartcar_gym.controller.batched import BatchedArbotix
 from smartcar_gym.envs.nav_env import OBSTACLE_HEIGHT_M, SmartCarNavEnv
 from smartcar_gym.envs.smartcar_env import SmartCarEnv
+from smartcar_gym.envs.vector.common import batch_limits, nav_limits
 from smartcar_gym.envs.vector.goal_mujoco import SmartCarGoalMujocoVectorEnv
 from smartcar_gym.envs.vector.mujoco import SmartCarMujocoVectorEnv
 from smartcar_gym.envs.vector.nav_mujoco import SmartCarNavMujocoVectorEnv
@@ -31,24 +30,14 @@ def supports(kwargs: dict[str, Any]) -> str | None:
     """Why the planar batch cannot run these SmartCar-v0 kwargs (None: it can)."""
     if kwargs.get("engine") != "planar":
         return "only engine='planar' is batched in arrays here"
-    if kwargs.get("randomize") is not None:
-        return "randomize (domain randomisation) builds a different car per episode"
-    if kwargs.get("render_mode") == "human":
-        return "render_mode='human' is a GUI"
-    if kwargs.get("stop_speed") is not None:
-        return "stop_speed's arrival terms (SmartCarArrive-v0) are the single env's"
-    if kwargs.get("controller_mode") not in (None, HARDWARE):
-        return "controller_mode='sim' steps no physics (SmartCarSim-v0 is batched in numpy)"
-    return None
+    return batch_limits(kwargs)
 
 
 def nav_supports(kwargs: dict[str, Any]) -> str | None:
     """Why the planar Nav batch cannot run these SmartCarNav-v0 kwargs (None: it can)."""
-    why = supports(kwargs)
-    if why is None and kwargs.get("render_mode") is not None:
-        return ("render_mode: the batch's top-down tiles draw no obstacles or scans (the "
-                "single env's picture does)")
-    return why
+    if kwargs.get("engine") != "planar":
+        return "only engine='planar' is batched in arrays here"
+    return nav_limits(kwargs)
 
 
 class SmartCarPlanarVectorEnv(SmartCarMujocoVectorEnv):
@@ -109,21 +98,7 @@ class SmartCarPlanarVectorEnv(SmartCarMujocoVectorEnv):
         wheels = len(robot.wheel_joint_indices)
         self._wheel_group = np.arange(wheels)
         self.period_ns = robot.update_period_ns
-        self.base = BatchedArbotix(s.controller_config, HARDWARE, s.robot_model.wheel_radius_m,
-                                   num_cars=n, encoder_phase_ticks=robot.encoder_phase_ticks)
-        self._rngs: list[np.random.Generator | None] = [None] * n
-        self._steps = np.zeros(n, dtype=np.int64)
-        self._now = np.zeros(n, dtype=np.int64)
-        self._next_update = np.zeros(n, dtype=np.int64)
-        self._pose = np.zeros((n, 3))
-        self._up_z = np.ones(n)
-        self._wheels = np.zeros((n, wheels))
-        self._wheel_speed = np.zeros((n, wheels))
-        self.goal = np.zeros((n, 2))
-        self._distance = np.zeros(n)
-        self._prev_action = np.zeros((n, 2), dtype=np.float32)
-        self._autoreset = np.zeros(n, dtype=bool)
-        self._needs_reset = True
+        self._allocate(s, wheels)
 
     def close_extras(self, **kwargs: Any) -> None:
         """Nothing to release: arrays only (``reset`` starts every car afresh)."""
@@ -204,28 +179,14 @@ class SmartCarNavPlanarVectorEnv(SmartCarNavMujocoVectorEnv, SmartCarPlanarVecto
         self._shapes: list[Any] = [None] * self.num_envs
 
     def _new_worlds(self, idx: np.ndarray, goals: np.ndarray | None) -> None:
-        """Each listed car's episode as its single env starts it (goal, obstacles, first
-        scan), built by the builder with the car's generator."""
+        super()._new_worlds(idx, goals)
+        self.cars.reset(idx)
+
+    def _load_world(self, i: int, b: SmartCarNavEnv) -> None:
+        """Car ``i``'s obstacles (its car is the template's at its spawn: ``cars.reset``)."""
         from smartcar_gym.sim.planar.world import obstacle_shapes
 
-        b = self.builder
-        layout, self._layout = self._layout, None
-        for i in idx.tolist():
-            options: dict[str, Any] = {}
-            if goals is not None:
-                options["goal"] = goals[i]
-            if layout is not None:
-                options["obstacles"] = layout
-            b.np_random = self._rng(i)
-            _, info = b.reset(options=options or None)
-            self.goal[i] = b.goal
-            self.latest_ranges[i] = b.laser.latest.ranges
-            self._laser_rngs[i] = b.laser.rng
-            self._next_scan[i] = self.laser.period_ns
-            self.clearance[i], self.collision[i] = info["clearance"], False
-            self.obstacles[i] = b.obstacles
-            self._shapes[i] = obstacle_shapes(b.sim.statics())
-        self.cars.reset(idx)
+        self._shapes[i] = obstacle_shapes(b.sim.statics())
 
     def _world_shapes(self, idx: np.ndarray) -> Any:
         """The listed cars' obstacles as one ``Shapes2D`` (padded to the most obstacles)."""

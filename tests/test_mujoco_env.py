@@ -53,7 +53,7 @@ def test_pybullet_stays_the_default():
 
 
 def test_an_unknown_engine_is_one_line_listing_the_engines():
-    with pytest.raises(ValueError, match=r"^engine must be one of 'pybullet', 'mujoco', "
+    with pytest.raises(ValueError, match=r"^engine must be one of 'pybullet', 'mujoco', 'planar', "
                                          r"got 'bullet3'$"):
         gym.make("SmartCar-v0", engine="bullet3")
 

@@ -105,8 +105,9 @@ def test_friction_is_the_product_of_the_ground_s_and_the_wheel_s(world, car):
 
 
 def test_engine_names_and_the_factory():
-    assert ENGINES == ("pybullet", "mujoco")
-    with pytest.raises(ValueError, match="engine must be one of 'pybullet', 'mujoco', 'planar', got 'ode'"):
+    assert ENGINES == ("pybullet", "mujoco", "planar")
+    with pytest.raises(ValueError,
+                       match="engine must be one of 'pybullet', 'mujoco', 'planar', got 'ode'"):
         check_engine("ode")
     sim = make_simulator("pybullet")
     assert sim.engine == "pybullet"

@@ -560,13 +560,16 @@ class SmartCarEnv(gym.Env):
 
     def _info(self, pose: Pose2D, success: bool) -> dict[str, Any]:
         odom = self.robot.odometry
+        dx, dy = odom.x - pose.x, odom.y - pose.y
         info = {
             "is_success": success,
             "distance": self._distance,
             "pose": np.array([pose.x, pose.y, pose.yaw]),
             # odometry's theta is never wrapped (as upstream); here it is, like pose's yaw
             "odom_pose": np.array([odom.x, odom.y, math.remainder(odom.theta, 2 * math.pi)]),
-            "odom_error": math.hypot(odom.x - pose.x, odom.y - pose.y),
+            # sqrt(dx * dx + dy * dy), not math.hypot: a batch of cars gets the same bits from
+            # numpy (np.hypot and math.hypot differ in the last bit; vector/exact.py)
+            "odom_error": math.sqrt(dx * dx + dy * dy),
         }
         if self._draw is not None:
             info["randomization"] = self._draw.info

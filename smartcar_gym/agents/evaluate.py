@@ -47,7 +47,7 @@ from smartcar_gym.agents.rollouts import (
     summarize,
 )
 from smartcar_gym.policy import Policy, PolicyError
-from smartcar_gym.sim.engines import add_engine_argument
+from smartcar_gym.sim.engines import DEFAULT_ENGINE, add_engine_argument
 
 __all__ = ["build_parser", "check_outputs", "evaluate_policy_episodes", "load_model", "main",
            "summarize"]
@@ -221,7 +221,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             plot_trajectories(records, args.plot, goal_tolerance_m=tolerance,
                               title=f"{model_path.name} on {env_id}: "
                                     f"{summary['success_rate']:.0%} success over "
-                                    f"{len(records)} episodes{shown}")
+                                    f"{count(len(records), 'episode')}{shown}")
             outputs["plot"] = args.plot
         if args.video is not None:
             n_frames = record_video(policy, args.video, n_episodes=args.video_episodes, **common)
@@ -231,7 +231,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
             n_messages = write_bag(policy, args.bag, n_episodes=_recorded(args), **common)
             outputs[f"bag ({n_messages} messages)"] = args.bag
-        _print_summary(summary, model_path, env_id, args, outputs)
+        _print_summary(summary, model_path, env_id, args, outputs,
+                       engine=env_kwargs.get("engine") or DEFAULT_ENGINE)
         for warning in warnings:  # again after the table, where the numbers are read
             print(f"smartcar-eval: warning: {warning}", file=sys.stderr)
         for mark in marks:
@@ -363,7 +364,7 @@ def _close_recorders(recorders: list[Any]) -> dict[str, Any]:
         recorder.close()
         if isinstance(recorder, RerunProcessSink):
             if recorder.path is not None:
-                written[f"rerun ({recorder.episodes} episodes)"] = recorder.path
+                written[f"rerun ({count(recorder.episodes, 'episode')})"] = recorder.path
         else:
             written[f"ros2 bag ({recorder.count} messages)"] = recorder.path
     return written
@@ -428,17 +429,33 @@ def check_outputs(parser: argparse.ArgumentParser, args: argparse.Namespace) -> 
             parser.error(f"{option}: {problem}")
 
 
+def count(n: int, noun: str) -> str:
+    """``1 episode``, ``2 episodes``."""
+    return f"{n} {noun}{'' if n == 1 else 's'}"
+
+
+def summary_title(name: str, env_id: str, engine: str, episodes: int, seed: int,
+                  actions: str) -> str:
+    """The summary table's header: ``policy.zip on SmartCar-v0 (mujoco): 100 episodes, seeds
+    0..99, deterministic``; ``actions`` says how they were chosen (deterministic, stochastic,
+    random)."""
+    seeds = f"seed {seed}" if episodes == 1 else f"seeds {seed}..{seed + episodes - 1}"
+    return f"{name} on {env_id} ({engine}): {count(episodes, 'episode')}, {seeds}, {actions}"
+
+
 def _print_summary(summary: dict[str, Any], model_path: Path, env_id: str,
-                   args: argparse.Namespace, files: dict[str, Any]) -> None:
+                   args: argparse.Namespace, files: dict[str, Any],
+                   engine: str = DEFAULT_ENGINE) -> None:
     from rich.console import Console
     from rich.table import Table
 
     def fmt(value: float | None, spec: str) -> str:
         return "n/a" if value is None else format(value, spec)
 
-    table = Table(title=f"{model_path.name} on {env_id}: {summary['episodes']} episodes, "
-                        f"seeds {args.seed}..{args.seed + summary['episodes'] - 1}, "
-                        f"{'stochastic' if args.stochastic else 'deterministic'}")
+    actions = ("random actions" if args.random
+               else "stochastic" if args.stochastic else "deterministic")
+    table = Table(title=summary_title(model_path.name, env_id, engine, summary["episodes"],
+                                      args.seed, actions))
     table.add_column("metric")
     table.add_column("value", justify="right", overflow="fold")  # paths in full
     table.add_row("success rate", fmt(summary["success_rate"], ".1%"))

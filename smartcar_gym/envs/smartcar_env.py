@@ -239,6 +239,7 @@ class SmartCarEnv(gym.Env):
     reset_options: tuple[str, ...] = ("goal",)
     env_name = "SmartCar-v0"
 
+    @checks.keyword_checked  # max_linar=: "... (did you mean 'max_linear'?)", via gym.make too
     def __init__(
         self,
         model: str | os.PathLike | RobotModel | None = None,

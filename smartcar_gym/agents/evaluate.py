@@ -144,6 +144,11 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--rerun-ports", nargs=2, type=positive_int_arg, default=(9876, 9090),
                         metavar=("GRPC", "WEB"), help="ports of --rerun-serve's gRPC server "
                         "and web viewer (default: Rerun's 9876 9090)")
+    parser.add_argument("--rerun-bind", default="127.0.0.1", metavar="ADDRESS",
+                        help="the IP address --rerun-serve's servers listen on (default "
+                             "127.0.0.1: this machine only); an address of this machine's "
+                             "network (0.0.0.0: every interface) shares the viewer and the "
+                             "episodes with anyone who can reach it (docs/viewers.md)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     return parser
 
@@ -337,7 +342,7 @@ def _recorders(args: argparse.Namespace, stack: contextlib.ExitStack) -> list[An
 
         grpc_port, web_port = args.rerun_ports  # rerun itself is the recorder process's
         sink = RerunProcessSink(args.rerun, serve=args.rerun_serve, grpc_port=grpc_port,
-                                web_port=web_port)
+                                web_port=web_port, bind=args.rerun_bind)
         if sink.web_url:
             print(f"smartcar-eval: Rerun web viewer: {sink.web_url}", file=sys.stderr)
         recorders.append(sink)
@@ -422,6 +427,7 @@ def check_outputs(parser: argparse.ArgumentParser, args: argparse.Namespace) -> 
             parser.error(f"{option}: {missing_rerun()}")
         if args.rerun is not None and args.rerun.suffix != ".rrd":
             parser.error(f"--rerun: the file must end in .rrd, got {str(args.rerun)!r}")
+    _check_rerun_bind(parser, args)
     for option, path in (("--json", args.json), ("--plot", args.plot), ("--video", args.video),
                          ("--bag", args.bag), ("--rerun", args.rerun)):
         problem = None if path is None else output_path_error(path)
@@ -441,6 +447,24 @@ def summary_title(name: str, env_id: str, engine: str, episodes: int, seed: int,
     random)."""
     seeds = f"seed {seed}" if episodes == 1 else f"seeds {seed}..{seed + episodes - 1}"
     return f"{name} on {env_id} ({engine}): {count(episodes, 'episode')}, {seeds}, {actions}"
+
+
+def _check_rerun_bind(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
+    """``--rerun-bind``: an IP address, with ``--rerun-serve``; a warning beyond loopback."""
+    from smartcar_gym.viewers.web_viewer import check_bind, is_loopback
+
+    if args.rerun_bind == "127.0.0.1":
+        return
+    if not args.rerun_serve:
+        parser.error("--rerun-bind: only --rerun-serve listens on an address")
+    try:
+        args.rerun_bind = check_bind(args.rerun_bind, "--rerun-bind")
+    except ValueError as err:
+        parser.error(str(err))
+    if not is_loopback(args.rerun_bind):
+        print(f"smartcar-eval: warning: --rerun-bind {args.rerun_bind}: the web viewer and the "
+              "episodes' gRPC server are open to anyone who can reach this address (no "
+              "password, no encryption)", file=sys.stderr)
 
 
 def _print_summary(summary: dict[str, Any], model_path: Path, env_id: str,

@@ -207,9 +207,10 @@ class SmartCarEnv(gym.Env):
 
     ``gym.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point", **kwargs)`` makes N
     cars in one process (docs/vector.md): SmartCarSim-v0 in numpy arrays
-    (``SmartCarSimVectorEnv``, bit for bit N single envs), SmartCar-v0, SmartCarNav-v0 and
-    SmartCarGoal-v0 with ``engine="mujoco"`` in C (``SmartCarMujocoVectorEnv``,
-    ``SmartCarNavMujocoVectorEnv``, ``SmartCarGoalMujocoVectorEnv``, bit for bit too) and
+    (``SmartCarSimVectorEnv``, bit for bit N single envs but for ``info["pose"]``'s yaw,
+    within 1e-6 rad), SmartCar-v0, SmartCarNav-v0 and SmartCarGoal-v0 with
+    ``engine="mujoco"`` in C (``SmartCarMujocoVectorEnv``, ``SmartCarNavMujocoVectorEnv``,
+    ``SmartCarGoalMujocoVectorEnv``, bit for bit, infos included) and
     with ``engine="planar"`` in arrays (``SmartCarPlanarVectorEnv``,
     ``SmartCarNavPlanarVectorEnv``, ``SmartCarGoalPlanarVectorEnv``, bit for bit too,
     differential-drive robots included), on pybullet or with what the batches lack

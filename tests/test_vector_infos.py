@@ -24,16 +24,21 @@ from tests import test_vector_batched, test_vector_goal_mujoco
 #: the stated bound on SmartCarSim-v0's pose yaw (docs/vector.md; measured up to 8.2e-7 rad)
 SIM_YAW_RAD = 1e-6
 MUJOCO = {"engine": "mujoco", "num_threads": 2}
-#: id -> (kwargs, cars, steps, episode limit, rollout, seed): with these (the per-id tests'),
-#: cars reach goals, leave the arena (or hit obstacles) and run into their time limits
+PLANAR = {"engine": "planar"}
+SHORT = {"goal_range": (0.25, 0.4), "arena_size": 1.2}
+NAV = {"goal_range": (0.4, 0.9), "obstacles": 6, "arena_size": 2.0, "proximity_penalty": 1.0}
+#: (id, engine) -> (kwargs, cars, steps, episode limit, rollout, seed): with these (the per-id
+#: tests'), cars reach goals, leave the arena (or hit obstacles) and run into their time limits
 CASES = {
-    "SmartCarSim-v0": ({}, 5, 150, 60, test_vector_batched.rollout, 11),
-    "SmartCar-v0": ({**MUJOCO, "goal_range": (0.25, 0.4), "arena_size": 1.2}, 6, 45, 25,
-                    test_vector_batched.rollout, 7),
-    "SmartCarGoal-v0": ({**MUJOCO, "goal_range": (0.25, 0.4), "arena_size": 1.2}, 8, 60, 30,
-                        test_vector_goal_mujoco.rollout, 2),
-    "SmartCarNav-v0": ({**MUJOCO, "goal_range": (0.4, 0.9), "obstacles": 6, "arena_size": 2.0,
-                        "proximity_penalty": 1.0}, 8, 50, 25, test_vector_batched.rollout, 1),
+    ("SmartCarSim-v0", None): ({}, 5, 150, 60, test_vector_batched.rollout, 11),
+    ("SmartCar-v0", "mujoco"): ({**MUJOCO, **SHORT}, 6, 45, 25, test_vector_batched.rollout, 7),
+    ("SmartCarGoal-v0", "mujoco"): ({**MUJOCO, **SHORT}, 8, 60, 30,
+                                    test_vector_goal_mujoco.rollout, 2),
+    ("SmartCarNav-v0", "mujoco"): ({**MUJOCO, **NAV}, 8, 50, 25, test_vector_batched.rollout, 1),
+    ("SmartCar-v0", "planar"): ({**PLANAR, **SHORT}, 6, 45, 25, test_vector_batched.rollout, 7),
+    ("SmartCarGoal-v0", "planar"): ({**PLANAR, **SHORT}, 8, 60, 30,
+                                    test_vector_goal_mujoco.rollout, 2),
+    ("SmartCarNav-v0", "planar"): ({**PLANAR, **NAV}, 8, 50, 25, test_vector_batched.rollout, 1),
 }
 
 
@@ -74,11 +79,12 @@ def take_sim_yaw(got: tuple, want: tuple) -> tuple:
 
 
 @pytest.mark.parametrize("mode", ["NextStep", "SameStep"])
-@pytest.mark.parametrize("env_id", list(CASES))
-def test_batch_results_and_infos_equal_n_single_envs_exactly(env_id, mode):
-    if env_id != "SmartCarSim-v0":
+@pytest.mark.parametrize(("env_id", "engine"), list(CASES),
+                         ids=[f"{i}-{e}" if e else i for i, e in CASES])
+def test_batch_results_and_infos_equal_n_single_envs_exactly(env_id, engine, mode):
+    if engine == "mujoco":
         pytest.importorskip("smartcar_gym.sim.mujoco", reason="needs the mujoco extra")
-    kwargs, n, steps, limit, rollout, seed = CASES[env_id]
+    kwargs, n, steps, limit, rollout, seed = CASES[(env_id, engine)]
     batched = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point",
                            max_episode_steps=limit, autoreset_mode=mode, **kwargs)
     kwargs = {k: v for k, v in kwargs.items() if k != "num_threads"}

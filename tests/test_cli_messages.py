@@ -45,12 +45,14 @@ def test_eval_header_names_the_engine(engine, capsys, monkeypatch):
 
 def test_eval_random_says_random_actions_and_one_episode(capsys, monkeypatch):
     monkeypatch.setenv("COLUMNS", "200")
-    argv = ["--random", "--episodes", "1", "--env", "SmartCarSim-v0", *SHORT]
+    argv = ["--random", "--episodes", "1", "--env", "SmartCarSim-v0", "--fail-under", "0",
+            "--max-final-distance", "10", *SHORT]
     code, out, err = _run(evaluate.main, argv, capsys)
     assert code == 0, err
     header = _header(out)
     assert header == "random-policy on SmartCarSim-v0 (pybullet): 1 episode, seed 0, random actions"
     assert "deterministic" not in out + err and "1 episodes" not in out + err
+    assert "pass mark held: success rate 0.0% is not under --fail-under 0% (1 episode)" in err
 
 
 def test_count_and_summary_title():

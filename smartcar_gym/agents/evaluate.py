@@ -320,7 +320,7 @@ def check_marks(summary: dict[str, Any], args: argparse.Namespace) -> list[dict[
             "value": rate, "held": held,
             "line": f"pass mark {'held' if held else 'missed'}: success rate {rate:.1f}% is "
                     f"{'not ' if held else ''}under --fail-under {args.fail_under:g}% "
-                    f"({summary['episodes']} episodes)"})
+                    f"({count(summary['episodes'], 'episode')})"})
     if args.max_final_distance is not None:
         mean = summary["mean_final_distance_m"]
         held = mean <= args.max_final_distance
@@ -329,7 +329,7 @@ def check_marks(summary: dict[str, Any], args: argparse.Namespace) -> list[dict[
             "mark": args.max_final_distance, "value": mean, "held": held,
             "line": f"pass mark {'held' if held else 'missed'}: mean final distance "
                     f"{mean:.3f} m is {'not ' if held else ''}over --max-final-distance "
-                    f"{args.max_final_distance:g} m ({summary['episodes']} episodes)"})
+                    f"{args.max_final_distance:g} m ({count(summary['episodes'], 'episode')})"})
     return marks
 
 

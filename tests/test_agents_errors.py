@@ -168,10 +168,11 @@ def no_evaluation(monkeypatch):
 
 @pytest.mark.parametrize(("argv", "message"), [
     (["--n-envs", "2", "--env-kwargs", "bogus=1"],
-     "cannot make SmartCar-v0 with bogus=1: SmartCarEnv.__init__() got an unexpected keyword "
-     "argument 'bogus'"),
+     "cannot make SmartCar-v0 with bogus=1: SmartCarEnv got an unexpected keyword "
+     "argument 'bogus'; it takes arena_size, "),
     (["--env-kwargs", "goal_range=abc"], "goal_range must be a (min, max) pair of numbers"),
-    (["--env", "Nope-v0"], "cannot make Nope-v0"),
+    (["--env", "Nope-v0"], "unknown env id 'Nope-v0': Environment Nope doesn't exist; "
+                           "registered smartcar ids: SmartCar-v0, "),
     (["--json", "{tmp}"], "--json: {tmp} is a directory"),
     (["--plot", "{tmp}/file/paths.png"], "--plot: cannot create {tmp}/file/paths.png: "
                                          "{tmp}/file is not a folder"),

@@ -210,5 +210,5 @@ def test_cli_batched_rerun_records_the_first_episodes(tmp_path, capsys):
                           "--no-progress", "--vectorization", "batched", "--record-episodes",
                           "1", "--env-kwargs", "max_episode_steps=5", "--rerun",
                           str(path)]) == 0
-    assert "rerun (1 episodes)" in capsys.readouterr().out
+    assert "rerun (1 episode)" in capsys.readouterr().out
     assert path.stat().st_size > 10_000

@@ -74,7 +74,7 @@ def _exit_code(main, argv, capsys):
     (["--n-envs", "0"], "expected a positive integer"),
     (["--timesteps", "many"], "expected an integer"),
     (["--eval-start", "-1"], "argument --eval-start: expected a non-negative integer, got '-1'"),
-    (["--env", "Unknown-v0"], "no hyperparameters for env 'Unknown-v0'"),
+    (["--env", "Unknown-v0"], "unknown env id 'Unknown-v0'"),  # not the hyperparameters
 ])
 def test_train_argument_errors_exit_2_with_a_clear_message(argv, message, capsys, tmp_path):
     code, err = _exit_code(train.main, [*argv, "--run-dir", str(tmp_path / "run")], capsys)

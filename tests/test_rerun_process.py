@@ -144,7 +144,7 @@ def test_serving_outlives_close_until_stop(tmp_path):
     sink = RerunProcessSink(tmp_path / "served.rrd", serve=True, grpc_port=_free_port(),
                             web_port=web_port)
     try:
-        assert sink.web_url.startswith(f"http://localhost:{web_port}/?url=rerun%2Bhttp")
+        assert sink.web_url.startswith(f"http://127.0.0.1:{web_port}/?url=rerun%2Bhttp")
         evaluate_policy_episodes(RandomPolicy(1), "SmartCarSim-v0", n_episodes=1, seed=1,
                                  env_kwargs={"max_episode_steps": 5}, recorders=[sink])
         sink.close()

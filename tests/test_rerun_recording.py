@@ -214,7 +214,7 @@ def test_serve_hosts_the_web_viewer_from_the_package():
     grpc_port, web_port = _free_port(), _free_port()
     sink = RerunSink(serve=True, grpc_port=grpc_port, web_port=web_port)
     try:
-        assert sink.web_url.startswith(f"http://localhost:{web_port}/?url=rerun%2Bhttp")
+        assert sink.web_url.startswith(f"http://127.0.0.1:{web_port}/?url=rerun%2Bhttp")
         page = urllib.request.urlopen(f"http://localhost:{web_port}/", timeout=10).read()
         assert b"<html" in page.lower() and b"rerun" in page.lower()
     finally:

@@ -59,7 +59,8 @@ def test_web_viewer_shows_the_recording(tmp_path):
 
 
 def test_rerun_serve_web_shows_a_recorded_file(tmp_path):
-    """The docs' way: ``rerun --serve-web episodes.rrd`` (the rerun-sdk package's CLI)."""
+    """The docs' way: ``rerun --serve-web --bind 127.0.0.1 episodes.rrd`` (the rerun-sdk
+    package's CLI), with its settings in the test's folder rather than ``~/.config/rerun``."""
     import subprocess
     import sys
 
@@ -72,9 +73,12 @@ def test_rerun_serve_web_shows_a_recorded_file(tmp_path):
                              recorders=[sink])
     sink.close()
     grpc, web = _free_port(), _free_port()
-    server = subprocess.Popen([sys.executable, "-m", "rerun", "--serve-web", "--port", str(grpc),
-                               "--web-viewer-port", str(web), str(path)],
+    server = subprocess.Popen([sys.executable, "-m", "rerun", "--serve-web", "--bind",
+                               "127.0.0.1", "--port", str(grpc), "--web-viewer-port", str(web),
+                               str(path)],
                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                              env={**os.environ, "XDG_CONFIG_HOME": str(tmp_path),
+                                   "XDG_DATA_HOME": str(tmp_path)},
                               start_new_session=True)  # python -m rerun runs rerun_cli/rerun
     try:
         image = screenshot(f"http://127.0.0.1:{web}/?url=rerun%2Bhttp%3A%2F%2F127.0.0.1%3A"

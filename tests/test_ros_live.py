@@ -224,11 +224,11 @@ def test_bringup_publishes_at_the_driver_rates_in_real_time(ros, tmp_path):
 
 
 def _drive(ros: Master, folder: Path, command: list[str]) -> tuple[list, str]:
-    """Bringup at 4x real time on /clock; cmd_vel (0.2, 1.0) for 2 s from an instant aligned
+    """Bringup at 2x real time on /clock; cmd_vel (0.2, 1.0) for 2 s from an instant aligned
     with the controller's updates, then 1 s at rest; the odometry until then."""
     folder.mkdir()
     ros.set("/use_sim_time", True)
-    with nodes(ros, folder, ["bringup", "--speed", "4", *command]) as (bringup,):
+    with nodes(ros, folder, ["bringup", "--speed", "2", *command]) as (bringup,):
         data = probe(ros, {"record": {"/odom": "nav_msgs/Odometry"}, "duration": 30,
                            "wait_for": ["/clock"],
                            "until_stamp": {"topic": "/odom", "after_drive": 3.0},
@@ -244,6 +244,17 @@ def _drive(ros: Master, folder: Path, command: list[str]) -> tuple[list, str]:
 def _yaw(odom: dict) -> float:
     *_, qz, qw, _, _ = odom["f"]
     return 2 * math.atan2(qz, qw)
+
+
+def _driving(odom: list, window_s: float) -> list[tuple[float, float, float, float]]:
+    """(time since the car started moving, x, y, yaw) of the odometry over ``window_s`` from
+    its first message with a non-zero twist: what the controller did with the drive, whatever
+    the update at which the probe's first cmd_vel arrived (on a loaded machine it comes one
+    or more updates late, and the drive's end as late or not)."""
+    moving = next(i for i, row in enumerate(odom) if row["f"][6] or row["f"][7])
+    start = odom[moving]["stamp"]
+    return [(round(row["stamp"] - start, 6), row["f"][2], row["f"][3], _yaw(row))
+            for row in odom[moving:] if row["stamp"] - start <= window_s + 1e-9]
 
 
 def test_parameters_from_the_server_behave_like_the_same_file(ros, tmp_path):
@@ -264,15 +275,16 @@ def test_parameters_from_the_server_behave_like_the_same_file(ros, tmp_path):
     assert described in file_log, file_log
     for odom in (from_server, from_file):  # odometry at the configured 20 Hz
         assert np.allclose(np.diff([row["stamp"] for row in odom]), 0.05, atol=1e-6)
-    yaw = [_yaw(odom[-1]) for odom in (from_server, from_file)]
-    position = [np.array(odom[-1]["f"][2:4]) for odom in (from_server, from_file)]
-    # The commands reach the controller before its next update (50 ms), so the runs agree
-    # exactly (seen: 1.4580487804878055 rad and (0.2785, 0.2549) m in both, every run); the
-    # tolerances allow one update of slip under load. The shipped file (base_width 0.26,
-    # rate 10) ends at 1.3143 rad and (0.2942, 0.1798) m: 0.14 rad and 0.077 m away.
-    assert abs(yaw[0] - yaw[1]) < 0.06, yaw
-    assert np.linalg.norm(position[0] - position[1]) < 0.02, position
-    assert yaw[0] > 1.0, yaw
+    # Both runs drive the same controller the same way from the update the drive reached it
+    # (idle, the first cmd_vel reaches the controller before its next update; loaded, one or
+    # more updates later: the final poses then differed by 0.09-0.14 rad, an update's turn
+    # or two). Compared from the first moving odometry on, over 1.2 s of the 2 s drive, they
+    # agree to the last bit: the env gives the same odometry from the first moving update
+    # whichever update the drive starts at.
+    server, file = (_driving(odom, 1.2) for odom in (from_server, from_file))
+    assert len(server) == len(file) == 25, (server, file)
+    assert np.allclose(server, file, rtol=0, atol=1e-9), (server, file)
+    assert server[-1][3] > 0.5, server  # it turned (1.2 s at 1 rad/s, less the ramp)
 
 
 def test_policy_drives_to_a_nav_goal_and_stops(ros, tmp_path):
@@ -298,6 +310,12 @@ def test_policy_drives_to_a_nav_goal_and_stops(ros, tmp_path):
         outputs = bringup.output + policy.output
     logs = [text for _, _, text in data["rosout"]]
     assert any("reached" in text for text in logs), (logs, outputs)
+    # one line says from when on a goal counts (rviz's goals are not latched), before it came
+    said = policy.output.splitlines()
+    listening = [i for i, line in enumerate(said) if "listening for goals on "
+                 "/move_base_simple/goal (a goal sent before this line was not received" in line]
+    new_goal = [i for i, line in enumerate(said) if "new goal (1, 0.5)" in line]
+    assert len(listening) == 1 and new_goal and listening[0] < new_goal[0], said
     # the ros policy on bringup's default (calibrated) odometry: at rest, within the
     # tolerance by odometry and in ground truth
     odom = data["topics"]["/odom"][-1]["f"]
@@ -354,7 +372,8 @@ def test_bringup_stops_on_sigint_while_publishing_fast(ros, tmp_path):
             [sys.executable, str(PROBE), json.dumps({
                 "record": {"/clock": "rosgraph_msgs/Clock", "/odom": "nav_msgs/Odometry"},
                 "duration": 4.0})],
-            env=ros.env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            env=ros.env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+            start_new_session=True)  # its own group: _stop's signals reach it
         try:
             time.sleep(1.5)
             started = time.monotonic()
@@ -365,13 +384,35 @@ def test_bringup_stops_on_sigint_while_publishing_fast(ros, tmp_path):
             _stop(listener)
 
 
-def test_bringup_refuses_a_bad_configuration_in_one_line(ros, tmp_path):
-    with nodes(ros, tmp_path, ["bringup", "--controller-config",
-                               str(tmp_path / "missing.yaml")]) as (bringup,):
-        assert bringup.proc.wait(60) == 2
+def _registrations(ros: Master, node: str) -> int:
+    """How often ``node`` has registered with the module's master (its log says each)."""
+    log = Path(ros.env["ROS_LOG_DIR"]) / "latest" / "master.log"
+    return log.read_text().count(f"+PUB [/rosout] {node} ")
+
+
+@pytest.mark.parametrize("case", ["missing file", "bad server parameter", "speed"])
+def test_bringup_refuses_a_bad_configuration_in_one_line(case, ros, tmp_path):
+    """Refused before the node exists (no rospy thread is left to print as it exits), so the
+    one line is all there is, however loaded the machine."""
+    missing = tmp_path / "missing.yaml"
+    argv, end = {
+        "missing file": (["--controller-config", str(missing)],
+                         f"{missing}: controller config file not found"),
+        "bad server parameter": ([], "ROS parameter server /arbotix: 'controllers' must be a "
+                                 "mapping"),
+        "speed": (["--speed", "3"], "--speed 3 needs /use_sim_time true"),
+    }[case]
+    if case == "bad server parameter":
+        ros.set("/arbotix", {"controllers": "not a mapping"})
+    registered = _registrations(ros, "/arbotix")
+    with nodes(ros, tmp_path, ["bringup", *argv]) as (bringup,):
+        assert bringup.proc.wait(120) == 2, bringup.output
+    assert _registrations(ros, "/arbotix") == registered  # no node was made
     lines = [line for line in bringup.output.splitlines() if line.strip()]
-    assert len(lines) == 1 and "[FATAL]" in lines[0], lines
-    assert lines[0].endswith(f"{tmp_path / 'missing.yaml'}: controller config file not found")
+    assert len(lines) == 1 and lines[0].startswith("[FATAL] ["), lines
+    assert end in lines[0], lines
+    if case == "missing file":
+        assert lines[0].endswith(end)
 
 
 @ros_needs.needs("rosbag")

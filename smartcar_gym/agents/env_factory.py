@@ -29,6 +29,29 @@ class EnvSetupError(ValueError):
 FORKSERVER_PRELOAD = ("stable_baselines3.common.vec_env.subproc_vec_env",
                       "smartcar_gym.envs.smartcar_env")
 
+#: what gym.make appends to an env creator's TypeError (the id and kwargs, said already)
+GYM_CREATOR_SUFFIX = " was raised from the environment creator for "
+
+
+def check_env_id(env_id: str) -> None:
+    """``EnvSetupError`` if Gymnasium knows no ``env_id``: gym.make's reason, the closest
+    registered id and the smartcar ids, in one line (before any file is read for it)."""
+    import difflib
+
+    from smartcar_gym.registration import ENV_IDS
+
+    try:
+        gym.spec(env_id)
+    except gym.error.Error as err:
+        close = (difflib.get_close_matches(env_id, ENV_IDS, n=1, cutoff=0.6)
+                 or difflib.get_close_matches(env_id, list(gym.registry), n=1, cutoff=0.8))
+        hint = f"did you mean {close[0]!r}? " if close else ""
+        reason = " ".join(str(err).replace("`", "").split()).split(" Did you mean")[0]
+        reason = reason.rstrip(".")
+        raise EnvSetupError(f"unknown env id {env_id!r}: {reason}; {hint}registered smartcar "
+                            f"ids: {', '.join(ENV_IDS)}") from None
+
+
 def check_env(env_id: str, env_kwargs: dict[str, Any] | None = None,
               env_wrapper: Any = None, monitor_kwargs: dict[str, Any] | None = None) -> None:
     """Make and close one env in this process: bad ``env_kwargs`` then fail here, with the env's
@@ -37,11 +60,13 @@ def check_env(env_id: str, env_kwargs: dict[str, Any] | None = None,
     With ``env_wrapper`` (zoo's ``env_wrapper``) or ``monitor_kwargs``, the env is also wrapped
     as training wraps it, reset and stepped once, and its ``info`` must hold every Monitor
     ``info_keywords`` key (``HyperparamsError`` otherwise)."""
+    check_env_id(env_id)
     try:
         env = gym.make(env_id, **(env_kwargs or {}))
     except (gym.error.Error, TypeError, ValueError) as err:
         given = ", ".join(f"{k}={v!r}" for k, v in (env_kwargs or {}).items()) or "no env kwargs"
-        raise EnvSetupError(f"cannot make {env_id} with {given}: {err}") from err
+        reason = str(err).split(GYM_CREATOR_SUFFIX)[0]
+        raise EnvSetupError(f"cannot make {env_id} with {given}: {reason}") from err
     if env_wrapper is None and monitor_kwargs is None:
         env.close()
         return

@@ -47,7 +47,7 @@ from smartcar_gym.agents.rollouts import (
     summarize,
 )
 from smartcar_gym.policy import Policy, PolicyError
-from smartcar_gym.sim.engines import add_engine_argument
+from smartcar_gym.sim.engines import DEFAULT_ENGINE, add_engine_argument
 
 __all__ = ["build_parser", "check_outputs", "evaluate_policy_episodes", "load_model", "main",
            "summarize"]
@@ -144,6 +144,11 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--rerun-ports", nargs=2, type=positive_int_arg, default=(9876, 9090),
                         metavar=("GRPC", "WEB"), help="ports of --rerun-serve's gRPC server "
                         "and web viewer (default: Rerun's 9876 9090)")
+    parser.add_argument("--rerun-bind", default="127.0.0.1", metavar="ADDRESS",
+                        help="the IP address --rerun-serve's servers listen on (default "
+                             "127.0.0.1: this machine only); an address of this machine's "
+                             "network (0.0.0.0: every interface) shares the viewer and the "
+                             "episodes with anyone who can reach it (docs/viewers.md)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     return parser
 
@@ -221,7 +226,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             plot_trajectories(records, args.plot, goal_tolerance_m=tolerance,
                               title=f"{model_path.name} on {env_id}: "
                                     f"{summary['success_rate']:.0%} success over "
-                                    f"{len(records)} episodes{shown}")
+                                    f"{count(len(records), 'episode')}{shown}")
             outputs["plot"] = args.plot
         if args.video is not None:
             n_frames = record_video(policy, args.video, n_episodes=args.video_episodes, **common)
@@ -231,7 +236,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
             n_messages = write_bag(policy, args.bag, n_episodes=_recorded(args), **common)
             outputs[f"bag ({n_messages} messages)"] = args.bag
-        _print_summary(summary, model_path, env_id, args, outputs)
+        _print_summary(summary, model_path, env_id, args, outputs,
+                       engine=env_kwargs.get("engine") or DEFAULT_ENGINE)
         for warning in warnings:  # again after the table, where the numbers are read
             print(f"smartcar-eval: warning: {warning}", file=sys.stderr)
         for mark in marks:
@@ -314,7 +320,7 @@ def check_marks(summary: dict[str, Any], args: argparse.Namespace) -> list[dict[
             "value": rate, "held": held,
             "line": f"pass mark {'held' if held else 'missed'}: success rate {rate:.1f}% is "
                     f"{'not ' if held else ''}under --fail-under {args.fail_under:g}% "
-                    f"({summary['episodes']} episodes)"})
+                    f"({count(summary['episodes'], 'episode')})"})
     if args.max_final_distance is not None:
         mean = summary["mean_final_distance_m"]
         held = mean <= args.max_final_distance
@@ -323,7 +329,7 @@ def check_marks(summary: dict[str, Any], args: argparse.Namespace) -> list[dict[
             "mark": args.max_final_distance, "value": mean, "held": held,
             "line": f"pass mark {'held' if held else 'missed'}: mean final distance "
                     f"{mean:.3f} m is {'not ' if held else ''}over --max-final-distance "
-                    f"{args.max_final_distance:g} m ({summary['episodes']} episodes)"})
+                    f"{args.max_final_distance:g} m ({count(summary['episodes'], 'episode')})"})
     return marks
 
 
@@ -336,7 +342,7 @@ def _recorders(args: argparse.Namespace, stack: contextlib.ExitStack) -> list[An
 
         grpc_port, web_port = args.rerun_ports  # rerun itself is the recorder process's
         sink = RerunProcessSink(args.rerun, serve=args.rerun_serve, grpc_port=grpc_port,
-                                web_port=web_port)
+                                web_port=web_port, bind=args.rerun_bind)
         if sink.web_url:
             print(f"smartcar-eval: Rerun web viewer: {sink.web_url}", file=sys.stderr)
         recorders.append(sink)
@@ -363,7 +369,7 @@ def _close_recorders(recorders: list[Any]) -> dict[str, Any]:
         recorder.close()
         if isinstance(recorder, RerunProcessSink):
             if recorder.path is not None:
-                written[f"rerun ({recorder.episodes} episodes)"] = recorder.path
+                written[f"rerun ({count(recorder.episodes, 'episode')})"] = recorder.path
         else:
             written[f"ros2 bag ({recorder.count} messages)"] = recorder.path
     return written
@@ -421,6 +427,7 @@ def check_outputs(parser: argparse.ArgumentParser, args: argparse.Namespace) -> 
             parser.error(f"{option}: {missing_rerun()}")
         if args.rerun is not None and args.rerun.suffix != ".rrd":
             parser.error(f"--rerun: the file must end in .rrd, got {str(args.rerun)!r}")
+    _check_rerun_bind(parser, args)
     for option, path in (("--json", args.json), ("--plot", args.plot), ("--video", args.video),
                          ("--bag", args.bag), ("--rerun", args.rerun)):
         problem = None if path is None else output_path_error(path)
@@ -428,17 +435,51 @@ def check_outputs(parser: argparse.ArgumentParser, args: argparse.Namespace) -> 
             parser.error(f"{option}: {problem}")
 
 
+def count(n: int, noun: str) -> str:
+    """``1 episode``, ``2 episodes``."""
+    return f"{n} {noun}{'' if n == 1 else 's'}"
+
+
+def summary_title(name: str, env_id: str, engine: str, episodes: int, seed: int,
+                  actions: str) -> str:
+    """The summary table's header: ``policy.zip on SmartCar-v0 (mujoco): 100 episodes, seeds
+    0..99, deterministic``; ``actions`` says how they were chosen (deterministic, stochastic,
+    random)."""
+    seeds = f"seed {seed}" if episodes == 1 else f"seeds {seed}..{seed + episodes - 1}"
+    return f"{name} on {env_id} ({engine}): {count(episodes, 'episode')}, {seeds}, {actions}"
+
+
+def _check_rerun_bind(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
+    """``--rerun-bind``: an IP address, with ``--rerun-serve``; a warning beyond loopback."""
+    from smartcar_gym.viewers.web_viewer import check_bind, is_loopback
+
+    if args.rerun_bind == "127.0.0.1":
+        return
+    if not args.rerun_serve:
+        parser.error("--rerun-bind: only --rerun-serve listens on an address")
+    try:
+        args.rerun_bind = check_bind(args.rerun_bind, "--rerun-bind")
+    except ValueError as err:
+        parser.error(str(err))
+    if not is_loopback(args.rerun_bind):
+        print(f"smartcar-eval: warning: --rerun-bind {args.rerun_bind}: the web viewer and the "
+              "episodes' gRPC server are open to anyone who can reach this address (no "
+              "password, no encryption)", file=sys.stderr)
+
+
 def _print_summary(summary: dict[str, Any], model_path: Path, env_id: str,
-                   args: argparse.Namespace, files: dict[str, Any]) -> None:
+                   args: argparse.Namespace, files: dict[str, Any],
+                   engine: str = DEFAULT_ENGINE) -> None:
     from rich.console import Console
     from rich.table import Table
 
     def fmt(value: float | None, spec: str) -> str:
         return "n/a" if value is None else format(value, spec)
 
-    table = Table(title=f"{model_path.name} on {env_id}: {summary['episodes']} episodes, "
-                        f"seeds {args.seed}..{args.seed + summary['episodes'] - 1}, "
-                        f"{'stochastic' if args.stochastic else 'deterministic'}")
+    actions = ("random actions" if args.random
+               else "stochastic" if args.stochastic else "deterministic")
+    table = Table(title=summary_title(model_path.name, env_id, engine, summary["episodes"],
+                                      args.seed, actions))
     table.add_column("metric")
     table.add_column("value", justify="right", overflow="fold")  # paths in full
     table.add_row("success rate", fmt(summary["success_rate"], ".1%"))

@@ -19,6 +19,7 @@ from typing import Any
 import yaml
 
 from smartcar_gym.agents import zoo_keys
+from smartcar_gym.agents.env_factory import EnvSetupError, check_env_id
 from smartcar_gym.agents.hyperparams import (
     ALGOS,
     HyperparamsError,
@@ -72,6 +73,7 @@ def new_config(args: argparse.Namespace, command: str) -> dict[str, Any]:
     engine = dict(args.env_kwargs or []).get("engine")
     variant = None if vectorization != "batched" else (
         ("batched", ) if engine is None else (f"batched-{engine}", "batched"))
+    check_env_id(env_id)  # an unknown id is the id's fault, not the hyperparameter file's
     hyperparams = load_hyperparams(algo, env_id, args.hyperparams_file, variant=variant)
     hyperparams.update(dict(args.hyperparams or []))
     file_n_envs, file_timesteps = run_int(hyperparams, "n_envs"), run_int(hyperparams,
@@ -132,7 +134,7 @@ def new_run(parser: argparse.ArgumentParser, args: argparse.Namespace,
     """
     try:
         config = new_config(args, command)
-    except HyperparamsError as err:
+    except (HyperparamsError, EnvSetupError) as err:
         parser.error(str(err))
     run_dir = args.run_dir or Path("runs") / f"{config['algo']}_{config['env']}_s{config['seed']}"
     problem = output_path_error(run_dir / "config.yaml")

@@ -207,9 +207,10 @@ class SmartCarEnv(gym.Env):
 
     ``gym.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point", **kwargs)`` makes N
     cars in one process (docs/vector.md): SmartCarSim-v0 in numpy arrays
-    (``SmartCarSimVectorEnv``, bit for bit N single envs), SmartCar-v0, SmartCarNav-v0 and
-    SmartCarGoal-v0 with ``engine="mujoco"`` in C (``SmartCarMujocoVectorEnv``,
-    ``SmartCarNavMujocoVectorEnv``, ``SmartCarGoalMujocoVectorEnv``, bit for bit too) and
+    (``SmartCarSimVectorEnv``, bit for bit N single envs but for ``info["pose"]``'s yaw,
+    within 1e-6 rad), SmartCar-v0, SmartCarNav-v0 and SmartCarGoal-v0 with
+    ``engine="mujoco"`` in C (``SmartCarMujocoVectorEnv``, ``SmartCarNavMujocoVectorEnv``,
+    ``SmartCarGoalMujocoVectorEnv``, bit for bit, infos included) and
     with ``engine="planar"`` in arrays (``SmartCarPlanarVectorEnv``,
     ``SmartCarNavPlanarVectorEnv``, ``SmartCarGoalPlanarVectorEnv``, bit for bit too,
     differential-drive robots included), on pybullet or with what the batches lack
@@ -239,6 +240,7 @@ class SmartCarEnv(gym.Env):
     reset_options: tuple[str, ...] = ("goal",)
     env_name = "SmartCar-v0"
 
+    @checks.keyword_checked  # max_linar=: "... (did you mean 'max_linear'?)", via gym.make too
     def __init__(
         self,
         model: str | os.PathLike | RobotModel | None = None,
@@ -560,13 +562,16 @@ class SmartCarEnv(gym.Env):
 
     def _info(self, pose: Pose2D, success: bool) -> dict[str, Any]:
         odom = self.robot.odometry
+        dx, dy = odom.x - pose.x, odom.y - pose.y
         info = {
             "is_success": success,
             "distance": self._distance,
             "pose": np.array([pose.x, pose.y, pose.yaw]),
             # odometry's theta is never wrapped (as upstream); here it is, like pose's yaw
             "odom_pose": np.array([odom.x, odom.y, math.remainder(odom.theta, 2 * math.pi)]),
-            "odom_error": math.hypot(odom.x - pose.x, odom.y - pose.y),
+            # sqrt(dx * dx + dy * dy), not math.hypot: a batch of cars gets the same bits from
+            # numpy (np.hypot and math.hypot differ in the last bit; vector/exact.py)
+            "odom_error": math.sqrt(dx * dx + dy * dy),
         }
         if self._draw is not None:
             info["randomization"] = self._draw.info

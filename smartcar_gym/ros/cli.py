@@ -22,6 +22,7 @@ import math
 import signal
 import sys
 import threading
+import time
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
@@ -176,40 +177,77 @@ def _bringup(args: argparse.Namespace, ros_args: list[str]) -> int:
         ros = _ros_or_fail()
     except RosUnavailable as err:
         return _fail(str(err))
+    # Everything that can be refused is decided before the node exists: a refused
+    # configuration is then this one line and nothing else, however loaded the machine (with
+    # a node, rospy's registration and /rosout threads were still at work when it exited).
+    try:
+        setup = _bringup_setup(args, ros_args)
+    except _Refused as err:
+        print(f"[FATAL] [{time.time():.6f}]: {err}", file=sys.stderr, flush=True)
+        return 2
     rospy = ros.rospy
     stop = _init_node(ros, "arbotix", ros_args)
     try:
-        return _run_bringup(ros, args, stop)
+        return _run_bringup(ros, args, setup, stop)
     finally:
         rospy.signal_shutdown("smartcar-ros bringup ended")
 
 
-def _run_bringup(ros: Any, args: argparse.Namespace, stop: threading.Event) -> int:
+class _Refused(Exception):
+    """A configuration, model or option the bringup refuses (one line)."""
+
+
+def _private_name(ros_args: list[str]) -> str:
+    """The bringup node's name, as ``rospy.init_node("arbotix", argv)`` will resolve it
+    (``__name:=``, ``__ns:=`` or ``ROS_NAMESPACE``): its private namespace."""
+    import rosgraph.names
+
+    argv = [PROG, *ros_args]
+    name = rosgraph.names.load_mappings(argv).get("__name", "arbotix")
+    return rosgraph.names.ns_join(rosgraph.names.get_ros_namespace(argv=argv), name)
+
+
+def _bringup_setup(args: argparse.Namespace, ros_args: list[str]) -> tuple:
+    """The robot, its configuration and where it came from, the warnings seen and whether
+    ``/use_sim_time`` is set, read from the parameter server without a node (``rosgraph``);
+    ``_Refused`` with one line for what the node would refuse."""
+    import rosgraph
+
     from smartcar_gym.controller.config_values import ControllerConfigError
     from smartcar_gym.controller.config_yaml import calibrated_config_path
     from smartcar_gym.model import ModelError, load_model
-    from smartcar_gym.ros.bringup import Bringup, BringupOptions, start_robot
-    from smartcar_gym.ros.params import controller_config, describe
+    from smartcar_gym.ros.bringup import start_robot
+    from smartcar_gym.ros.params import controller_config
 
-    rospy = ros.rospy
-    name = rospy.get_name()
     try:
+        name = _private_name(ros_args)
+        master = rosgraph.Master(name)
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            params = rospy.get_param("~") if rospy.has_param("~") else {}
-            config, source = controller_config(params, name, args.controller_config
-                                               or calibrated_config_path())
+            params = master.getParam(name) if master.hasParam(name) else {}
+            config, source = controller_config(params if isinstance(params, dict) else {}, name,
+                                               args.controller_config or calibrated_config_path())
             model = load_model(args.model, package_path=args.package_path)
         mode = args.mode or ("sim" if config.kinematic else "hardware")
-        sim_time = bool(rospy.get_param("/use_sim_time", False))
+        sim_time = bool(master.hasParam("/use_sim_time") and master.getParam("/use_sim_time"))
         if args.speed != 1.0 and not sim_time:
             raise ValueError(f"--speed {args.speed:g} needs /use_sim_time true (set it before "
                              "the nodes start, e.g. <param name=\"/use_sim_time\" value=\"true\"/>"
                              "): without it other nodes stamp and wait in wall-clock time")
         robot = start_robot(model, config, mode, args.engine)
-    except (ControllerConfigError, ModelError, OSError, ValueError, ImportError) as err:
-        rospy.logfatal(" ".join(str(err).split()))
-        return 2
+    except (ControllerConfigError, ModelError, OSError, ValueError, ImportError,
+            rosgraph.MasterException) as err:
+        raise _Refused(" ".join(str(err).split())) from err
+    return robot, config, source, model, mode, sim_time, caught
+
+
+def _run_bringup(ros: Any, args: argparse.Namespace, setup: tuple,
+                 stop: threading.Event) -> int:
+    from smartcar_gym.ros.bringup import Bringup, BringupOptions
+    from smartcar_gym.ros.params import describe
+
+    rospy = ros.rospy
+    robot, config, source, model, mode, sim_time, caught = setup
     for warning in caught:
         rospy.logwarn(" ".join(str(warning.message).split()))
     if not rospy.has_param("robot_description"):
@@ -264,7 +302,9 @@ def _policy(parser: argparse.ArgumentParser, args: argparse.Namespace,
         rospy.logwarn(policy.warning)
     driver = GoalDriver(settings, policy.act, args.stale_after, args.stop_on)
     try:
-        PolicyNode(ros, driver).spin(stop)
+        node = PolicyNode(ros, driver)
+        node.announce_listening(stop)
+        node.spin(stop)
     finally:
         rospy.signal_shutdown("smartcar-ros policy ended")
     return 0

@@ -11,12 +11,15 @@ odometry goes stale. The decisions themselves are ``driving.GoalDriver``'s.
 from __future__ import annotations
 
 import threading
+import time
 from typing import Any
 
 from smartcar_gym.ros import messages as m
 from smartcar_gym.ros.driving import Command, GoalDriver
 
 JOINT_WAIT_S = 0.02  # wall seconds to wait for the joint states stamped with the odometry
+LISTEN_TIMEOUT_S = 60.0  # wall seconds to wait for the master to list the goal subscription
+GOAL_TOPIC = "/move_base_simple/goal"
 
 
 class PolicyNode:
@@ -34,8 +37,41 @@ class PolicyNode:
         if driver.stop_on == "ground_truth":
             rospy.Subscriber(m.GROUND_TRUTH_TOPIC, ros.nav_msgs.Odometry, self._on_ground_truth,
                              queue_size=10)
-        rospy.Subscriber("/move_base_simple/goal", ros.geometry_msgs.PoseStamped,
-                         self._on_goal, queue_size=10)
+        self.goal_topic = rospy.resolve_name(GOAL_TOPIC)
+        rospy.Subscriber(self.goal_topic, ros.geometry_msgs.PoseStamped, self._on_goal,
+                         queue_size=10)
+
+    def announce_listening(self, stop: threading.Event,
+                           timeout_s: float = LISTEN_TIMEOUT_S) -> bool:
+        """Log one line once the master lists this node as a subscriber of the goal topic.
+
+        rospy registers a subscription from a thread of its own, and a goal published before
+        that is not received (rviz's 2D Nav Goal is not latched): the line says from when on
+        a goal counts. On a loaded machine the node takes seconds to get there (loading the
+        policy, then registering). A warning instead if the master has not listed it after
+        ``timeout_s``; nothing once ``stop`` is set."""
+        import rosgraph
+
+        rospy, me = self.rospy, self.rospy.get_name()
+        master = rosgraph.Master(me)
+        deadline = time.monotonic() + timeout_s
+        while not (stop.is_set() or rospy.is_shutdown()):
+            try:
+                _, subscribers, _ = master.getSystemState()
+            except (OSError, rosgraph.MasterException):
+                subscribers = []
+            if any(topic == self.goal_topic and me in nodes for topic, nodes in subscribers):
+                rospy.loginfo(f"listening for goals on {self.goal_topic} (a goal sent before "
+                              "this line was not received: send it again)")
+                return True
+            if time.monotonic() > deadline:
+                break
+            stop.wait(0.05)
+        if stop.is_set() or rospy.is_shutdown():
+            return False
+        rospy.logwarn(f"the master does not list {me} as a subscriber of {self.goal_topic} "
+                      f"after {timeout_s:g} s: goals may not arrive")
+        return False
 
     def _now_ns(self) -> int:
         return self.rospy.Time.now().to_nsec()

@@ -61,9 +61,7 @@ def env_kwargs_of(env_id: str, env_kwargs: dict[str, Any] | None = None) -> dict
 def policy_settings(env_id: str, env_kwargs: dict[str, Any] | None = None) -> PolicySettings:
     """The settings of ``env_id`` made with ``env_kwargs`` (checked as the env checks them)."""
     kw = env_kwargs_of(env_id, env_kwargs)
-    unknown = sorted(set(kw) - set(_defaults()))
-    if unknown:
-        raise ValueError(f"unknown env kwargs {unknown} for {env_id}")
+    checks.check_keywords(env_id, kw, list(_defaults()), ValueError)
     model = kw.get("model")
     if not isinstance(model, RobotModel):
         model = load_model(checks.source("model", model, RobotModel),

@@ -26,11 +26,11 @@ end: recording costs little next to simulating them.
 
 from __future__ import annotations
 
+import ipaddress
 import os
 import sys
 from pathlib import Path
 from typing import Any
-from urllib.parse import quote
 
 import numpy as np
 
@@ -39,6 +39,7 @@ from smartcar_gym.envs.robots.smartcar import pose_from
 from smartcar_gym.model.kinematics import matrix_quaternion
 from smartcar_gym.viewers.capture import Episode, Scene
 from smartcar_gym.viewers.packing import Packet, Table, pack
+from smartcar_gym.viewers.web_viewer import LOOPBACK, WebViewerServer, check_bind, grpc_url
 
 APPLICATION_ID = "smartcar_gym"
 TIMELINE = "sim_time"
@@ -101,11 +102,6 @@ def blueprint() -> Any:
     )
 
 
-def web_viewer_url(grpc_url: str, web_port: int = WEB_PORT) -> str:
-    """The address of the local web viewer, connected to the gRPC server at ``grpc_url``."""
-    return f"http://localhost:{web_port}/?url={quote(grpc_url, safe='')}"
-
-
 class RerunSink:
     """Writes ``Episode`` objects to a Rerun recording.
 
@@ -113,17 +109,23 @@ class RerunSink:
         path: an ``.rrd`` file, written whole when ``close`` is called.
         serve: host a gRPC server (``grpc_port``) and Rerun's web viewer (``web_port``), both
             from the ``rerun-sdk`` package (no internet); ``web_url`` is where to look.
+        bind: the IP address both listen on: 127.0.0.1 (this machine only, the default), or
+            an address of this machine's network (0.0.0.0: every IPv4 interface), for anyone
+            who can reach it (docs/viewers.md says what is then exposed).
         recording: a ``rerun.RecordingStream`` of your own instead (then ``path`` and
             ``serve`` must be left out): the episodes go to wherever it sends its data.
     """
 
     def __init__(self, path: str | os.PathLike | None = None, *, serve: bool = False,
                  grpc_port: int = GRPC_PORT, web_port: int = WEB_PORT,
-                 recording: Any = None, recording_id: str | None = None) -> None:
+                 recording: Any = None, recording_id: str | None = None,
+                 bind: str = LOOPBACK) -> None:
         import rerun as rr
 
         self.path = None if path is None else Path(path)
         self.web_url: str | None = None
+        self.web_viewer: WebViewerServer | None = None
+        bind = check_bind(bind)
         self.episodes = 0
         self._described = False
         if recording is not None:
@@ -140,6 +142,10 @@ class RerunSink:
             if serve and path is not None and not hosted:
                 raise ValueError(f"rerun-sdk {rr.__version__} cannot write a file and serve at "
                                  "once; upgrade it (pip install -U rerun-sdk) or do one")
+            if serve and not hosted and ipaddress.ip_address(bind) != ipaddress.ip_address(
+                    "0.0.0.0"):
+                raise ValueError(f"rerun-sdk {rr.__version__} serves gRPC on every interface "
+                                 f"only, not on {bind}; upgrade it (pip install -U rerun-sdk)")
             self.rec = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id)
             self._partial = None
             sinks = []
@@ -148,17 +154,16 @@ class RerunSink:
                 self._partial = self.path.with_name(f".{self.path.stem}.partial.rrd")
                 sinks.append(rr.FileSink(str(self._partial)))
             if serve and hosted:
-                server = rr.GrpcServerSink(bind_ip="127.0.0.1", port=grpc_port)  # this machine
-                sinks.append(server)
-                grpc_url = server.uri
+                sinks.append(rr.GrpcServerSink(bind_ip=bind, port=grpc_port))
+                url = grpc_url(bind, grpc_port)
             if sinks:
                 self.rec.set_sinks(*sinks, default_blueprint=blueprint())
             else:  # serving with rerun-sdk 0.24
-                grpc_url = self.rec.serve_grpc(grpc_port=grpc_port,
-                                               default_blueprint=blueprint())
-            if serve:
-                rr.serve_web_viewer(web_port=web_port, open_browser=False, connect_to=grpc_url)
-                self.web_url = web_viewer_url(grpc_url, web_port)
+                self.rec.serve_grpc(grpc_port=grpc_port, default_blueprint=blueprint())
+                url = grpc_url(bind, grpc_port)
+            if serve:  # not rr.serve_web_viewer: it listens on every interface (0.0.0.0)
+                self.web_viewer = WebViewerServer(web_port, url, bind)
+                self.web_url = self.web_viewer.url
         self.rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
 
     def __call__(self, episode: Episode) -> None:
@@ -221,6 +226,11 @@ class RerunSink:
             self.rec.disconnect()
             self._partial.unlink(missing_ok=True)
             self._partial = None
+
+    def stop(self) -> None:
+        """Stop serving the web viewer (it also stops when this process ends)."""
+        if self.web_viewer is not None:
+            self.web_viewer.stop()
 
 
 def _log_series(rec: Any, name: str, scene: Scene, table: Table, times: Any) -> None:

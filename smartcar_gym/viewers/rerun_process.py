@@ -23,6 +23,7 @@ from typing import Any
 
 from smartcar_gym.viewers import missing_rerun
 from smartcar_gym.viewers.capture import Episode
+from smartcar_gym.viewers.web_viewer import LOOPBACK, check_bind
 
 START_TIMEOUT_S = 120.0  # the recorder's start (importing rerun, binding the ports)
 CLOSE_TIMEOUT_S = 300.0  # logging what is still queued, writing the file
@@ -37,15 +38,18 @@ class RerunProcessSink:
         serve: host a gRPC server (``grpc_port``) and Rerun's web viewer (``web_port``) in
             the recorder process; ``web_url`` is where to look. They stay up after ``close``
             until ``stop`` (or until this process ends).
+        bind: the IP address both listen on (``RerunSink``'s): 127.0.0.1, this machine only,
+            unless another is asked for.
         recording_id: the recording's id (Rerun makes one up if None).
     """
 
     def __init__(self, path: str | os.PathLike | None = None, *, serve: bool = False,
                  grpc_port: int = 9876, web_port: int = 9090,
-                 recording_id: str | None = None) -> None:
+                 recording_id: str | None = None, bind: str = LOOPBACK) -> None:
         problem = missing_rerun()
         if problem:
             raise ImportError(problem)
+        bind = check_bind(bind)  # here, before any process starts
         self.path = None if path is None else Path(path)
         if self.path is None and not serve:
             raise ValueError("a Rerun recording needs a path (.rrd), serve=True or both")
@@ -59,7 +63,8 @@ class RerunProcessSink:
         context = multiprocessing.get_context("spawn")
         self._conn, child = context.Pipe()
         self._process = context.Process(
-            target=_record, args=(child, self.path, serve, grpc_port, web_port, recording_id),
+            target=_record,
+            args=(child, self.path, serve, grpc_port, web_port, recording_id, bind),
             name="smartcar-rerun-recorder", daemon=True)
         self._process.start()
         child.close()
@@ -181,7 +186,7 @@ def _rebuild(kind: str, message: str) -> BaseException:
 
 
 def _record(conn: Any, path: Path | None, serve: bool, grpc_port: int, web_port: int,
-            recording_id: str | None) -> None:
+            recording_id: str | None, bind: str) -> None:
     """The recorder process: a ``RerunSink`` fed from ``conn`` until told to stop."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the evaluating process's to handle
     sink = None
@@ -190,7 +195,7 @@ def _record(conn: Any, path: Path | None, serve: bool, grpc_port: int, web_port:
 
         skip_pandas_probe()
         sink = RerunSink(path, serve=serve, grpc_port=grpc_port, web_port=web_port,
-                         recording_id=recording_id)
+                         recording_id=recording_id, bind=bind)
         if serve:
             conn.send(("ready", sink.web_url))
         while True:
@@ -220,3 +225,4 @@ def _record(conn: Any, path: Path | None, serve: bool, grpc_port: int, web_port:
             pass
     if sink is not None:
         sink.discard()
+        sink.stop()  # the web viewer's server process

@@ -31,11 +31,12 @@ class RerunRecorder(gym.Wrapper):
         serve: also host Rerun's web viewer (``recorder.web_url``) and stream to it.
         recording: a ``rerun.RecordingStream`` of your own instead of ``path``/``serve``.
         grpc_port, web_port: the ports when serving.
+        bind: the IP address they listen on: 127.0.0.1 (this machine only) unless given.
     """
 
     def __init__(self, env: gym.Env, path: str | os.PathLike | None = None, *,
                  serve: bool = False, recording: Any = None, grpc_port: int | None = None,
-                 web_port: int | None = None) -> None:
+                 web_port: int | None = None, bind: str = "127.0.0.1") -> None:
         super().__init__(env)
         problem = missing_rerun()
         if problem:
@@ -44,7 +45,8 @@ class RerunRecorder(gym.Wrapper):
 
         self._reader = FrameReader(env)  # ValueError for an env that is not a SmartCarEnv
         self.sink = RerunSink(path, serve=serve, recording=recording,
-                              grpc_port=grpc_port or GRPC_PORT, web_port=web_port or WEB_PORT)
+                              grpc_port=grpc_port or GRPC_PORT, web_port=web_port or WEB_PORT,
+                              bind=bind)
         self.web_url = self.sink.web_url
         self._episode: Episode | None = None
         self._count = 0

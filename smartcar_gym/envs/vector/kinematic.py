@@ -23,6 +23,7 @@ from smartcar_gym.envs.vector.common import (
     check_seeds,
     vector_info,
 )
+from smartcar_gym.envs.vector.exact import planar_norms, wrap_angles
 from smartcar_gym.envs.vector.render import top_down_tiles
 from smartcar_gym.sim.simulator import NS_PER_S, seconds_to_ns
 
@@ -55,8 +56,10 @@ class SmartCarSimVectorEnv(gym.vector.VectorEnv):
 
     ``SmartCarSim-v0`` (the driver's ``sim: true``: the car follows the commanded twist) for
     ``num_envs`` cars at once, stepped in numpy arrays with no physics engine. Per car it is
-    ``gym.make("SmartCarSim-v0")`` bit for bit: observations, rewards, terminations and
-    truncations equal N single envs seeded ``s, s+1, ...`` (tested). The controller is
+    ``gym.make("SmartCarSim-v0")`` bit for bit: observations, rewards, terminations,
+    truncations and infos equal N single envs seeded ``s, s+1, ...`` (tested), but for
+    ``info["pose"]``'s yaw: here the body's exact heading, in the single env pybullet's float32
+    quaternion's, within 1e-6 rad of it (docs/vector.md). The controller is
     ``controller.batched.BatchedArbotix``; the ground-truth position is rounded to float32 as the
     single env's pybullet body stores it.
 
@@ -83,7 +86,7 @@ class SmartCarSimVectorEnv(gym.vector.VectorEnv):
       holds every car's, ``info`` the reset cars' (its ``_key`` masks are ``mask``), and a
       reset car is not autoreset at the next step.
     - **info**: per car ``is_success``, ``distance``, ``pose``, ``odom_pose``, ``odom_error``
-      (as SmartCar-v0), each with its ``_key`` mask.
+      (as SmartCar-v0, with its arithmetic: ``vector.exact``), each with its ``_key`` mask.
     - **Actions**: ``(N, 2)`` real numbers in [-1, 1] (clipped); another shape, complex
       numbers or NaN is one error line.
     - **render()**: with ``render_mode="rgb_array"``, a top-down view of the first cars (up to
@@ -394,11 +397,11 @@ class SmartCarSimVectorEnv(gym.vector.VectorEnv):
         values = {
             "is_success": success.copy(),
             "distance": self._distance.copy(),
-            "pose": np.stack([px, py, np.remainder(pose[:, 2] + math.pi, TWO_PI) - math.pi],
-                             axis=1),
-            "odom_pose": np.stack([b.x, b.y, np.remainder(b.theta + math.pi, TWO_PI) - math.pi],
-                                  axis=1),
-            "odom_error": np.hypot(b.x - px, b.y - py),
+            # the body's exact heading, wrapped; the single env's is pybullet's float32
+            # quaternion's, within 1e-6 rad of it (docs/vector.md): the one inexact value
+            "pose": np.stack([px, py, wrap_angles(pose[:, 2])], axis=1),
+            "odom_pose": np.stack([b.x, b.y, wrap_angles(b.theta)], axis=1),
+            "odom_error": planar_norms(b.x - px, b.y - py),
         }
         if not mask.all():
             values = {k: np.where(mask.reshape(-1, *([1] * (v.ndim - 1))), v,

@@ -23,7 +23,8 @@ from smartcar_gym.envs.vector.common import (
     check_num_threads,
     vector_info,
 )
-from smartcar_gym.envs.vector.kinematic import TWO_PI, SmartCarSimVectorEnv
+from smartcar_gym.envs.vector.exact import planar_norms, wrap_angles
+from smartcar_gym.envs.vector.kinematic import SmartCarSimVectorEnv
 from smartcar_gym.envs.vector.render import top_down_tiles
 from smartcar_gym.sim.clock import MAX_FIRINGS_PER_INSTANT, NS_PER_S
 
@@ -323,8 +324,7 @@ class SmartCarMujocoVectorEnv(SmartCarSimVectorEnv):
             "is_success": success.copy(),
             "distance": self._distance.copy(),
             "pose": pose.copy(),
-            "odom_pose": np.stack(
-                [b.x, b.y, [math.remainder(t, TWO_PI) for t in b.theta.tolist()]], axis=1),
-            "odom_error": np.hypot(b.x - pose[:, 0], b.y - pose[:, 1]),
+            "odom_pose": np.stack([b.x, b.y, wrap_angles(b.theta)], axis=1),
+            "odom_error": planar_norms(b.x - pose[:, 0], b.y - pose[:, 1]),
         }
 

@@ -1,0 +1,45 @@
+"""The single env's ``info`` arithmetic on arrays of cars, to the bit.
+
+``SmartCarEnv._info`` works on Python floats (``math``); a batch works on numpy arrays. Where
+numpy's function is not libm's (``np.hypot``, ``np.arctan2`` and ``np.remainder(x + pi, 2 pi)
+- pi`` each differ from ``math.hypot``, ``math.atan2`` and ``math.remainder`` in the last bit
+for some inputs), the batch needs either the same arithmetic on both sides or an array
+function that is exact by construction:
+
+- ``wrap_angles``: ``math.remainder(theta, 2 pi)`` (IEEE remainder, an exact result) from
+  ``np.fmod`` (exact) and one subtraction that Sterbenz's lemma makes exact;
+- ``planar_norms``: ``sqrt(dx * dx + dy * dy)``, which the single env computes the same way
+  (every operation is IEEE-rounded, so floats and arrays give the same bits on any machine).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+TWO_PI = 2 * math.pi
+_HALF = TWO_PI / 2  # exact: a power-of-two division
+
+
+def wrap_angles(theta: np.ndarray) -> np.ndarray:
+    """Each angle in [-pi, pi]: exactly ``math.remainder(t, 2 * math.pi)`` for every ``t``.
+
+    ``np.fmod`` is exact; where its result lies beyond half a turn, one turn is taken off, and
+    the two operands are then within a factor of two of each other, so the subtraction is exact
+    (Sterbenz). A remainder of exactly half a turn (the IEEE tie, which rounds the quotient to
+    even) is left to ``math.remainder`` itself.
+    """
+    theta = np.asarray(theta, dtype=np.float64)
+    r = np.fmod(theta, TWO_PI)
+    r = np.where(r > _HALF, r - TWO_PI, np.where(r < -_HALF, r + TWO_PI, r))
+    ties = np.abs(r) == _HALF
+    if ties.any():
+        r[ties] = [math.remainder(t, TWO_PI) for t in theta[ties].tolist()]
+    return r
+
+
+def planar_norms(dx: np.ndarray, dy: np.ndarray) -> np.ndarray:
+    """``sqrt(dx * dx + dy * dy)`` per element: the bits of ``math.sqrt(dx * dx + dy * dy)``
+    on each pair of floats (``np.hypot`` and ``math.hypot`` disagree in the last bit)."""
+    return np.sqrt(dx * dx + dy * dy)

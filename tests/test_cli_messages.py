@@ -1,0 +1,140 @@
+"""What the CLIs and gym.make say: smartcar-eval's header (the engine, how actions were chosen,
+"1 episode"), an unknown env id for smartcar-train, and a misspelt env kwarg anywhere."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import pytest
+
+import smartcar_gym  # noqa: F401
+from smartcar_gym.agents import evaluate
+from smartcar_gym.registration import ENV_IDS
+
+pytest.importorskip("stable_baselines3", reason="the CLIs need the train extra")
+
+SHORT = ["--env-kwargs", "max_episode_steps=3", "--no-progress"]
+
+
+def _run(main, argv: list[str], capsys) -> tuple[int, str, str]:
+    try:
+        code = main(argv)
+    except SystemExit as exit_:
+        code = exit_.code
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def _header(out: str) -> str:
+    """The summary table's title (rich wraps it to the table's width)."""
+    lines = out.strip().splitlines()
+    return " ".join(line.strip() for line in lines[:next(
+        i for i, line in enumerate(lines) if line.startswith("┏"))])
+
+
+@pytest.mark.parametrize("engine", [None, "mujoco"])
+def test_eval_header_names_the_engine(engine, capsys, monkeypatch):
+    if engine == "mujoco":
+        pytest.importorskip("smartcar_gym.sim.mujoco", reason="needs the mujoco extra")
+    monkeypatch.setenv("COLUMNS", "200")  # the table's title on one line
+    argv = ["--pretrained", "--episodes", "2", "--seed", "3", *SHORT]
+    code, out, err = _run(evaluate.main, argv + (["--engine", engine] if engine else []), capsys)
+    assert code == 0, err
+    assert _header(out) == (f"policy.zip on SmartCar-v0 ({engine or 'pybullet'}): 2 episodes, "
+                            "seeds 3..4, deterministic")
+
+
+def test_eval_random_says_random_actions_and_one_episode(capsys, monkeypatch):
+    monkeypatch.setenv("COLUMNS", "200")
+    argv = ["--random", "--episodes", "1", "--env", "SmartCarSim-v0", "--fail-under", "0",
+            "--max-final-distance", "10", *SHORT]
+    code, out, err = _run(evaluate.main, argv, capsys)
+    assert code == 0, err
+    header = _header(out)
+    assert header == "random-policy on SmartCarSim-v0 (pybullet): 1 episode, seed 0, random actions"
+    assert "deterministic" not in out + err and "1 episodes" not in out + err
+    assert "pass mark held: success rate 0.0% is not under --fail-under 0% (1 episode)" in err
+
+
+def test_count_and_summary_title():
+    assert evaluate.count(1, "episode") == "1 episode"
+    assert evaluate.count(0, "episode") == "0 episodes"
+    assert evaluate.summary_title("m.zip", "SmartCarNav-v0", "mujoco", 100, 0, "stochastic") == (
+        "m.zip on SmartCarNav-v0 (mujoco): 100 episodes, seeds 0..99, stochastic")
+
+
+@pytest.mark.parametrize(("env_id", "closest"), [("SmartCar-v9", "SmartCar-v0"),
+                                                  ("SmartCarNav", "SmartCarNav-v0"),
+                                                  ("Smartcar-v0", "SmartCar-v0")])
+def test_train_with_an_unknown_id_says_so_and_lists_the_ids(env_id, closest, capsys, tmp_path):
+    from smartcar_gym.agents import train
+
+    argv = ["--env", env_id, "--run-dir", str(tmp_path / "run"), "--no-progress"]
+    code, _, err = _run(train.main, argv, capsys)
+    assert code == 2
+    [line] = [x for x in err.splitlines() if x.startswith("smartcar-train: error:")]
+    assert line.startswith(f"smartcar-train: error: unknown env id {env_id!r}")
+    assert f"did you mean {closest!r}?" in line
+    assert line.endswith(f"registered smartcar ids: {', '.join(ENV_IDS)}")
+    assert "hyperparameter" not in line and "yaml" not in line
+    assert not (tmp_path / "run").exists()
+
+
+@pytest.mark.parametrize(("env_id", "kwargs", "closest"), [
+    ("SmartCar-v0", {"max_linar": 0.2}, "max_linear"),
+    ("SmartCarSim-v0", {"goal_tolerence": 0.2}, "goal_tolerance"),
+    ("SmartCarNav-v0", {"obstacle": 3}, "obstacles"),  # a Nav kwarg, passed through **kwargs
+    ("SmartCarNav-v0", {"max_angualr": 1.0}, "max_angular"),  # a SmartCarEnv one, via Nav
+    ("SmartCarGoal-v0", {"reward_typ": "dense"}, "reward_type"),
+])
+def test_a_misspelt_env_kwarg_names_the_closest_one(env_id, kwargs, closest):
+    [key] = kwargs
+    with pytest.raises(TypeError, match=rf"unexpected keyword argument '{key}' \(did you mean "
+                                        rf"'{closest}'\?\)"):
+        gym.make(env_id, **kwargs)
+
+
+def test_an_unknown_env_kwarg_without_a_close_one_lists_the_kwargs():
+    with pytest.raises(TypeError, match=r"unexpected keyword argument 'xyz'; it takes "
+                                        r"arena_size, controller_config, .*, wheels( |$)"):
+        gym.make("SmartCar-v0", xyz=1)
+
+
+def test_a_misspelt_kwarg_in_make_vec_names_the_closest_one():
+    with pytest.raises(TypeError, match=r"'max_linar' \(did you mean 'max_linear'\?\)"):
+        gym.make_vec("SmartCarSim-v0", num_envs=2, vectorization_mode="vector_entry_point",
+                     max_linar=0.2)
+
+
+def test_the_env_signature_stays_inspectable():
+    """The keyword check wraps __init__; inspect (and the ROS settings' defaults) still see
+    SmartCarEnv's own parameters."""
+    import inspect
+
+    from smartcar_gym.envs.smartcar_env import SmartCarEnv
+
+    parameters = inspect.signature(SmartCarEnv).parameters
+    assert parameters["max_linear"].default == 0.5 and "kwargs" not in parameters
+
+
+@pytest.mark.parametrize("cli", ["smartcar-eval", "smartcar-train"])
+def test_the_clis_env_kwargs_name_the_closest_kwarg(cli, capsys, tmp_path):
+    from smartcar_gym.agents import train
+
+    if cli == "smartcar-eval":
+        main, argv = evaluate.main, ["--random", "--episodes", "1", "--no-progress"]
+    else:
+        main, argv = train.main, ["--timesteps", "64", "--run-dir", str(tmp_path / "run"),
+                                  "--no-progress"]
+    code, _, err = _run(main, [*argv, "--env-kwargs", "max_linar=0.2"], capsys)
+    assert code == 2
+    [line] = [x for x in err.splitlines() if x.startswith(f"{cli}: error:")]
+    assert line == (f"{cli}: error: cannot make SmartCar-v0 with max_linar=0.2: SmartCarEnv got "
+                    "an unexpected keyword argument 'max_linar' (did you mean 'max_linear'?)")
+
+
+def test_the_ros_policy_settings_name_the_closest_kwarg():
+    from smartcar_gym.ros.settings import policy_settings
+
+    with pytest.raises(ValueError, match=r"^SmartCar-v0 got an unexpected keyword argument "
+                                         r"'max_linar' \(did you mean 'max_linear'\?\)$"):
+        policy_settings("SmartCar-v0", {"max_linar": 0.2})

@@ -17,7 +17,7 @@ import pytest
 pytest.importorskip("ray.rllib", reason='RLlib is not installed: pip install "smartcar-gym[ray]"')
 
 from smartcar_gym.scale import rllib  # noqa: E402
-from smartcar_gym.scale.ray_session import ResourceError  # noqa: E402
+from smartcar_gym.scale.ray_session import ResourceError, ray_session  # noqa: E402
 from smartcar_gym.scale.rllib_env import make_env  # noqa: E402
 
 # Every episode ends at its first step with a success: goals 0.5-0.6 m away, 0.7 m tolerance.
@@ -28,12 +28,9 @@ TINY = {"train_batch_size": 100, "minibatch_size": 50, "num_epochs": 1,
 
 @pytest.fixture(scope="module")
 def ray_head():
-    import ray
-
     os.environ.setdefault("RAY_AUTH_MODE", "disabled")  # no token written under $HOME
-    ray.init(address="local", num_cpus=2, include_dashboard=False, log_to_driver=False)
-    yield ray
-    ray.shutdown()
+    with ray_session(num_cpus=2, log_to_driver=False) as ray:  # smartcar-rllib's local head
+        yield ray
 
 
 def test_more_env_runners_than_cpus_is_refused_at_once(ray_head, hard_timeout):

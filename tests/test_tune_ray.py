@@ -22,6 +22,7 @@ pytest.importorskip("ray.tune", reason='Ray Tune is not installed: pip install "
 from smartcar_gym.agents.callbacks import find_latest_checkpoint  # noqa: E402
 from smartcar_gym.agents.hyperparams import load_hyperparams  # noqa: E402
 from smartcar_gym.scale import tune as tune_cli  # noqa: E402
+from smartcar_gym.scale.ray_session import ray_session  # noqa: E402
 
 TINY = {"n_envs": 1, "n_steps": 128, "batch_size": 64, "n_epochs": 1}
 # goals 0.5-0.6 m away: a 0.7 m tolerance succeeds at the first step, 0.05 m never here
@@ -41,6 +42,22 @@ def write_space(path: Path, **space) -> Path:
 def results(out: Path) -> list[dict]:
     with open(out / "results.csv") as f:
         return list(csv.DictReader(f))
+
+
+@pytest.mark.parametrize(("setting", "expected"), [(None, 0), ("7", 7)])
+def test_a_local_head_runs_its_workers_at_this_process_niceness(setting, expected, monkeypatch,
+                                                                 hard_timeout):
+    """Ray starts workers at nice 15, where two busy loops beside a sweep starved its trials
+    (a 20 s sweep ran for over 15 minutes); a local head runs them as this process runs,
+    unless RAY_worker_niceness says otherwise."""
+    hard_timeout(120)
+    if setting is None:
+        monkeypatch.delenv("RAY_worker_niceness", raising=False)
+    else:
+        monkeypatch.setenv("RAY_worker_niceness", setting)
+    with ray_session(num_cpus=1) as ray:
+        niceness = ray.get(ray.remote(num_cpus=1)(lambda: os.nice(0)).remote())
+    assert niceness == os.nice(0) + expected
 
 
 def test_local_head_sweep_with_asha(tmp_path, hard_timeout, capsys):
@@ -85,8 +102,10 @@ def test_two_node_cluster(tmp_path, hard_timeout, capsys):
     hard_timeout(150)
     from ray.cluster_utils import Cluster
 
-    cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 1,
-                                                            "include_dashboard": False})
+    # the nodes' workers at nice 0, as smartcar-tune's local head has them (nice 15, Ray's
+    # default, starves them on a loaded machine)
+    cluster = Cluster(initialize_head=True, head_node_args={
+        "num_cpus": 1, "include_dashboard": False, "_system_config": {"worker_niceness": 0}})
     try:
         worker = cluster.add_node(num_cpus=1)
         nodes = {cluster.head_node.node_id, worker.node_id}

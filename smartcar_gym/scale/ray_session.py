@@ -9,10 +9,14 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import os
 from collections.abc import Iterator
 from typing import Any
 
 from smartcar_gym.scale import RAY_EXTRA
+
+# Ray's setting of its workers' niceness (default 15), read by a raylet when it starts
+WORKER_NICENESS_ENV = "RAY_worker_niceness"
 
 
 class RayUnavailableError(RuntimeError):
@@ -45,8 +49,11 @@ def ray_session(address: str | None = None, num_cpus: int | None = None,
     ``address`` names a running cluster (``"auto"``, ``"HOST:6379"``, ``"ray://HOST:10001"``).
 
     A local instance is always a fresh one (``address="local"``), so a stale ``RAY_ADDRESS``
-    or the address file of a crashed instance is never picked up. Ray is shut down after the
-    body (the cluster keeps running when it was given by ``address``).
+    or the address file of a crashed instance is never picked up. Its workers (the trials,
+    the EnvRunners: the work itself) run at the niceness of this process, not at Ray's nice
+    15, unless ``RAY_worker_niceness`` is set: at nice 15 any other job on the machine starves
+    them (a 20 s test sweep took over 15 minutes beside two busy loops). Ray is shut down after
+    the body (the cluster keeps running when it was given by ``address``).
     """
     require_ray()
     import ray
@@ -57,6 +64,10 @@ def ray_session(address: str | None = None, num_cpus: int | None = None,
     init_kwargs.setdefault("logging_level", logging.WARNING)
     if address is None:
         init_kwargs.setdefault("include_dashboard", False)
+        if WORKER_NICENESS_ENV not in os.environ:
+            system_config = dict(init_kwargs.pop("_system_config", None) or {})
+            system_config.setdefault("worker_niceness", 0)
+            init_kwargs["_system_config"] = system_config
         ray.init(address="local", num_cpus=num_cpus, **init_kwargs)
     else:
         probe(address)

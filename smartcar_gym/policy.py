@@ -123,7 +123,8 @@ class Policy:
         or a run folder of ``smartcar-train``, rl-baselines3-zoo or an exported policy.
 
         ``algo``: the model's algorithm (default: its run's; it must match the saved model).
-        ``env_id`` replaces the run's env id; ``env_kwargs`` are added to the run's.
+        ``env_id`` replaces the run's env id; ``env_kwargs`` are added to the run's (an
+        ``engine`` among them leaves out what only the run's engine took: ``planar_params``).
         ``normalizer``: VecNormalize statistics to load (a pickle: only a trusted file); by
         default, the ones the model's place assigns to it. ``device``: torch's.
 
@@ -139,7 +140,7 @@ class Policy:
             run = files.run
             algo = _algo(files.model, algo, run.get("algo"))
             env_id = env_id or run.get("env") or DEFAULT_ENV_ID
-            env_kwargs = {**(run.get("env_kwargs") or {}), **dict(env_kwargs or {})}
+            env_kwargs = _run_env_kwargs(run.get("env_kwargs") or {}, dict(env_kwargs or {}))
             if normalizer is not None and not Path(normalizer).is_file():
                 raise PolicyError(f"--vecnormalize: no such file: {normalizer}")
             named = None if normalizer is None else Path(normalizer)
@@ -237,6 +238,19 @@ def choose_normalizer(files: ModelFiles, named: Path | None) -> tuple[Path | Non
         "it was trained with VecNormalize (the shipped hyperparameters use it), pass "
         "--vecnormalize FILE" + (f" ({strays} lies near the model but is not loaded unnamed: it "
                                  "is a pickle)" if strays else ""))
+
+
+def _run_env_kwargs(run: dict[str, Any], overrides: dict[str, Any]) -> dict[str, Any]:
+    """The run's env kwargs with ``overrides`` added; an overriding ``engine`` first leaves
+    out what only another engine takes (a planar run's ``planar_params`` on pybullet)."""
+    if "engine" in overrides and overrides["engine"] is not None:
+        from smartcar_gym.sim.engines import on_engine
+
+        try:
+            run = on_engine(run, overrides["engine"])
+        except ValueError:  # an unknown engine: gym.make names it
+            pass
+    return {**run, **overrides}
 
 
 def _model_files(source: str | os.PathLike, stack: contextlib.ExitStack) -> ModelFiles:

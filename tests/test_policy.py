@@ -110,6 +110,36 @@ def test_overrides_replace_the_env_id_and_add_env_kwargs():
     assert policy.env_kwargs == {"randomize": "default", "max_episode_steps": 5}
 
 
+def test_a_planar_run_driven_on_another_engine_leaves_its_planar_params(tmp_path):
+    """A run trained with planar_params (a planar fit) evaluated with --engine pybullet: the
+    fit is the planar engine's, so it is left out (SmartCarEnv refuses it on pybullet)."""
+    import yaml
+
+    _, place = _provenance("default")
+    with resources.as_file(place) as source:
+        shutil.copyfile(source / "policy.zip", tmp_path / "model.zip")
+        shutil.copyfile(source / "vecnormalize.pkl", tmp_path / "vecnormalize.pkl")
+    (tmp_path / "config.yaml").write_text(yaml.safe_dump({
+        "algo": "ppo", "env": "SmartCar-v0", "seed": 0, "n_envs": 16, "n_timesteps": 1,
+        "hyperparams": {"normalize": True}, "eval_freq": 0, "eval_episodes": 1,
+        "checkpoint_freq": 0,
+        "env_kwargs": {"engine": "planar", "planar_params": "mujoco", "goal_range": [1, 2]}}))
+    kept = Policy.load(tmp_path)
+    assert kept.env_kwargs == {"engine": "planar", "planar_params": "mujoco",
+                               "goal_range": [1, 2]}
+    moved = Policy.load(tmp_path, env_kwargs={"engine": "pybullet"})
+    assert moved.env_kwargs == {"engine": "pybullet", "goal_range": [1, 2]}
+    env = moved.make_env()
+    try:
+        assert env.unwrapped.engine == "pybullet"
+    finally:
+        env.close()
+    # named again with the engine, the fit is the user's choice: SmartCarEnv's error
+    with pytest.raises(ValueError, match="planar_params is the planar engine's"):
+        Policy.load(tmp_path, env_kwargs={"engine": "pybullet",
+                                          "planar_params": "mujoco"}).make_env()
+
+
 @pytest.fixture(scope="module")
 def lonely(tmp_path_factory):
     """The shipped PPO model copied alone into a folder (no run, no provenance)."""

@@ -224,7 +224,7 @@ def _make_envs(config: dict[str, Any], run_dir: Path, seed: int, segment: int,
         wrap_normalize,
     )
     from smartcar_gym.agents.model_files import vecnormalize_path_for
-    from smartcar_gym.sim.engines import DEFAULT_ENGINE
+    from smartcar_gym.sim.engines import DEFAULT_ENGINE, on_engine
 
     env_id, hp = config["env"], config["hyperparams"]
     n_envs, env_kwargs = int(config["n_envs"]), dict(config.get("env_kwargs") or {})
@@ -266,10 +266,8 @@ def _make_envs(config: dict[str, Any], run_dir: Path, seed: int, segment: int,
         venv = wrap(venv, load_path=stats)
         eval_engine = config.get("eval_engine")
         if eval_engine is not None and eval_engine != env_kwargs.get("engine", DEFAULT_ENGINE):
-            # evaluated on another engine (planar training, pybullet evaluations): the env
-            # kwargs but the engine's own
-            env_kwargs = {k: v for k, v in env_kwargs.items() if k != "planar_params"}
-            env_kwargs["engine"] = eval_engine
+            # evaluated on another engine (planar training, pybullet evaluations)
+            env_kwargs = on_engine(env_kwargs, eval_engine)
         if config["eval_freq"] > 0:
             if batched:  # wrapped as the training env (on pybullet: a loop of single envs)
                 eval_env = make_batched_vec_env(env_id, min(n_envs, int(config["eval_episodes"])),

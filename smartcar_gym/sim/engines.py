@@ -16,6 +16,18 @@ DEFAULT_ENGINE = "pybullet"
 MUJOCO_EXTRA = 'pip install "smartcar-gym[mujoco]"'
 
 
+# env kwargs that only one engine takes (SmartCarEnv refuses them on another)
+ENGINE_KWARGS: dict[str, tuple[str, ...]] = {"planar": ("planar_params",)}
+
+
+def on_engine(env_kwargs: dict[str, Any], engine: str) -> dict[str, Any]:
+    """``env_kwargs`` moved to ``engine``: ``engine`` set, and the kwargs only another engine
+    takes left out (a planar run's ``planar_params``, when its policy is driven on pybullet)."""
+    check_engine(engine)
+    others = {key for name, keys in ENGINE_KWARGS.items() if name != engine for key in keys}
+    return {**{k: v for k, v in env_kwargs.items() if k not in others}, "engine": engine}
+
+
 def check_engine(value: object, name: str = "engine") -> str:
     """``value`` if it names an engine; ValueError listing the engines otherwise."""
     if not isinstance(value, str) or value not in ENGINES:

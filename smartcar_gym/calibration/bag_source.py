@@ -113,13 +113,13 @@ def read_recordings(path: str | os.PathLike, truth_topic: str = "/base_pose_grou
     path = Path(path)
     if not (math.isfinite(rate_hz) and rate_hz > 0):
         raise ValueError(f"rate_hz must be a positive number, got {rate_hz!r}")
-    problem = missing_library()
-    if problem:
-        raise BagError(problem)
     if not path.exists():
         raise BagError(f"{path}: no such file or folder")
     if not path.is_dir() and path.suffix not in SUFFIXES:
         raise BagError(f"{path}: not a bag (a .bag or .mcap file, or a ROS 2 bag folder)")
+    problem = missing_library()  # after the path: a wrong name is said whatever is installed
+    if problem:
+        raise BagError(problem)
     wanted = [(truth_topic, TRUTH_TYPES), (cmd_topic, COMMAND_TYPES)]
     if odom_topic is not None:
         wanted.append((odom_topic, ODOM_TYPES))

@@ -243,13 +243,10 @@ def choose_normalizer(files: ModelFiles, named: Path | None) -> tuple[Path | Non
 def _run_env_kwargs(run: dict[str, Any], overrides: dict[str, Any]) -> dict[str, Any]:
     """The run's env kwargs with ``overrides`` added; an overriding ``engine`` first leaves
     out what only another engine takes (a planar run's ``planar_params`` on pybullet)."""
-    if "engine" in overrides and overrides["engine"] is not None:
-        from smartcar_gym.sim.engines import on_engine
+    from smartcar_gym.sim.engines import ENGINES, on_engine
 
-        try:
-            run = on_engine(run, overrides["engine"])
-        except ValueError:  # an unknown engine: gym.make names it
-            pass
+    if overrides.get("engine") in ENGINES:  # an unknown engine: gym.make names it
+        run = on_engine(run, overrides["engine"])
     return {**run, **overrides}
 
 

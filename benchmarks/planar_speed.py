@@ -7,7 +7,8 @@ Each round times, one after the other in this process, with random actions:
 - one planar env (numba's compiled loop when installed), and the same without numba
   (Python floats: ``jit.COMPILED`` off for that env);
 - the planar batch (``gym.make_vec(..., vectorization_mode="vector_entry_point",
-  engine="planar")``) at ``--cars`` cars, numba's loop and numpy arrays.
+  engine="planar")``) at ``--cars`` cars: numba's loops (the physics, ``jit``, and the boards
+  and controllers, ``controller.compiled``), and numpy arrays (both switched off).
 
 Figures are env steps (car-steps for the batch) per second of this process's CPU time (the
 steadier figure on a shared machine) and by the wall clock; each ratio cell is the median over
@@ -25,13 +26,14 @@ import gymnasium as gym
 import numpy as np
 
 import smartcar_gym  # noqa: F401
+from smartcar_gym.controller import compiled as controller_jit
 from smartcar_gym.sim.planar import jit
 
 
 def single(engine: str, steps: int, compiled: bool = True) -> tuple[float, float]:
     """(steps per CPU second, per wall second) of one env with random actions."""
-    saved = jit.COMPILED
-    jit.COMPILED = jit.COMPILED and compiled
+    saved = jit.COMPILED, controller_jit.COMPILED
+    jit.COMPILED, controller_jit.COMPILED = saved[0] and compiled, saved[1] and compiled
     try:
         env = gym.make("SmartCar-v0", engine=engine)
         env.reset(seed=0)
@@ -44,14 +46,14 @@ def single(engine: str, steps: int, compiled: bool = True) -> tuple[float, float
         cpu, wall = time.process_time() - cpu, time.perf_counter() - wall
         env.close()
     finally:
-        jit.COMPILED = saved
+        jit.COMPILED, controller_jit.COMPILED = saved
     return steps / cpu, steps / wall
 
 
 def batch(cars: int, steps: int, compiled: bool = True) -> tuple[float, float]:
     """(car-steps per CPU second, per wall second) of the planar batch."""
-    saved = jit.COMPILED
-    jit.COMPILED = jit.COMPILED and compiled
+    saved = jit.COMPILED, controller_jit.COMPILED
+    jit.COMPILED, controller_jit.COMPILED = saved[0] and compiled, saved[1] and compiled
     try:
         venv = gym.make_vec("SmartCar-v0", num_envs=cars, engine="planar",
                             vectorization_mode="vector_entry_point")
@@ -65,7 +67,7 @@ def batch(cars: int, steps: int, compiled: bool = True) -> tuple[float, float]:
         cpu, wall = time.process_time() - cpu, time.perf_counter() - wall
         venv.close()
     finally:
-        jit.COMPILED = saved
+        jit.COMPILED, controller_jit.COMPILED = saved
     return cars * steps / cpu, cars * steps / wall
 
 

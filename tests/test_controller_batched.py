@@ -12,10 +12,10 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from smartcar_gym.controller import ArbotixBase, ArbotixConfig, MotorConfig, MotorOutput
+from smartcar_gym.controller import ArbotixBase, ArbotixConfig, MotorConfig, MotorOutput, compiled
 from smartcar_gym.controller._cint import c_div as c_div1
 from smartcar_gym.controller._cint import wrap_int16 as wrap16
 from smartcar_gym.controller._cint import wrap_int32 as wrap32
@@ -142,11 +142,27 @@ def run_both(seed: int, n: int, mode: str, duration_ms: int) -> None:
         assert_same(bases, drives, batch, f"t = {t_ms} ms")
 
 
+@pytest.fixture(params=["numpy", "compiled"])
+def path(request, monkeypatch):
+    """Each test on BatchedArbotix's numpy code and on its compiled loops (the fast extra)."""
+    if request.param == "compiled" and not compiled.COMPILED:
+        pytest.skip("the compiled path needs numba (the fast extra)")
+    monkeypatch.setattr(compiled, "COMPILED", request.param == "compiled")
+    return request.param
+
+
 @pytest.mark.slow
-@settings(max_examples=6, deadline=None)
+@settings(max_examples=6, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(seed=st.integers(0, 2**32 - 1))
-def test_hardware_mode_matches_the_scalar_emulation_every_frame(seed):
+def test_hardware_mode_matches_the_scalar_emulation_every_frame(path, seed):
     run_both(seed, n=6, mode="hardware", duration_ms=1000)
+
+
+@pytest.mark.parametrize("seed", [3, 11])
+def test_hardware_mode_matches_every_frame_on_both_paths(path, seed):
+    """Fixed seeds on every run (the hypothesis test above is marked slow)."""
+    run_both(seed, n=5, mode="hardware", duration_ms=400)
 
 
 @settings(max_examples=4, deadline=None)
@@ -155,7 +171,7 @@ def test_sim_mode_matches_the_scalar_emulation_every_frame(seed):
     run_both(seed, n=6, mode="sim", duration_ms=600)
 
 
-def test_the_board_really_runs_frames_and_wraps():
+def test_the_board_really_runs_frames_and_wraps(path):
     """The scenario above is not vacuous: PWM saturates, counters and targets wrap."""
     rng = np.random.default_rng(7)
     config = ArbotixConfig(ticks_meter=9e5, base_width_m=0.26, kp=20, ko=2, frame_ms=5,
@@ -189,7 +205,7 @@ def test_integer_helpers_match_the_scalar_ones(a, b):
     assert c_div(arr, np.array([b]))[0] == c_div1(a, b)
 
 
-def test_bad_input_is_refused():
+def test_bad_input_is_refused(path):
     config = ArbotixConfig(ticks_meter=4100.0, base_width_m=0.26)
     with pytest.raises(ValueError, match="num_cars is needed"):
         BatchedArbotix(config, "hardware", 0.025)
@@ -201,3 +217,12 @@ def test_bad_input_is_refused():
     batch.reset(0.0, np.zeros((2, 2)))
     with pytest.raises(ValueError, match="finite"):
         batch.cmd_vel(np.array([math.nan, 0.0]), 0.0, 0.0)
+    batch.cmd_vel(0.3, 0.0, 0.0)
+    batch.update(0.1, np.zeros((2, 2)))
+    with pytest.raises(ValueError, match="time went backwards"):
+        batch.update(0.05, np.zeros((2, 2)))
+    with pytest.raises(ValueError, match="not finite"):
+        batch.update(0.2, np.array([[0.0, math.inf], [0.0, 0.0]]))
+    with pytest.raises(ValueError, match="not finite"):
+        batch.board_tick(0.3, np.array([[math.nan, 0.0], [0.0, 0.0]]))
+    assert batch.then[0] == 0.1  # refused before anything changed

@@ -14,6 +14,7 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import smartcar_gym  # noqa: F401
+from smartcar_gym.controller import compiled
 from smartcar_gym.sim.planar import jit
 from smartcar_gym.sim.planar.params import PlanarParams, PlanarParamsError, dump, load, resolve
 
@@ -126,6 +127,35 @@ def test_the_batch_is_n_single_envs_bit_for_bit(env_id: str, mode: str) -> None:
     venv.close()
     for e in envs:
         e.close()
+
+
+@pytest.mark.skipif(not jit.COMPILED, reason="numba (the fast extra) is not installed")
+def test_the_batch_without_numba_is_the_same_batch(monkeypatch) -> None:
+    """numba's loops (physics, boards and controllers) and the numpy arrays: the same numbers
+    for 64 cars reset at different steps (so each car's events fall apart)."""
+
+    def run() -> list[np.ndarray]:
+        venv = gym.make_vec("SmartCar-v0", num_envs=64, vectorization_mode="vector_entry_point",
+                            engine="planar", max_episode_steps=25)
+        out = [venv.reset(seed=5)[0]]
+        rng = np.random.default_rng(1)
+        for k in range(40):
+            if k in (7, 18):  # a random third of the cars starts afresh: clocks fall apart
+                out.append(venv.reset(options={"reset_mask": rng.random(64) < 0.3})[0])
+            obs, reward, terminated, truncated, info = venv.step(
+                rng.uniform(-1, 1, (64, 2)).astype(np.float32))
+            out += [obs, reward, terminated | truncated, info["odom_pose"]]
+        venv.close()
+        return out
+
+    fast = run()
+    monkeypatch.setattr(jit, "COMPILED", False)
+    monkeypatch.setattr(compiled, "COMPILED", False)
+    slow = run()
+    assert all(np.array_equal(a, b) for a, b in zip(fast, slow, strict=True))
+    assert np.ptp(fast[-1][:, 0]) > 0.05  # the cars drove apart
+    ends = [np.asarray(x) for x in fast if np.asarray(x).dtype == bool]
+    assert 0 < np.count_nonzero(ends[-10:]) < 64 * 10  # some ended, at different steps
 
 
 def car(obs, i):

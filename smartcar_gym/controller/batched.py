@@ -19,6 +19,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from smartcar_gym.controller import columns, compiled
 from smartcar_gym.controller.board import BOOT_GAINS, MAX_OUTPUT
 from smartcar_gym.controller.config import ArbotixConfig
 from smartcar_gym.controller.diff_controller import FRAMES_PER_S, HARDWARE, KINEMATIC, MODES, Mode
@@ -107,53 +108,61 @@ class BatchedArbotix:
         def col(f, dtype=np.float64):  # one value per car
             return np.array([f(c) for c in configs], dtype=dtype)
 
-        self.ticks_meter = col(lambda c: c.ticks_meter)
-        self.base_width = col(lambda c: c.base_width_m)
-        self.timeout_ns = seconds_to_ns(col(lambda c: c.timeout_s))
-        self.max_accel = col(lambda c: c.max_accel, np.int64)
-        self.frame_ms = col(lambda c: c.frame_ms, np.int64)
-        self.gains = np.array([c.gains for c in configs], dtype=np.int64)  # (N, 4)
-        self.stall = col(lambda c: c.motor.stall_torque_nm)
-        self.back_emf = col(lambda c: c.motor.stall_torque_nm / c.motor.no_load_speed_rad_s)
-        self.coast = col(lambda c: c.motor.pwm_zero == "coast", bool)
-        self.wheel_radius = np.broadcast_to(
-            np.asarray(wheel_radius_m, dtype=np.float64), (n,)).copy()
-        if not (np.all(self.wheel_radius > 0) and np.all(self.ticks_meter > 0)):
+        radius = np.broadcast_to(np.asarray(wheel_radius_m, dtype=np.float64), (n,))
+        ticks_meter = col(lambda c: c.ticks_meter)
+        if not (np.all(radius > 0) and np.all(ticks_meter > 0)):
             raise ValueError("wheel_radius_m and ticks_meter must be > 0")
         if not 0.0 <= encoder_phase_ticks < 1.0:
             raise ValueError(f"encoder_phase_ticks must be in [0, 1), got "
                              f"{encoder_phase_ticks!r}")
         #: where the encoders start within their first tick (``WheelEncoder.reset``)
         self.encoder_phase_ticks = float(encoder_phase_ticks)
-        self._alloc()
+        #: every per-car number, in three blocks of rows (``columns``); the named arrays
+        #: below (``x``, ``v_des``, ...) are views of them
+        self.floats = columns.block(columns.FLOATS, n, np.float64)
+        self.ints = columns.block(columns.INTS, n, np.int64)
+        self.flags = columns.block(columns.FLAGS, n, np.bool_)
+        self._views()
+        # the configuration, per car
+        self.ticks_meter[:] = ticks_meter
+        self.base_width[:] = col(lambda c: c.base_width_m)
+        self.timeout_ns[:] = seconds_to_ns(col(lambda c: c.timeout_s))
+        self.max_accel[:] = col(lambda c: c.max_accel, np.int64)
+        self.frame_ms[:] = col(lambda c: c.frame_ms, np.int64)
+        self.gains[:] = np.array([c.gains for c in configs], dtype=np.int64)  # (N, 4)
+        self.stall[:] = col(lambda c: c.motor.stall_torque_nm)
+        self.back_emf[:] = col(lambda c: c.motor.stall_torque_nm / c.motor.no_load_speed_rad_s)
+        self.coast[:] = col(lambda c: c.motor.pwm_zero == "coast", bool)
+        self.wheel_radius[:] = radius
+        # the board boots with its own gains (until the driver's setup packet)
+        self.board_gains[:] = BOOT_GAINS
+        self.ready[:] = self.mode == KINEMATIC
 
-    def _alloc(self) -> None:
-        n = self.n
-        f = lambda: np.zeros(n)  # noqa: E731
-        i = lambda *shape: np.zeros((n, *shape), dtype=np.int64)  # noqa: E731
-        # host: DiffController
-        self.x, self.y, self.theta, self.dx, self.dr = f(), f(), f(), f(), f()
-        #: the twist of the latest published odometry (``dx``/``dr`` at the last update)
-        self.odom_v, self.odom_w = f(), f()
-        self.v_des, self.v = i(2), i(2)
-        self.enc = i(2)
-        self.enc_valid = np.zeros(n, dtype=bool)  # enc_left/right not None
-        self.then, self.last_cmd, self.stamp = f(), f(), f()
-        self.wrote = np.zeros(n, dtype=bool)  # last_write is not None
-        # board: ArbotixBoard and its two WheelPIDs
-        self.board_gains = np.tile(np.array(BOOT_GAINS, dtype=np.int64), (n, 1))
-        self.f_time = i()
-        self.moving = np.zeros(n, dtype=bool)
-        self.pid_mode = np.zeros(n, dtype=bool)
-        self.velocity, self.encoder, self.prev_enc = i(2), i(2), i(2)
-        self.prev_err, self.ierror, self.output = i(2), i(2), i(2)
-        # encoders, motors
-        self.zero_angle = np.zeros((n, 2))
-        self.ticks = i(2)
-        self.applied_pwm = i(2)
-        self.drive_torque = np.zeros((n, 2))
-        self.damping = np.zeros((n, 2))
-        self.ready = np.full(n, self.mode == KINEMATIC)
+    def _views(self) -> None:
+        """The named arrays as views of the blocks' rows. Host (``DiffController``): ``x``,
+        ``y``, ``theta``, ``dx``, ``dr``, ``odom_v``/``odom_w`` (the twist of the latest
+        published odometry), ``v_des``, ``v``, ``enc`` (and ``enc_valid``: not None),
+        ``then``, ``last_cmd``, ``stamp``, ``wrote`` (``last_write`` is not None). Board
+        (``ArbotixBoard`` and its two ``WheelPID`` s): ``board_gains``, ``f_time``, ``moving``,
+        ``pid_mode``, ``velocity``, ``encoder``, ``prev_enc``, ``prev_err``, ``ierror``,
+        ``output``. Encoders and motors: ``zero_angle``, ``ticks``, ``applied_pwm``,
+        ``drive_torque``, ``damping``. Configuration: ``ticks_meter``, ``base_width``,
+        ``timeout_ns``, ``max_accel``, ``frame_ms``, ``gains``, ``stall``, ``back_emf``,
+        ``coast``, ``wheel_radius``."""
+        for block, layout in ((self.floats, columns.FLOATS), (self.ints, columns.INTS),
+                              (self.flags, columns.FLAGS)):
+            for name, (row, width) in columns.rows(layout).items():
+                setattr(self, name, block[row] if width == 1 else block[row:row + width].T)
+
+    def __getstate__(self) -> dict:
+        """A copy (pickle, ``copy.deepcopy``) keeps the blocks, not their views."""
+        names = {name for layout in (columns.FLOATS, columns.INTS, columns.FLAGS)
+                 for name, _ in layout}
+        return {k: v for k, v in self.__dict__.items() if k not in names}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self._views()
 
     # -- lifecycle -----------------------------------------------------------------------------
     def reset(self, now_s: np.ndarray | float = 0.0, angles: np.ndarray | None = None,
@@ -207,6 +216,9 @@ class BatchedArbotix:
                mask: np.ndarray | None = None) -> None:
         """One controller firing of the masked cars (``ArbotixBase.update``): odometry, timeout,
         ramp and (hardware) the write to the board; ``angles`` (N, 2) in hardware mode."""
+        if compiled.COMPILED and self.mode == HARDWARE and angles is not None:
+            compiled.update(self, now_s, angles, mask)
+            return
         m = _sel(mask)
         if not np.all(self.ready[m]):
             raise RuntimeError("BatchedArbotix.reset() must be called before use in hardware mode")
@@ -214,12 +226,13 @@ class BatchedArbotix:
         elapsed = now - self.then
         if np.any(elapsed[m] < 0):
             raise ValueError("time went backwards for some car")
+        if self.mode != KINEMATIC:  # refused (None, not finite) before anything changes
+            ticks = self._read_encoders(m, angles)
         self.then[m] = now[m]
         self.wrote[m] = False
         if self.mode == KINEMATIC:
             self._integrate_twist(m, elapsed)
         else:
-            ticks = self._read_encoders(m, angles)
             self._integrate_encoders(m, ticks, elapsed)
         self.stamp[m] = now[m]
         self.odom_v[m], self.odom_w[m] = self.dx[m], self.dr[m]
@@ -282,6 +295,8 @@ class BatchedArbotix:
         """``ArbotixBase.board_tick`` of the masked cars; returns which cars ran a frame."""
         if self.mode == KINEMATIC:
             return np.zeros(self.n, dtype=bool)
+        if compiled.COMPILED and angles is not None:
+            return compiled.board_tick(self, now_s, angles, mask)
         now_ms = np.broadcast_to(board_millis(now_s), (self.n,))
         m = _all(mask, self.n) & self.moving & self.pid_mode & (now_ms > self.f_time)
         if not m.any():

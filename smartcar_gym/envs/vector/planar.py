@@ -122,10 +122,12 @@ class SmartCarPlanarVectorEnv(SmartCarMujocoVectorEnv):
                             else self.task.sample_goal(self._rng(i), origin))
         self.cars.reset(idx)
 
-    def _motors_to_wheels(self, mask: np.ndarray) -> None:
+    def _motors_to_wheels(self, mask: np.ndarray | slice) -> None:
         """Each side's motor output into its wheel groups, with ``set_motor_output``'s and
         ``PlanarBody._drive``'s arithmetic in their order."""
         cars, ng = self.cars, self.cars.ng
+        if mask.all():  # views, not copies: the same numbers
+            mask = slice(None)
         drive, damping = self.base.drive_torque[mask], self.base.damping[mask]
         tau = [np.zeros(len(drive)) for _ in range(ng)]
         for (g, sign), k in self._held_joints:

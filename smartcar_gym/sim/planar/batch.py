@@ -34,11 +34,11 @@ class PlanarBatch:
         self.com = model.com
         self.height = body.height
         self.initial = np.array(body.state, dtype=np.float64)
-        self.state = np.repeat(self.initial[:, None], self.n, axis=1)
-        self.car = np.repeat(np.array(model.car, dtype=np.float64)[:, None], self.n, axis=1)
-        self.contacts = np.repeat(
-            np.array(model.contacts, dtype=np.float64).reshape(-1, NC)[:, :, None], self.n, axis=2)
-        self.drive = np.zeros((2 * self.ng, self.n))
+        self.state = _columns(self.initial, self.n)
+        self.car = _columns(np.array(model.car, dtype=np.float64), self.n)
+        self.contacts = _columns(np.array(model.contacts, dtype=np.float64).reshape(-1, NC),
+                                 self.n)
+        self.drive = _columns(np.zeros(2 * self.ng), self.n)
         #: worlds the engine found unstable (MuJoCo's batch reports them): the planar
         #: engine's implicit step has none, so this stays empty
         self.unstable: list = []
@@ -109,6 +109,17 @@ class PlanarBatch:
     def speed(self) -> np.ndarray:
         """Every car's planar speed of the centre of mass (m/s)."""
         return np.hypot(self.state[4], self.state[5])
+
+
+def _columns(values: np.ndarray, n: int) -> np.ndarray:
+    """``values`` repeated for ``n`` cars along a new last axis. Its rows are laid out a little
+    longer than ``n`` (this is a view of the first ``n`` columns): rows a power of two bytes
+    apart fall into the same sets of the CPU's cache, and the compiled loop that gathers a
+    car's numbers from 60 rows would evict its own lines (measured: its physics 20 % slower at
+    4,096 cars; ``controller.columns.block``)."""
+    out = np.empty((*values.shape, n + 8))[..., :n]
+    out[...] = values[..., None]
+    return out
 
 
 def yaw_quaternion_arrays(c: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

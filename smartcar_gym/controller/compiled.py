@@ -1,0 +1,301 @@
+"""``BatchedArbotix``'s hardware-mode ``update`` and ``board_tick`` compiled with numba.
+
+numba is the optional ``fast`` extra. Without it (or with ``SMARTCAR_GYM_NUMBA=0``, read at
+import) ``BatchedArbotix`` runs its numpy code; with it, these loops over the cars run the
+same per-car arithmetic in the same order (Python's ``int``/``float`` semantics: int64 wrapped
+to the AVR's 16/32 bits, truncating division, ``math.cos``/``math.sin`` as the scalar
+``DiffController``), so both paths give the same numbers bit for bit
+(``tests/test_controller_batched.py`` runs each against the scalar emulation).
+
+Why: numpy spends a few microseconds per operation whatever the number of cars, and a
+controller update is about 60 of them. Measured (docs/planar.md, docs/performance.md): the
+planar batch at 4,096 cars spent about half of each step in these two methods, and the MuJoCo
+batch of 64 cars' main thread most of its time between physics steps.
+
+``COMPILED`` says whether the compiled loops are in use; ``BatchedArbotix`` reads it at each
+call, so a test may switch it off.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from smartcar_gym.controller.board import MAX_OUTPUT
+from smartcar_gym.controller.columns import (
+    APPLIED,
+    BACK_EMF,
+    BASE_WIDTH,
+    BOARD_GAINS,
+    COAST,
+    DAMPING,
+    DR,
+    DRIVE,
+    DX,
+    ENC,
+    ENC_VALID,
+    ENCODER,
+    F_TIME,
+    FRAME_MS,
+    IERROR,
+    LAST_CMD,
+    MAX_ACCEL,
+    MOVING,
+    ODOM_V,
+    ODOM_W,
+    OUTPUT,
+    PID_MODE,
+    PREV_ENC,
+    PREV_ERR,
+    RADIUS,
+    READY,
+    STALL,
+    STAMP,
+    THEN,
+    THETA,
+    TICKS,
+    TICKS_METER,
+    TIMEOUT_NS,
+    V_DES,
+    VELOCITY,
+    WROTE,
+    ZERO,
+    V,
+    X,
+    Y,
+)
+from smartcar_gym.controller.motor import MAX_PWM
+
+if TYPE_CHECKING:
+    from smartcar_gym.controller.batched import BatchedArbotix
+
+try:
+    import numba
+except ImportError:  # the fast extra is not installed
+    numba = None
+
+COMPILED = numba is not None and os.environ.get("SMARTCAR_GYM_NUMBA", "1") != "0"
+#: a time no event is due (ns)
+NEVER = np.iinfo(np.int64).max
+
+#: what a compiled call found wrong before it changed anything (0: nothing)
+NOT_READY, BACKWARDS, NOT_FINITE = 1, 2, 3
+MESSAGES = {
+    NOT_READY: (RuntimeError,
+                "BatchedArbotix.reset() must be called before use in hardware mode"),
+    BACKWARDS: (ValueError, "time went backwards for some car"),
+    NOT_FINITE: (ValueError, "a wheel angle gives no encoder count (not finite)"),
+}
+
+
+def _wrap16(n):
+    return ((n + 0x8000) & 0xFFFF) - 0x8000
+
+
+def _wrap32(n):
+    return ((n + 0x8000_0000) & 0xFFFF_FFFF) - 0x8000_0000
+
+
+def _c_div(a, b):
+    q = abs(a) // b
+    return q if a >= 0 else -q
+
+
+def _ns(t):
+    return np.int64(np.rint(t * 1e9))
+
+
+def _count(angle, zero, radius, ticks_meter):
+    """``WheelEncoder.count``: the wheel's travel in whole ticks, wrapped to 32 bits."""
+    return _wrap32(np.int64(math.floor((angle - zero) * radius * ticks_meter)))
+
+
+def _refused(i, a_left, a_right, f, b):
+    """What is wrong with running car ``i`` on these encoder angles (0: nothing)."""
+    if not b[READY, i]:
+        return NOT_READY
+    scale = f[RADIUS, i]
+    if not (math.isfinite((a_left - f[ZERO, i]) * scale * f[TICKS_METER, i])
+            and math.isfinite((a_right - f[ZERO + 1, i]) * scale * f[TICKS_METER, i])):
+        return NOT_FINITE
+    return 0
+
+
+def _apply_pwm(i, f, n, b):
+    """``ArbotixBase._apply_pwm``: the motors' outputs, if car ``i``'s PWM changed."""
+    if n[OUTPUT, i] != n[APPLIED, i] or n[OUTPUT + 1, i] != n[APPLIED + 1, i]:
+        for k in range(2):  # DCMotor.output
+            p = n[OUTPUT + k, i]
+            clipped = float(min(max(p, -MAX_PWM), MAX_PWM))
+            f[DRIVE + k, i] = f[STALL, i] * clipped / MAX_PWM
+            f[DAMPING + k, i] = 0.0 if (p == 0 and b[COAST, i]) else f[BACK_EMF, i]
+            n[APPLIED + k, i] = p
+
+
+def update_car(i, t, a_left, a_right, f, n, b):
+    """``BatchedArbotix.update`` (hardware) of car ``i`` at ``t`` s with these encoder wheel
+    angles; ``f``, ``n``, ``b``: its ``floats``, ``ints`` and ``flags`` (``_refused`` and
+    time going backwards checked)."""
+    elapsed = t - f[THEN, i]
+    f[THEN, i] = t
+    # odometry from the encoders (DiffController.update)
+    tm = f[TICKS_METER, i]
+    n[TICKS, i] = _count(a_left, f[ZERO, i], f[RADIUS, i], tm)
+    n[TICKS + 1, i] = _count(a_right, f[ZERO + 1, i], f[RADIUS, i], tm)
+    d_left = float(n[TICKS, i] - n[ENC, i]) / tm if b[ENC_VALID, i] else 0.0
+    d_right = float(n[TICKS + 1, i] - n[ENC + 1, i]) / tm if b[ENC_VALID, i] else 0.0
+    n[ENC, i], n[ENC + 1, i] = n[TICKS, i], n[TICKS + 1, i]
+    b[ENC_VALID, i] = True
+    d = (d_left + d_right) / 2
+    th = (d_right - d_left) / f[BASE_WIDTH, i]
+    if elapsed > 0:
+        f[DX, i], f[DR, i] = d / elapsed, th / elapsed
+    else:
+        f[DX, i], f[DR, i] = 0.0, 0.0
+    if d != 0:
+        fx, fy = math.cos(th) * d, -math.sin(th) * d
+        theta = f[THETA, i]
+        cos, sin = math.cos(theta), math.sin(theta)
+        f[X, i] = f[X, i] + (cos * fx - sin * fy)
+        f[Y, i] = f[Y, i] + (sin * fx + cos * fy)
+    if th != 0:
+        f[THETA, i] = f[THETA, i] + th
+    f[STAMP, i] = t
+    f[ODOM_V, i], f[ODOM_W, i] = f[DX, i], f[DR, i]
+    if _ns(t) > _ns(f[LAST_CMD, i]) + n[TIMEOUT_NS, i]:
+        n[V_DES, i], n[V_DES + 1, i] = 0, 0
+    # the ramp, then the write to the board (ArbotixBoard.write)
+    for k in range(2):
+        v, v_des = n[V + k, i], n[V_DES + k, i]
+        if v < v_des:
+            n[V + k, i] = min(v + n[MAX_ACCEL, i], v_des)
+        else:
+            n[V + k, i] = max(v - n[MAX_ACCEL, i], v_des)
+    b[WROTE, i] = True
+    left, right = _wrap16(n[V, i]), _wrap16(n[V + 1, i])
+    if left == 0 and right == 0:
+        b[PID_MODE, i] = b[MOVING, i] = False
+        for k in range(2):
+            n[PREV_ERR + k, i] = n[IERROR + k, i] = n[OUTPUT + k, i] = 0
+    elif n[VELOCITY, i] == 0 and n[VELOCITY + 1, i] == 0:
+        b[PID_MODE, i] = b[MOVING, i] = True
+        for k in range(2):
+            n[PREV_ENC + k, i] = _wrap32(n[TICKS + k, i])
+    n[VELOCITY, i], n[VELOCITY + 1, i] = left, right
+    _apply_pwm(i, f, n, b)
+
+
+def frame_due(i, t, n, b):
+    """Would car ``i``'s board run a PID frame at ``t`` s (``updatePID``'s test)."""
+    return b[MOVING, i] and b[PID_MODE, i] and \
+        np.int64(math.trunc(t * 1000.0 + 1e-6)) > n[F_TIME, i]
+
+
+def next_frame_ns(i, now_ns, n, b):
+    """When car ``i``'s board runs its next frame, in ns on its clock, no earlier than
+    ``now_ns`` (``SmartCarRobot.next_event_ns``'s frame; ``NEVER`` while idle)."""
+    if b[MOVING, i] and b[PID_MODE, i]:
+        return max(now_ns, (n[F_TIME, i] + 1) * 1_000_000)
+    return NEVER
+
+
+def board_tick_car(i, t, a_left, a_right, f, n, b):
+    """One PID frame of car ``i``'s board at ``t`` s (``frame_due`` and ``_refused``
+    checked): ``DoPid`` on each wheel, then the motors."""
+    kp, kd = n[BOARD_GAINS, i], n[BOARD_GAINS + 1, i]
+    ki, ko = n[BOARD_GAINS + 2, i], n[BOARD_GAINS + 3, i]
+    for k in range(2):
+        n[TICKS + k, i] = _count(a_left if k == 0 else a_right, f[ZERO + k, i], f[RADIUS, i],
+                                 f[TICKS_METER, i])
+        encoder = _wrap32(n[TICKS + k, i])
+        n[ENCODER + k, i] = encoder
+        perror = _wrap32(n[VELOCITY + k, i] - _wrap32(encoder - n[PREV_ENC + k, i]))
+        numerator = _wrap32(_wrap32(kp * perror)
+                            + _wrap32(kd * _wrap32(perror - n[PREV_ERR + k, i]))
+                            + _wrap16(ki * n[IERROR + k, i]))
+        out = _wrap32(_c_div(numerator, ko) + n[OUTPUT + k, i])
+        n[PREV_ERR + k, i] = _wrap16(perror)
+        n[PREV_ENC + k, i] = encoder
+        if out >= MAX_OUTPUT:
+            n[OUTPUT + k, i] = MAX_OUTPUT
+        elif out <= -MAX_OUTPUT:
+            n[OUTPUT + k, i] = -MAX_OUTPUT
+        else:
+            n[IERROR + k, i] = _wrap16(n[IERROR + k, i] + perror)
+            n[OUTPUT + k, i] = out
+    n[F_TIME, i] = np.int64(math.trunc(t * 1000.0 + 1e-6)) + n[FRAME_MS, i]
+    _apply_pwm(i, f, n, b)
+
+
+def _update(mask, now, angles, f, n, b):
+    for i in range(mask.shape[0]):  # refuse before changing anything
+        if mask[i]:
+            code = _refused(i, angles[i, 0], angles[i, 1], f, b)
+            if code:
+                return code
+            if now[i] - f[THEN, i] < 0:
+                return BACKWARDS
+    for i in range(mask.shape[0]):
+        if mask[i]:
+            update_car(i, now[i], angles[i, 0], angles[i, 1], f, n, b)
+    return 0
+
+
+def _board_tick(mask, now, angles, ran, f, n, b):
+    for i in range(mask.shape[0]):  # which cars run a frame; refuse before changing anything
+        ran[i] = mask[i] and frame_due(i, now[i], n, b)
+        if ran[i]:
+            code = _refused(i, angles[i, 0], angles[i, 1], f, b)
+            if code:
+                return code
+    for i in range(mask.shape[0]):
+        if ran[i]:
+            board_tick_car(i, now[i], angles[i, 0], angles[i, 1], f, n, b)
+    return 0
+
+
+if COMPILED:
+    _jit = numba.njit(cache=True)
+    _wrap16, _wrap32, _c_div, _ns, _count, _refused, _apply_pwm = (
+        _jit(f) for f in (_wrap16, _wrap32, _c_div, _ns, _count, _refused, _apply_pwm))
+    update_car, frame_due, next_frame_ns, board_tick_car = (
+        _jit(f) for f in (update_car, frame_due, next_frame_ns, board_tick_car))
+    _update, _board_tick = _jit(_update), _jit(_board_tick)
+
+
+def _checked(code: int) -> None:
+    if code:
+        error, message = MESSAGES[code]
+        raise error(message)
+
+
+def _per_car(b: BatchedArbotix, now_s: np.ndarray | float, angles: np.ndarray,
+             mask: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    n = b.n
+    now = np.asarray(now_s, dtype=np.float64)
+    now = np.full(n, float(now)) if now.ndim == 0 else np.ascontiguousarray(now)
+    mask = np.ones(n, dtype=bool) if mask is None else np.ascontiguousarray(mask, dtype=bool)
+    angles = np.ascontiguousarray(angles, dtype=np.float64)
+    if now.shape != (n,) or mask.shape != (n,) or angles.shape != (n, 2):
+        raise ValueError(f"expected now_s of ({n},), angles of ({n}, 2) and a mask of ({n},), "
+                         f"got {now.shape}, {angles.shape}, {mask.shape}")
+    return now, angles, mask
+
+
+def update(b: BatchedArbotix, now_s: np.ndarray | float, angles: np.ndarray,
+           mask: np.ndarray | None) -> None:
+    """``BatchedArbotix.update`` in hardware mode, compiled."""
+    now, angles, mask = _per_car(b, now_s, angles, mask)
+    _checked(_update(mask, now, angles, b.floats, b.ints, b.flags))
+
+
+def board_tick(b: BatchedArbotix, now_s: np.ndarray | float, angles: np.ndarray,
+               mask: np.ndarray | None) -> np.ndarray:
+    """``BatchedArbotix.board_tick`` in hardware mode, compiled; which cars ran a frame."""
+    now, angles, mask = _per_car(b, now_s, angles, mask)
+    ran = np.zeros(b.n, dtype=bool)
+    _checked(_board_tick(mask, now, angles, ran, b.floats, b.ints, b.flags))
+    return ran

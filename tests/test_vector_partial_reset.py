@@ -94,3 +94,43 @@ def test_partial_reset_input_is_checked():
         assert obs[1, -2:].tolist() == [0.5, 0.5] and obs[0, -2:].tolist() != [0.5, 0.5]
     finally:
         envs.close()
+
+
+PARKED = [c for c in CASES if "engine" in (c.values[1] if hasattr(c, "values") else c[1])]
+
+
+@pytest.mark.parametrize(("env_id", "kwargs"), PARKED)
+def test_parked_cars_stand_still_and_the_others_step_as_before(env_id, kwargs):
+    """``park``: the parked car is not simulated (its clock and pose stand still) until its
+    next reset; the other cars step bit for bit as without it."""
+
+    def run(park: bool) -> tuple[list, np.ndarray, np.ndarray]:
+        envs = gym.make_vec(env_id, num_envs=N, vectorization_mode="vector_entry_point",
+                            **kwargs)
+        rng = np.random.default_rng(0)
+        envs.reset(seed=3)
+        out, poses = [], []
+        for k in range(8):
+            if park and k >= 2:
+                envs.unwrapped.park(np.array([False, True, False]))
+            obs, *_, info = envs.step(rng.uniform(-1, 1, (N, 2)).astype(np.float32))
+            out.append({key: np.delete(v, 1, axis=0) for key, v in obs.items()}
+                       if isinstance(obs, dict) else np.delete(obs, 1, axis=0))
+            poses.append(info["pose"][1].copy())
+        clock = envs.unwrapped._now.copy()
+        envs.reset(options={"reset_mask": np.array([False, True, False])})
+        envs.step(np.ones((N, 2), dtype=np.float32))
+        after = envs.unwrapped._now.copy()
+        envs.close()
+        return out, np.array(poses), np.stack([clock, after])
+
+    free, free_poses, _ = run(park=False)
+    parked, poses, clocks = run(park=True)
+    assert all(_equal(a, b) for a, b in zip(free, parked, strict=True))
+    assert np.array_equal(poses[1], poses[-1]) and not np.array_equal(free_poses[1],
+                                                                      free_poses[-1])
+    assert clocks[0, 1] < clocks[0, 0] and clocks[1, 1] > 0  # stood still, then stepped
+    envs = gym.make_vec(env_id, num_envs=N, vectorization_mode="vector_entry_point", **kwargs)
+    with pytest.raises(ValueError, match="park: expected a bool mask of shape"):
+        envs.unwrapped.park(np.ones(N + 1, dtype=bool))
+    envs.close()

@@ -132,10 +132,13 @@ def _run(envs: gym.vector.VectorEnv, policy: Policy, env_id: str, n_episodes: in
     tracks.start(np.ones(n, dtype=bool), episode_of, seed, info, _goals(envs))
     next_episode = n
     records: list[EpisodeRecord] = []
+    park = getattr(envs.unwrapped, "park", None)
     while (episode_of >= 0).any():
         active = episode_of >= 0
         actions = act_batch(policy, obs, deterministic)
-        actions[~active] = 0.0  # a car with no episode left stands still: cheaper physics
+        actions[~active] = 0.0  # a car with no episode left stands still ...
+        if park is not None:  # ... or, where the batch can, is not simulated at all
+            park(~active)
         obs, reward, terminated, truncated, info = envs.step(actions)
         tracks.add(active, reward, info)
         done = active & (terminated | truncated)

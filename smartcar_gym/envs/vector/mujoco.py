@@ -155,6 +155,7 @@ class SmartCarMujocoVectorEnv(SmartCarSimVectorEnv):
         self._distance = np.zeros(n)
         self._prev_action = np.zeros((n, 2), dtype=np.float32)
         self._autoreset = np.zeros(n, dtype=bool)
+        self._parked = np.zeros(n, dtype=bool)
         self._needs_reset = True
 
     def close_extras(self, **kwargs: Any) -> None:
@@ -199,9 +200,23 @@ class SmartCarMujocoVectorEnv(SmartCarSimVectorEnv):
                                     (1.0 - 2.0 * (qy * qy + qz * qz)).tolist()))
         self._up_z = 1.0 - 2.0 * (qx * qx + qy * qy)
 
+    def park(self, mask: np.ndarray) -> None:
+        """Stop simulating the masked cars until each one's next reset (``reset`` or an
+        autoreset): no events, no physics, their clocks stand still. ``step`` still reports
+        them, computed from where they stand (the same observation; a reward, ends and infos
+        that mean nothing). For evaluations with fewer episodes left than cars: the idle cars
+        cost no physics (``smartcar-eval --vectorization batched``). The other cars step
+        exactly as they would have."""
+        mask = np.asarray(mask, dtype=bool)
+        if mask.shape != (self.num_envs,):
+            raise ValueError(f"park: expected a bool mask of shape ({self.num_envs},), got "
+                             f"shape {mask.shape}")
+        self._parked |= mask
+
     def _reset_cars(self, mask: np.ndarray, goals: np.ndarray | None) -> None:
         """The masked cars afresh: the settled world, the controller at t = 0, a new goal."""
         idx = np.flatnonzero(mask)
+        self._parked[idx] = False
         self._new_worlds(idx, goals)
         self._steps[idx] = 0
         self._now[idx] = 0
@@ -264,10 +279,10 @@ class SmartCarMujocoVectorEnv(SmartCarSimVectorEnv):
     def _run_period(self) -> None:
         """``run_until(now + period)`` for every car, from event to event."""
         end = self._now + self.period_ns
-        pending = np.ones(self.num_envs, dtype=bool)
+        pending = ~self._parked
         while True:
             self._fire(pending)
-            active = self._now < end
+            active = pending & (self._now < end)
             if not active.any():
                 return
             cars = np.flatnonzero(active)

@@ -9,7 +9,7 @@ Each round runs, one after the other, the same evaluation as the commands a user
   in the evaluating process: the default; ``--env``/``--engine`` change the env);
 - ``subproc x2``: the same with ``--n-envs 2`` (two worker processes: the other way to use two
   cores), unless ``--no-subproc``;
-- ``batched``: the same with ``--vectorization batched`` (64 cars of the MuJoCo batch, two
+- ``batched``: the same with ``--vectorization batched`` (128 cars of the MuJoCo batch, two
   physics threads).
 
 Each command's wall time (start-up and model loading included) and CPU time (its process and

@@ -182,3 +182,37 @@ def test_eval_cli_interrupted_leaves_no_file_and_no_recorder(tmp_path, monkeypat
     assert (tmp_path / "x.rrd").stat().st_size > 10_000
     assert not [p for p in multiprocessing.active_children()
                 if p.name == "smartcar-rerun-recorder"]
+
+
+def test_a_recorder_that_outlives_sigterm_is_killed():
+    """``_end``: asked, terminated, then killed, so that no recorder is left for
+    multiprocessing to join without a timeout at exit (a hang seen once in a full run)."""
+    from smartcar_gym.viewers import rerun_process
+
+    class Stubborn:  # a recorder that ignores its pipe closing and SIGTERM
+        def __init__(self) -> None:
+            self.calls: list[str] = []
+            self.alive = True
+
+        def join(self, timeout=None) -> None:
+            self.calls.append("join")
+
+        def is_alive(self) -> bool:
+            return self.alive
+
+        def terminate(self) -> None:
+            self.calls.append("terminate")
+
+        def kill(self) -> None:
+            self.calls.append("kill")
+            self.alive = False
+
+    class Pipe:
+        def close(self) -> None:
+            pass
+
+    sink = rerun_process.RerunProcessSink.__new__(rerun_process.RerunProcessSink)
+    sink._conn, sink._process = Pipe(), Stubborn()
+    sink._end()
+    assert sink._process.calls == ["join", "terminate", "join", "kill", "join"]
+    assert not sink._process.is_alive()

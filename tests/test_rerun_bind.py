@@ -14,6 +14,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -76,15 +77,18 @@ def listening(pids: list[int]) -> set[tuple[str, int]]:
     return found
 
 
-def _serve(tmp_path: Path, *extra: str) -> tuple[subprocess.Popen, int, int, str]:
-    """smartcar-eval --rerun-serve on free ports, once it says where it serves."""
+def _serve(tmp_path: Path, *extra: str, sigint: Any = signal.SIG_DFL
+           ) -> tuple[subprocess.Popen, int, int, str]:
+    """smartcar-eval --rerun-serve on free ports, once it says where it serves; started with
+    SIGINT's disposition ``sigint`` (SIG_IGN: as a shell script's background job is)."""
     grpc, web = _free_port(), _free_port()
     log = tmp_path / "eval.err"
     proc = subprocess.Popen(
         [sys.executable, "-m", "smartcar_gym.agents.evaluate", "--random", "--episodes", "1",
          "--env", "SmartCarSim-v0", "--env-kwargs", "max_episode_steps=5", "--no-progress",
          "--rerun-serve", "--rerun-ports", str(grpc), str(web), *extra],
-        stdout=subprocess.DEVNULL, stderr=log.open("w"), start_new_session=True)
+        stdout=subprocess.DEVNULL, stderr=log.open("w"), start_new_session=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, sigint))
     deadline = time.monotonic() + 180
     while "Ctrl-C stops" not in log.read_text():
         if proc.poll() is not None or time.monotonic() > deadline:
@@ -94,9 +98,9 @@ def _serve(tmp_path: Path, *extra: str) -> tuple[subprocess.Popen, int, int, str
     return proc, grpc, web, log.read_text()
 
 
-def _stop(proc: subprocess.Popen) -> None:
+def _stop(proc: subprocess.Popen, sig: int = signal.SIGINT) -> None:
     if proc.poll() is None:
-        os.killpg(proc.pid, signal.SIGINT)  # Ctrl-C, as a terminal sends it
+        os.killpg(proc.pid, sig)  # SIGINT: Ctrl-C, as a terminal sends it
         try:
             proc.wait(60)
         except subprocess.TimeoutExpired:
@@ -118,6 +122,20 @@ def test_rerun_serve_listens_on_this_machine_only(tmp_path):
         assert "warning" not in err
     finally:
         _stop(proc)
+    assert proc.returncode == 0, err
+    assert _alive(tree) == [], "processes outlived smartcar-eval"
+
+
+@pytest.mark.parametrize(("sigint", "sig"), [(signal.SIG_IGN, signal.SIGINT),
+                                             (signal.SIG_DFL, signal.SIGTERM)],
+                         ids=["ctrl-c-where-sigint-was-ignored", "sigterm"])
+def test_serving_stops_cleanly_on_ctrl_c_and_sigterm(tmp_path, sigint, sig):
+    """Ctrl-C stops it also when started with SIGINT ignored (a script's background job,
+    where Python leaves Ctrl-C ignored: it used to serve on, and a test suite run in the
+    background hung here); SIGTERM stops it the same way: exit 0, nothing left running."""
+    proc, _, _, err = _serve(tmp_path, sigint=sigint)
+    tree = _tree(proc.pid)
+    _stop(proc, sig)
     assert proc.returncode == 0, err
     assert _alive(tree) == [], "processes outlived smartcar-eval"
 

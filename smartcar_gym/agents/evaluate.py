@@ -140,7 +140,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "episode to a Rerun recording (needs the rerun extra)")
     parser.add_argument("--rerun-serve", action="store_true", help="stream the episodes to "
                         "Rerun's web viewer, served locally from the rerun-sdk package, and "
-                        "keep serving until Ctrl-C")
+                        "keep serving until Ctrl-C or SIGTERM")
     parser.add_argument("--rerun-ports", nargs=2, type=positive_int_arg, default=(9876, 9090),
                         metavar=("GRPC", "WEB"), help="ports of --rerun-serve's gRPC server "
                         "and web viewer (default: Rerun's 9876 9090)")
@@ -376,12 +376,21 @@ def _close_recorders(recorders: list[Any]) -> dict[str, Any]:
 
 
 def _serve_until_interrupted(recorders: list[Any]) -> None:
-    """Keep the web viewer (the recorder process) up until Ctrl-C."""
+    """Keep the web viewer (the recorder process) up until Ctrl-C or SIGTERM.
+
+    Both stop it the same way (the recorder and its server end, exit status 0), also where
+    this process was started with SIGINT ignored, as a shell script's background job is:
+    Python then leaves Ctrl-C ignored, and the "Ctrl-C stops" below would not hold."""
+    import signal
     import time
 
     from smartcar_gym.viewers.rerun_process import RerunProcessSink
 
+    def stop(signum: int, frame: Any) -> None:
+        raise KeyboardInterrupt
+
     sink = next(r for r in recorders if isinstance(r, RerunProcessSink))
+    previous = {sig: signal.signal(sig, stop) for sig in (signal.SIGINT, signal.SIGTERM)}
     print(f"smartcar-eval: serving the episodes at {sink.web_url}; Ctrl-C stops",
           file=sys.stderr)
     try:
@@ -390,6 +399,8 @@ def _serve_until_interrupted(recorders: list[Any]) -> None:
     except KeyboardInterrupt:
         pass
     finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
         sink.stop()
 
 

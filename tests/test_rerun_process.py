@@ -186,7 +186,7 @@ def test_eval_cli_interrupted_leaves_no_file_and_no_recorder(tmp_path, monkeypat
 
 def test_a_recorder_that_outlives_sigterm_is_killed():
     """``_end``: asked, terminated, then killed, so that no recorder is left for
-    multiprocessing to join without a timeout at exit (a hang seen once in a full run)."""
+    multiprocessing to join without a timeout at exit."""
     from smartcar_gym.viewers import rerun_process
 
     class Stubborn:  # a recorder that ignores its pipe closing and SIGTERM

@@ -167,9 +167,8 @@ class RerunProcessSink:
 
     def _end(self) -> None:
         """No recorder process left running: asked (its pipe closes), then terminated, then
-        killed. A recorder that outlived SIGTERM (Rerun's server may hold it up) would
-        otherwise hang this process at exit, where multiprocessing joins its daemonic
-        children without a timeout (seen once in a full test run)."""
+        killed. A recorder that outlived SIGTERM would otherwise hang this process at exit,
+        where multiprocessing joins its daemonic children without a timeout."""
         self._conn.close()
         self._process.join(STOP_TIMEOUT_S)
         if self._process.is_alive():

@@ -59,7 +59,7 @@ def _all(mask: np.ndarray | None, n: int) -> np.ndarray:
     return np.ones(n, dtype=bool) if mask is None else np.asarray(mask, dtype=bool)
 
 
-def _cars(m: np.ndarray) -> slice | np.ndarray:
+def cars_index(m: np.ndarray) -> slice | np.ndarray:
     """A boolean mask of cars as an index: a slice when it selects every car (views instead
     of copies: the same numbers, a third of the work at thousands of cars)."""
     return slice(None) if m.all() else m
@@ -303,7 +303,7 @@ class BatchedArbotix:
             return m
         if not np.all(self.ready[m]):
             raise RuntimeError("BatchedArbotix.reset() must be called before use in hardware mode")
-        cars = _cars(m)
+        cars = cars_index(m)
         ticks = self._read_encoders(cars, angles)
         self.encoder[cars] = wrap_int32(ticks[cars])
         self._do_pid(cars)
@@ -360,7 +360,7 @@ class BatchedArbotix:
         """Motor outputs of the masked cars whose PWM changed (``ArbotixBase._apply_pwm``)."""
         changed = m & np.any(self.output != self.applied_pwm, axis=1)
         if changed.any():
-            self._set_motors(_cars(changed), self.output)
+            self._set_motors(cars_index(changed), self.output)
 
     def _set_motors(self, m: np.ndarray, pwm: np.ndarray) -> None:
         """``DCMotor.output`` for each side's PWM of the masked cars."""

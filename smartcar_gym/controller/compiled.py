@@ -24,6 +24,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from smartcar_gym.controller._cint import c_div as _c_div
+from smartcar_gym.controller._cint import wrap_int16 as _wrap16
+from smartcar_gym.controller._cint import wrap_int32 as _wrap32
 from smartcar_gym.controller.board import MAX_OUTPUT
 from smartcar_gym.controller.columns import (
     APPLIED,
@@ -78,8 +81,6 @@ except ImportError:  # the fast extra is not installed
     numba = None
 
 COMPILED = numba is not None and os.environ.get("SMARTCAR_GYM_NUMBA", "1") != "0"
-#: a time no event is due (ns)
-NEVER = np.iinfo(np.int64).max
 
 #: what a compiled call found wrong before it changed anything (0: nothing)
 NOT_READY, BACKWARDS, NOT_FINITE = 1, 2, 3
@@ -89,19 +90,6 @@ MESSAGES = {
     BACKWARDS: (ValueError, "time went backwards for some car"),
     NOT_FINITE: (ValueError, "a wheel angle gives no encoder count (not finite)"),
 }
-
-
-def _wrap16(n):
-    return ((n + 0x8000) & 0xFFFF) - 0x8000
-
-
-def _wrap32(n):
-    return ((n + 0x8000_0000) & 0xFFFF_FFFF) - 0x8000_0000
-
-
-def _c_div(a, b):
-    q = abs(a) // b
-    return q if a >= 0 else -q
 
 
 def _ns(t):
@@ -194,14 +182,6 @@ def frame_due(i, t, n, b):
         np.int64(math.trunc(t * 1000.0 + 1e-6)) > n[F_TIME, i]
 
 
-def next_frame_ns(i, now_ns, n, b):
-    """When car ``i``'s board runs its next frame, in ns on its clock, no earlier than
-    ``now_ns`` (``SmartCarRobot.next_event_ns``'s frame; ``NEVER`` while idle)."""
-    if b[MOVING, i] and b[PID_MODE, i]:
-        return max(now_ns, (n[F_TIME, i] + 1) * 1_000_000)
-    return NEVER
-
-
 def board_tick_car(i, t, a_left, a_right, f, n, b):
     """One PID frame of car ``i``'s board at ``t`` s (``frame_due`` and ``_refused``
     checked): ``DoPid`` on each wheel, then the motors."""
@@ -258,11 +238,11 @@ def _board_tick(mask, now, angles, ran, f, n, b):
 
 
 if COMPILED:
-    _jit = numba.njit(cache=True)
+    _jit = numba.njit(cache=True)  # the scalar emulation's own integer helpers too
     _wrap16, _wrap32, _c_div, _ns, _count, _refused, _apply_pwm = (
         _jit(f) for f in (_wrap16, _wrap32, _c_div, _ns, _count, _refused, _apply_pwm))
-    update_car, frame_due, next_frame_ns, board_tick_car = (
-        _jit(f) for f in (update_car, frame_due, next_frame_ns, board_tick_car))
+    update_car, frame_due, board_tick_car = (
+        _jit(f) for f in (update_car, frame_due, board_tick_car))
     _update, _board_tick = _jit(_update), _jit(_board_tick)
 
 

@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from smartcar_gym.controller.batched import cars_index
 from smartcar_gym.envs.nav_env import OBSTACLE_HEIGHT_M, SmartCarNavEnv
 from smartcar_gym.envs.smartcar_env import SmartCarEnv
 from smartcar_gym.envs.vector.common import batch_limits, nav_limits
@@ -122,12 +123,11 @@ class SmartCarPlanarVectorEnv(SmartCarMujocoVectorEnv):
                             else self.task.sample_goal(self._rng(i), origin))
         self.cars.reset(idx)
 
-    def _motors_to_wheels(self, mask: np.ndarray | slice) -> None:
+    def _motors_to_wheels(self, mask: np.ndarray) -> None:
         """Each side's motor output into its wheel groups, with ``set_motor_output``'s and
         ``PlanarBody._drive``'s arithmetic in their order."""
         cars, ng = self.cars, self.cars.ng
-        if mask.all():  # views, not copies: the same numbers
-            mask = slice(None)
+        mask = cars_index(mask)
         drive, damping = self.base.drive_torque[mask], self.base.damping[mask]
         tau = [np.zeros(len(drive)) for _ in range(ng)]
         for (g, sign), k in self._held_joints:

@@ -376,32 +376,13 @@ def _close_recorders(recorders: list[Any]) -> dict[str, Any]:
 
 
 def _serve_until_interrupted(recorders: list[Any]) -> None:
-    """Keep the web viewer (the recorder process) up until Ctrl-C or SIGTERM.
-
-    Both stop it the same way (the recorder and its server end, exit status 0), also where
-    this process was started with SIGINT ignored, as a shell script's background job is:
-    Python then leaves Ctrl-C ignored, and the "Ctrl-C stops" below would not hold."""
-    import signal
-    import time
-
+    """Keep the web viewer (the recorder process) up until Ctrl-C or SIGTERM."""
     from smartcar_gym.viewers.rerun_process import RerunProcessSink
 
-    def stop(signum: int, frame: Any) -> None:
-        raise KeyboardInterrupt
-
     sink = next(r for r in recorders if isinstance(r, RerunProcessSink))
-    previous = {sig: signal.signal(sig, stop) for sig in (signal.SIGINT, signal.SIGTERM)}
     print(f"smartcar-eval: serving the episodes at {sink.web_url}; Ctrl-C stops",
           file=sys.stderr)
-    try:
-        while True:
-            time.sleep(3600)
-    except KeyboardInterrupt:
-        pass
-    finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
-        sink.stop()
+    sink.serve_until_interrupted()
 
 
 def check_outputs(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:

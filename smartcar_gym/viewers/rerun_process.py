@@ -128,6 +128,29 @@ class RerunProcessSink:
             self.discard()
         self._end()
 
+    def serve_until_interrupted(self) -> None:
+        """Keep serving until Ctrl-C or SIGTERM, then ``stop``.
+
+        Both stop it the same way (the recorder and its server end), also where this process
+        was started with SIGINT ignored, as a shell script's background job is: Python then
+        leaves Ctrl-C ignored. The previous handlers are back afterwards."""
+        import time
+
+        def interrupt(signum: int, frame: Any) -> None:
+            raise KeyboardInterrupt
+
+        previous = {sig: signal.signal(sig, interrupt) for sig in (signal.SIGINT,
+                                                                   signal.SIGTERM)}
+        try:
+            while True:
+                time.sleep(3600)
+        except KeyboardInterrupt:
+            pass
+        finally:
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
+            self.stop()
+
     def _send(self, message: tuple) -> None:
         try:
             self._conn.send(message)

@@ -189,8 +189,26 @@ def test_a_differential_drive_robot_is_batched_too() -> None:
     venv.close()
 
 
+def test_the_lateral_friction_ratio_is_the_tyres_and_a_sliding_caster_stays_isotropic() -> None:
+    """``lateral_friction_ratio`` corrects rolling tyres; the casterbot's ball (a sliding
+    contact) resists sliding alike in every direction, as pybullet's friction does."""
+    env = gym.make("SmartCar-v0", model=CASTERBOT, controller_config=CASTERBOT_YAML,
+                   engine="planar")
+    env.reset(seed=0)
+    body = env.unwrapped.robot.body
+    model = body.model_with(PlanarParams(friction_scale=1.0, lateral_friction_ratio=1.3))
+    rows = {g: np.array(c) for g, c in zip(model.contact_groups, model.contacts, strict=True)}
+    ball = rows[-1]
+    assert ball[0] == pytest.approx(-0.08 - model.com[0]) and ball[5] == ball[6] == 0.5
+    wheels = [np.array(c) for g, c in zip(model.contact_groups, model.contacts, strict=True)
+              if g >= 0]
+    assert len(wheels) == 2 and all(w[6] == pytest.approx(1.3 * w[5]) for w in wheels)
+    env.close()
+
+
 def test_parameter_files_round_trip_and_name_what_is_wrong(tmp_path) -> None:
-    params = PlanarParams(friction_scale=0.9, slip_speed=0.003, rolling_resistance=0.01)
+    params = PlanarParams(friction_scale=0.9, slip_speed=0.003, rolling_resistance=0.01,
+                          load_shift_x=-0.004)
     path = tmp_path / "fit.yaml"
     path.write_text(dump(params, {"source": "test"}))
     assert load(path) == params
@@ -200,6 +218,7 @@ def test_parameter_files_round_trip_and_name_what_is_wrong(tmp_path) -> None:
     cases = {
         "planar: {slip_speed: 2.0}\n": "planar.slip_speed: expected a number in",
         "planar: {frction_scale: 1.0}\n": "planar.frction_scale: unknown key",
+        "planar: {load_shift_x: 1.5}\n": r"planar.load_shift_x: expected a number in \[-1, 1\] m",
         "planar: [1, 2]\n": "planar: expected a mapping",
         "slip_speed: 0.01\n": "'planar:' section",
         "planar: {slip_speed: 0.01}\nextra: 1\n": "extra: unknown section",
@@ -223,6 +242,30 @@ def test_env_arguments_are_checked_in_one_line(tmp_path) -> None:
     bad.write_text("planar: {lateral_friction_ratio: 0}\n")
     with pytest.raises(PlanarParamsError, match="lateral_friction_ratio"):
         gym.make("SmartCar-v0", engine="planar", planar_params=str(bad))
+
+
+def test_the_load_shift_moves_the_static_loads_as_a_centre_of_mass_would(tmp_path) -> None:
+    """``load_shift_x``: the contacts' loads balance about a point d ahead of the centre of
+    mass (sum N x = W d, x from the centre of mass), and the weight is unchanged; a shift
+    that leaves the contacts is refused naming the key and the file."""
+    env = gym.make("SmartCar-v0", engine="planar")
+    env.reset(seed=0)
+    body = env.unwrapped.robot.body
+    weight = body.model.car[0] * 9.81
+    for shift in (0.0, 0.006, -0.01):
+        contacts = np.array(body.model_with(PlanarParams(load_shift_x=shift)).contacts)
+        x, load = contacts[:, 0], contacts[:, 4]
+        assert load.sum() == pytest.approx(weight, rel=1e-9)
+        assert (load * x).sum() == pytest.approx(weight * shift, abs=1e-9)
+        assert (load * contacts[:, 1]).sum() == pytest.approx(0.0, abs=1e-9)
+    front = np.array(body.model_with(PlanarParams(load_shift_x=0.006)).contacts)[:, 4]
+    nominal = np.array(body.model_with(PlanarParams()).contacts)[:, 4]
+    assert front[0] > nominal[0] and front[2] < nominal[2]  # front wheels first in the URDF
+    env.close()
+    far = tmp_path / "far.yaml"
+    far.write_text("planar: {load_shift_x: 0.5}\n")
+    with pytest.raises(ValueError, match=r"tip over \(planar.load_shift_x 0.5 m from .*far.yaml\)"):
+        gym.make("SmartCar-v0", engine="planar", planar_params=str(far)).reset(seed=0)
 
 
 def test_rgb_array_is_a_top_down_picture() -> None:

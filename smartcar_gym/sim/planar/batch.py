@@ -124,9 +124,11 @@ def _columns(values: np.ndarray, n: int) -> np.ndarray:
 
 def yaw_quaternion_arrays(c: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``simulator.yaw_quaternion``'s z and w for arrays of cos and sin (same arithmetic)."""
-    half_c = np.sqrt((1.0 + c) / 2.0)
+    # each branch's root is only taken where it is real; the other side is clipped at 0 so
+    # that np.where's unused branch cannot warn about a NaN (|c| may exceed 1 by a rounding)
+    half_c = np.sqrt(np.maximum((1.0 + c) / 2.0, 0.0))
     qz_a, qw_a = s / (2.0 * np.where(half_c > 0, half_c, 1.0)), half_c
-    half_s = np.copysign(np.sqrt((1.0 - c) / 2.0), np.where(s != 0.0, s, 1.0))
+    half_s = np.copysign(np.sqrt(np.maximum((1.0 - c) / 2.0, 0.0)), np.where(s != 0.0, s, 1.0))
     qz_b = half_s
     qw_b = s / (2.0 * np.where(half_s != 0, half_s, 1.0))
     front = c > -0.5

@@ -256,11 +256,19 @@ def build_car(tables: RobotTables, ground_z: float, actuation: Actuation,
         bounds += [mu] * (len(points) - len(bounds))
     if not points:
         raise ValueError(f"{tables.robot.name}: no collision shape touches the ground")
-    loads = static_loads(np.array(points), com[:2], mass * gravity_m_s2)
+    balance = com[:2] + np.array([params.load_shift_x, 0.0])
+    try:
+        loads = static_loads(np.array(points), balance, mass * gravity_m_s2)
+    except ValueError as exc:
+        if params.load_shift_x == 0.0:
+            raise
+        raise ValueError(f"{exc} (planar.load_shift_x {params.load_shift_x:g} m from "
+                         f"{params.source})") from None
     transfer = load_transfer(np.array(points), float(com[2] - ground_z))
     contacts = [[float(p[0] - com[0]), float(p[1] - com[1]), float(wx), float(wy), float(load),
-                 float(mu), float(mu * params.lateral_friction_ratio), float(lx), float(ly)]
-                for p, (_, wx, wy), mu, load, (lx, ly)
+                 float(mu), float(mu * (params.lateral_friction_ratio if g >= 0 else 1.0)),
+                 float(lx), float(ly)]
+                for p, (g, wx, wy), mu, load, (lx, ly)
                 in zip(points, rolling, bounds, loads, transfer, strict=True)]
     group_inertia, coulomb = [], []
     for g, members in enumerate(groups.members):

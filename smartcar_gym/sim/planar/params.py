@@ -53,6 +53,11 @@ class PlanarParams:
             that slow commands must overcome).
         stiction_speed: rad/s of wheel speed over which the gearbox's Coulomb friction builds
             up (its regularisation: small enough that a stalled wheel creeps at most this).
+        load_shift_x: m along base_link's x axis: the contacts' static loads balance as if
+            the centre of mass were this far ahead of where the description puts it (a
+            centre of mass that is not where the URDF says, or a split of the weight over
+            four or more wheels that rigid geometry leaves open). It sets how differently
+            the car turns driving forward and in reverse.
         source: the file the values came from ("built-in" for the defaults).
     """
 
@@ -62,6 +67,7 @@ class PlanarParams:
     rolling_resistance: float = 0.0
     gearbox_friction_scale: float = 1.0
     stiction_speed: float = 0.05
+    load_shift_x: float = 0.0
     source: str = dataclasses.field(default="built-in", compare=False)
 
 
@@ -73,6 +79,7 @@ RANGES: dict[str, tuple[float, float, str]] = {
     "rolling_resistance": (0.0, 0.5, ""),
     "gearbox_friction_scale": (0.0, 10.0, ""),
     "stiction_speed": (1e-4, 10.0, "rad/s"),
+    "load_shift_x": (-1.0, 1.0, "m"),
 }
 KEYS = tuple(RANGES)
 

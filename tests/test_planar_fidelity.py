@@ -43,3 +43,28 @@ def test_odometry_drifts_as_on_its_engine(engine, shipped_model, shipped_config)
     value = odometry_error().measure(shipped_model, shipped_config, "planar",
                                      planar_params=engine)
     assert value == pytest.approx(reference, abs=0.03)
+
+
+@pytest.mark.slow
+def test_a_users_robot_is_identified_inside_the_gates() -> None:
+    """The casterbot fixture (two wheels and a sliding caster ball), fitted from the fit's own
+    drives on pybullet (``smartcar-calibrate --fit planar --model ...``, seed 0), drives like
+    pybullet's casterbot within every gate (docs/planar.md, "A user's robot")."""
+    from pathlib import Path
+
+    from smartcar_gym.calibration.planar_fit import fit
+    from smartcar_gym.calibration.recording import record
+    from smartcar_gym.controller import load_controller_config
+    from smartcar_gym.model import load_model
+
+    fixture = Path(__file__).parent / "fixtures" / "casterbot_description"
+    model = load_model(str(fixture / "urdf" / "casterbot.urdf.xacro"))
+    config = load_controller_config(str(fixture / "config" / "casterbot_arbotix.yaml"))
+    params = fit(model, config, record(model, config, "pybullet")).params
+    for maneuver, tolerance in GATES:
+        reference = maneuver.measure(model, config, "pybullet")
+        value = maneuver.measure(model, config, "planar", planar_params=params)
+        assert value == pytest.approx(reference, rel=tolerance), maneuver.name
+    reference = odometry_error().measure(model, config, "pybullet")
+    value = odometry_error().measure(model, config, "planar", planar_params=params)
+    assert value == pytest.approx(reference, abs=0.03)

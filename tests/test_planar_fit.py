@@ -16,7 +16,7 @@ from smartcar_gym.calibration.recording import Recording, record, replay
 from smartcar_gym.sim.planar.params import PlanarParams, load
 
 TRUE = PlanarParams(friction_scale=0.8, lateral_friction_ratio=1.1, slip_speed=0.01,
-                    rolling_resistance=0.02, gearbox_friction_scale=1.2)
+                    rolling_resistance=0.02, gearbox_friction_scale=1.2, load_shift_x=0.008)
 
 
 @pytest.fixture(scope="module")
@@ -49,6 +49,7 @@ def test_the_fit_recovers_known_parameters(shipped_model, shipped_config, planar
     assert p.friction_scale == pytest.approx(TRUE.friction_scale, rel=0.08)
     assert p.lateral_friction_ratio == pytest.approx(TRUE.lateral_friction_ratio, rel=0.04)
     assert p.gearbox_friction_scale == pytest.approx(TRUE.gearbox_friction_scale, rel=0.25)
+    assert p.load_shift_x == pytest.approx(TRUE.load_shift_x, abs=0.003)
     assert result.rms < 0.15
     assert result.rms < 0.5 * np.sqrt(np.mean(np.square(list(result.before.values()))))
     assert result.free == planar_fit.FREE
@@ -74,6 +75,12 @@ def test_too_little_excitation_names_the_missing_maneuver(planar_drives) -> None
     assert "--keep friction_scale,lateral_friction_ratio" in str(caught.value)
     seconds = check_excitation(planar_drives, planar_fit.FREE)
     assert seconds["spin in place"] >= 9.0 and seconds["stop from speed"] > 0
+    assert seconds["turning in reverse"] >= 5.0
+    forward = [r for r in planar_drives if not r.name.startswith(("arc -", "random"))]
+    with pytest.raises(FitError, match="of turning in reverse .*for load_shift_x; record it, "
+                                       "or keep it with --keep load_shift_x"):
+        check_excitation(forward, planar_fit.FREE)
+    check_excitation(forward, [k for k in planar_fit.FREE if k != "load_shift_x"])
 
 
 def test_a_fit_that_cannot_converge_gives_its_residual(shipped_model, shipped_config,

@@ -72,8 +72,8 @@ def twists(commands: np.ndarray) -> list[Twist]:
 def fit_maneuvers(rate_hz: float, max_linear: float = 0.5,
                   max_angular: float = 2.0) -> dict[str, list[Twist]]:
     """The drives the fit makes itself on a physics engine: straight runs at five speeds and
-    spins at three rates, each from rest and then stopped to coast, two arcs, and 10 s of
-    seeded random twists (about 60 s in all)."""
+    spins at three rates, each from rest and then stopped to coast, two arcs driven forward
+    and the same two in reverse, and 10 s of seeded random twists (about 70 s in all)."""
     stop = hold((0.0, 0.0), 1.5, rate_hz)
     drives: dict[str, list[Twist]] = {}
     for v in (0.05, 0.1, 0.2, 0.3, 0.5):
@@ -82,6 +82,8 @@ def fit_maneuvers(rate_hz: float, max_linear: float = 0.5,
         drives[f"spin {w:g} rad/s"] = hold((0.0, min(w, max_angular)), 3.0, rate_hz) + stop
     drives["arc 0.2 m/s 1 rad/s"] = hold((0.2, 1.0), 3.0, rate_hz) + stop
     drives["arc 0.3 m/s -1.5 rad/s"] = hold((0.3, -1.5), 3.0, rate_hz) + stop
+    drives["arc -0.2 m/s 1 rad/s"] = hold((-0.2, 1.0), 3.0, rate_hz) + stop
+    drives["arc -0.3 m/s -1.5 rad/s"] = hold((-0.3, -1.5), 3.0, rate_hz) + stop
     drives["random twists"] = random_commands(10.0, rate_hz, FIT_SEED, max_linear, max_angular,
                                               hold_s=0.5)
     return drives

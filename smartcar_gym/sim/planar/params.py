@@ -42,9 +42,10 @@ class PlanarParams:
     Attributes:
         friction_scale: scales every contact's friction coefficient (the link's times the
             ground's, pybullet's rule): the effective friction of the tyres on the ground.
-        lateral_friction_ratio: a contact's friction across the body's x axis over its
+        lateral_friction_ratio: a tyre's friction across the body's x axis over its
             friction along it (1: isotropic Coulomb; above 1: the tyre resists sliding
-            sideways more, which makes a skid-steer car's effective track wider).
+            sideways more, which makes a skid-steer car's effective track wider). Sliding
+            contacts (a caster ball) stay isotropic.
         slip_speed: m/s of slip at which a contact's friction reaches 71 % of its Coulomb
             bound (``1/sqrt(2)``); its slip stiffness is ``mu N / slip_speed``.
         rolling_resistance: rolling resistance coefficient: a rolling wheel loses this share

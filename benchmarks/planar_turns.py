@@ -48,6 +48,17 @@ def turn_after_run(env: gym.Env) -> float:
     return float((info["pose"][2] - start + np.pi) % (2 * np.pi) - np.pi)
 
 
+def on_each(columns: dict[str, dict], measure) -> dict[str, object]:
+    """``measure(env)`` on a fresh SmartCar-v0 (a far goal, a wide arena) per column."""
+    out = {}
+    for name, kwargs in columns.items():
+        env = gym.make("SmartCar-v0", goal_range=(2.3, 2.4), arena_size=20.0,
+                       max_episode_steps=1000, **kwargs)
+        out[name] = measure(env)
+        env.close()
+    return out
+
+
 def main() -> None:
     fit = resolve("pybullet")
     columns = {
@@ -58,12 +69,7 @@ def main() -> None:
             {"engine": "planar", "planar_params": fit},
         "MuJoCo": {"engine": "mujoco"},
     }
-    rates = {}
-    for name, kwargs in columns.items():
-        env = gym.make("SmartCar-v0", goal_range=(2.3, 2.4), arena_size=20.0,
-                       max_episode_steps=1000, **kwargs)
-        rates[name] = [turn_rate(env, a) for a in ACTIONS]
-        env.close()
+    rates = on_each(columns, lambda env: [turn_rate(env, a) for a in ACTIONS])
     print("| cmd_vel (linear.x m/s, angular.z rad/s) | " + " | ".join(columns) + " |")
     print("|---" + "|---:" * len(columns) + "|")
     for i, (a, w) in enumerate(ACTIONS):
@@ -74,15 +80,11 @@ def main() -> None:
     for slip in (fit.slip_speed, 0.005):
         onset[f"planar, slip speed {slip * 1000:.1f} mm/s"] = {
             "engine": "planar", "planar_params": dataclasses.replace(fit, slip_speed=slip)}
+    turns = on_each(onset, turn_after_run)
     print("| a slow turn after a run | " + " | ".join(onset) + " |")
     print("|---" + "|---:" * len(onset) + "|")
-    turns = []
-    for kwargs in onset.values():
-        env = gym.make("SmartCar-v0", goal_range=(2.3, 2.4), arena_size=20.0,
-                       max_episode_steps=1000, **kwargs)
-        turns.append(turn_after_run(env))
-        env.close()
-    print("| true turn in 0.8 s (rad) | " + " | ".join(f"{t:.3f}" for t in turns) + " |")
+    print("| true turn in 0.8 s (rad) | " + " | ".join(f"{t:.3f}" for t in turns.values())
+          + " |")
 
 
 if __name__ == "__main__":

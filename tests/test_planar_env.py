@@ -197,11 +197,10 @@ def test_the_lateral_friction_ratio_is_the_tyres_and_a_sliding_caster_stays_isot
     env.reset(seed=0)
     body = env.unwrapped.robot.body
     model = body.model_with(PlanarParams(friction_scale=1.0, lateral_friction_ratio=1.3))
-    rows = {g: np.array(c) for g, c in zip(model.contact_groups, model.contacts, strict=True)}
-    ball = rows[-1]
+    rows = list(zip(model.contact_groups, model.contacts, strict=True))
+    [ball] = [c for g, c in rows if g < 0]
     assert ball[0] == pytest.approx(-0.08 - model.com[0]) and ball[5] == ball[6] == 0.5
-    wheels = [np.array(c) for g, c in zip(model.contact_groups, model.contacts, strict=True)
-              if g >= 0]
+    wheels = [c for g, c in rows if g >= 0]
     assert len(wheels) == 2 and all(w[6] == pytest.approx(1.3 * w[5]) for w in wheels)
     env.close()
 

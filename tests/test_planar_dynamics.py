@@ -134,6 +134,52 @@ def test_a_motor_torque_spins_a_free_wheel_group_as_newton_says() -> None:
     assert state[10] == 0.0 and state[4] == 0.0
 
 
+SLIDING = tuple(-1 for _ in CONTACTS)  # every contact slides: a block on the ground
+
+
+def sliding_block(v0: float) -> list[float]:
+    return [0.0, 0.0, 1.0, 0.0, v0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
+
+
+def test_a_stop_within_the_substep_lands_at_rest_not_past_it() -> None:
+    """Hand-derived: a block sliding at 5 cm/s on friction 0.5 (and 0.515 sideways) stops in
+    v0 / (mu g) = 10 ms. The tangent step alone, with friction saturated at a slip speed of
+    0.3 mm/s, would carry it to v0 - mu g dt = -4.8 cm/s in one 20 ms substep; the secant
+    step keeps its sign and leaves it within a slip speed of rest."""
+    eps, dt, v0 = 3e-4, 0.02, 0.05
+    assert v0 - MU * 9.81 * dt < -0.04  # what overshooting by the whole Coulomb force gives
+    state = sliding_block(v0)
+    speeds = []
+    for _ in range(5):
+        substep(state, car(slip=eps, coulomb=0.0), CONTACTS, SLIDING, [0.0] * 4, dt,
+                new_scratch(2))
+        speeds.append(state[4])
+    assert all(0.0 <= v < eps for v in speeds), speeds
+    assert state[5] == pytest.approx(0.0, abs=1e-12) and state[6] == pytest.approx(0.0, abs=1e-12)
+    # the distance slid: at most the 0.25 mm of the exact stop plus one substep's creep
+    assert 0.0 < state[0] < v0 ** 2 / (2 * MU * 9.81) + eps * dt
+
+
+def test_a_stop_converges_with_the_substep() -> None:
+    """The same block from 0.3 m/s (a 61 ms stop), never moving backwards: its slide at 1 ms
+    within 0.3 mm of the exact v0^2 / (2 mu g) = 9.2 mm, and at 20 ms short of it by about
+    half a substep's travel at the start, v0 dt / 2 = 3 mm (positions take the new speeds)."""
+    eps, v0 = 3e-4, 0.3
+
+    def slide(dt: float) -> float:
+        state = sliding_block(v0)
+        for _ in range(round(0.2 / dt)):
+            x = state[0]
+            substep(state, car(slip=eps, coulomb=0.0), CONTACTS, SLIDING, [0.0] * 4, dt,
+                    new_scratch(2))
+            assert state[0] >= x
+        return state[0]
+
+    exact = v0 ** 2 / (2 * MU * 9.81)
+    assert slide(0.001) == pytest.approx(exact, abs=3e-4)
+    assert slide(0.02) == pytest.approx(exact - v0 * 0.02 / 2, abs=5e-4)
+
+
 def test_braking_moves_load_to_the_front_wheels() -> None:
     """Hand-derived: a ground force F along x at the ground, the centre of mass h above it,
     four wheels at x = +-a: the front pair gains h F / (2 a) in all, the rear pair loses it."""

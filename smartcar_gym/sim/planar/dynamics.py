@@ -38,6 +38,18 @@ Euler); the heading turns by ``dt w`` as a Cayley rotation (``(c, s)`` stays a u
 to rounding, without a trigonometric call, whose last bit numpy's vector code and libm may
 disagree on).
 
+**Stops.** Where a slip saturates, its tangent stiffness along the slip is nearly zero, so a
+tyre (or a gearbox) that stops within the substep is carried through zero by its whole
+Coulomb force and lands sliding the other way: the 20 ms step overshot the end of every
+turn. A car whose tangent step reverses any slip (a contact's, in the metric of its friction
+ellipse, or a wheel group's speed) is therefore solved again from the start, each reversed
+force now entering by its *secant* stiffness ``A`` at the point of its slip's path nearest
+zero: the force ``-A s``, linear in the new slip, under which a slip cannot change sign. For a
+stop this is the fully implicit (backward Euler) step: in one dimension the new slip
+``s / (1 + dt A / m)`` with ``A = mu N / eps`` is what ``m (s' - s) = -dt mu N s' /
+sqrt(s'^2 + eps^2)`` gives when ``s'`` comes to rest. The other forces keep their tangents;
+a car that reverses nothing keeps the first solve, bit for bit.
+
 **Load transfer.** A contact's normal load is its static share of the weight plus its share of
 the moment that the ground's force on the body, acting at the ground, exerts about the centre of
 mass (``load_per_fx``, ``load_per_fy``: from the same force and moment balance as the static
@@ -89,17 +101,22 @@ def car_size(groups: int) -> int:
     return len(CAR) + 2 * groups
 
 
-def make_substep(sqrt: Callable[[Value], Value]) -> Callable[..., None]:
-    """The substep function with this ``sqrt``: ``math.sqrt`` for floats (and the compiled
-    loop), ``numpy.sqrt`` for arrays of cars. Both are IEEE's correctly rounded square root."""
+def make_solve(sqrt: Callable[[Value], Value],
+               where: Callable[[Value, Value, Value], Value]) -> Callable[..., tuple]:
+    """One linearly implicit solve with this ``sqrt`` and ``where`` (see ``make_substep``)."""
 
-    def substep(state: Any, car: Any, contacts: Any, groups: Sequence[int], drive: Any,
-                dt: Value, scratch: Any) -> None:
-        """Advance ``state`` (in place) by ``dt`` s with ``drive``'s motor torques;
-        ``scratch``: 7 rows of G values to work in (``new_scratch``)."""
-        c, s, vxw, vyw, w = state[2], state[3], state[4], state[5], state[6]
-        vx = c * vxw + s * vyw  # body-frame velocity of the centre of mass
-        vy = c * vyw - s * vxw
+    def solve(state: Any, car: Any, contacts: Any, groups: Sequence[int], drive: Any,
+              dt: Value, scratch: Any, vx: Value, vy: Value, w: Value, again: bool,
+              du: Value, dv: Value, dw: Value) -> tuple:
+        """The velocity change ``(du, dv, dw)`` of the body (body frame) over ``dt`` from
+        ``(vx, vy, w)`` and the groups' speeds in ``state``; each group's goes to scratch row
+        7. The ground's force at the start, ``(f1, f2)``, comes back too.
+
+        Each force enters by its tangent (its Jacobian at the start) or, ``again`` after a
+        first solve whose changes were ``(du, dv, dw)`` and scratch row 8, where that solve
+        carried its slip through zero: by its secant stiffness ``A`` at the point of that
+        solve's slip path nearest zero, the force ``-A s`` linear in the new slip.
+        """
         eps2 = car[2]
         ng = (len(car) - 4) // 2
         fxp = state[7 + 2 * ng]  # the ground's force at the last substep: the load transfer
@@ -108,6 +125,7 @@ def make_substep(sqrt: Callable[[Value], Value]) -> Callable[..., None]:
         a11 = a12 = a13 = a22 = a23 = a33 = 0.0
         fg, c1, c2, c3, dg, diag, rhs = (scratch[0], scratch[1], scratch[2], scratch[3],
                                          scratch[4], scratch[5], scratch[6])
+        first = scratch[8]
         for g in range(ng):
             fg[g] = c1[g] = c2[g] = c3[g] = dg[g] = 0.0 * vx
         for k in range(len(groups)):
@@ -126,12 +144,31 @@ def make_substep(sqrt: Callable[[Value], Value]) -> Callable[..., None]:
             load = row[4] + row[7] * fxp + row[8] * fyp
             load = 0.5 * (load + abs(load))  # a wheel lifted off carries nothing
             a = load / sqrt(q2)
-            fx = -a * kx * ux
-            fy = -a * ky * uy
             h = a / q2
             d11 = kx * kx * h * (uy * uy + e2)
             d22 = ky * ky * h * (ux * ux + e2)
             d12 = -kx * ky * h * ux * uy
+            fx = -a * kx * ux
+            fy = -a * ky * uy
+            if again:
+                px = du - dw * ry  # the first solve's change of this slip (scaled)
+                py = dv + dw * rx
+                if g >= 0:
+                    px = px + row[2] * first[g]
+                    py = py + row[3] * first[g]
+                px = kx * px
+                py = ky * py
+                along = ux * px + uy * py
+                crossed = ux * ux + uy * uy + along < 0.0
+                t = -along / (px * px + py * py + e2)  # nearest zero on u + t p
+                nx = ux + t * px
+                ny = uy + t * py
+                sec = load / sqrt(nx * nx + ny * ny + e2)
+                d11 = where(crossed, kx * kx * sec, d11)
+                d22 = where(crossed, ky * ky * sec, d22)
+                d12 = where(crossed, 0.0 * sec, d12)
+                fx = where(crossed, -sec * kx * ux, fx)
+                fy = where(crossed, -sec * ky * uy, fy)
             e1 = d12 * rx - d11 * ry
             e2 = d22 * rx - d12 * ry
             f1 = f1 + fx
@@ -165,12 +202,19 @@ def make_substep(sqrt: Callable[[Value], Value]) -> Callable[..., None]:
         eps_w2 = car[3]
         for g in range(ng):
             o = state[7 + ng + g]
-            q2 = o * o + eps_w2
-            root = sqrt(q2)
             coulomb = car[4 + ng + g]
             b = drive[ng + g]
-            rg = dt * (fg[g] + drive[g] - b * o - coulomb * o / root)
-            dgg = car[4 + g] + dt * (dg[g] + b + coulomb * eps_w2 / (q2 * root))
+            q2 = o * o + eps_w2
+            root = sqrt(q2)
+            friction = coulomb * o / root
+            stiff = coulomb * eps_w2 / (q2 * root)
+            if again:  # a gearbox carried through zero: its secant at zero speed
+                crossed = o * (o + first[g]) < 0.0
+                sec = coulomb / sqrt(eps_w2)
+                friction = where(crossed, sec * o, friction)
+                stiff = where(crossed, sec, stiff)
+            rg = dt * (fg[g] + drive[g] - b * o - friction)
+            dgg = car[4 + g] + dt * (dg[g] + b + stiff)
             inv = 1.0 / dgg
             x1 = dt * c1[g]
             x2 = dt * c2[g]
@@ -199,9 +243,67 @@ def make_substep(sqrt: Callable[[Value], Value]) -> Callable[..., None]:
         du = (k11 * r1 + k12 * r2 + k13 * r3) * inv_det
         dv = (k12 * r1 + k22 * r2 + k23 * r3) * inv_det
         dw = (k13 * r1 + k23 * r2 + k33 * r3) * inv_det
+        out = scratch[7]
         for g in range(ng):
-            o = state[7 + ng + g] + (rhs[g] - dt * (c1[g] * du + c2[g] * dv + c3[g] * dw)) \
-                * diag[g]
+            out[g] = (rhs[g] - dt * (c1[g] * du + c2[g] * dv + c3[g] * dw)) * diag[g]
+        return du, dv, dw, f1, f2
+
+    return solve
+
+
+def make_substep(sqrt: Callable[[Value], Value], solve: Callable[..., tuple],
+                 where: Callable[[Value, Value, Value], Value],
+                 anywhere: Callable[[Value], bool]) -> Callable[..., None]:
+    """The substep function with this ``sqrt`` (``math.sqrt`` for floats and the compiled
+    loop, ``numpy.sqrt`` for arrays of cars: both IEEE's correctly rounded square root), this
+    ``solve`` (``make_solve(sqrt, where)``, compiled alongside), and ``where`` / ``anywhere``:
+    a choice per car and whether any car chose (for floats ``a if c else b`` and ``c``; for
+    arrays ``numpy.where`` and ``numpy.any``)."""
+
+    def substep(state: Any, car: Any, contacts: Any, groups: Sequence[int], drive: Any,
+                dt: Value, scratch: Any) -> None:
+        """Advance ``state`` (in place) by ``dt`` s with ``drive``'s motor torques;
+        ``scratch``: ``SCRATCH_ROWS`` rows of G values to work in (``new_scratch``)."""
+        c, s, vxw, vyw, w = state[2], state[3], state[4], state[5], state[6]
+        vx = c * vxw + s * vyw  # body-frame velocity of the centre of mass
+        vy = c * vyw - s * vxw
+        ng = (len(car) - 4) // 2
+        du, dv, dw, f1, f2 = solve(state, car, contacts, groups, drive, dt, scratch,
+                                   vx, vy, w, False, vx, vy, w)
+        # did the tangent step carry a slip through zero (a tyre's, or a gearbox's speed)?
+        out, first = scratch[7], scratch[8]
+        crossed = vx > vx  # False, or no car
+        for g in range(ng):
+            o = state[7 + ng + g]
+            first[g] = out[g]
+            crossed = crossed | (o * (o + out[g]) < 0.0)
+        for k in range(len(groups)):
+            row = contacts[k]
+            g = groups[k]
+            sx = vx - w * row[1]
+            sy = vy + w * row[0]
+            px = du - dw * row[1]
+            py = dv + dw * row[0]
+            if g >= 0:
+                sx = sx + row[2] * state[7 + ng + g]
+                sy = sy + row[3] * state[7 + ng + g]
+                px = px + row[2] * out[g]
+                py = py + row[3] * out[g]
+            kx2 = row[5] * row[5]
+            ky2 = row[6] * row[6]
+            crossed = crossed | (kx2 * sx * (sx + px) + ky2 * sy * (sy + py) < 0.0)
+        if anywhere(crossed):
+            # there the tangent overshoots the stop: solve again from the start with those
+            # forces' secants at zero slip (a stiffness under which a slip cannot cross zero)
+            bu, bv, bw, b1, b2 = solve(state, car, contacts, groups, drive, dt, scratch,
+                                       vx, vy, w, True, du, dv, dw)
+            du = where(crossed, bu, du)
+            dv = where(crossed, bv, dv)
+            dw = where(crossed, bw, dw)
+            for g in range(ng):
+                out[g] = where(crossed, out[g], first[g])
+        for g in range(ng):
+            o = state[7 + ng + g] + out[g]
             state[7 + ng + g] = o
             state[7 + g] = state[7 + g] + dt * o
         vxw = vxw + (c * du - s * dv)
@@ -225,15 +327,29 @@ def make_substep(sqrt: Callable[[Value], Value]) -> Callable[..., None]:
     return substep
 
 
+def _where(choose: bool, a: float, b: float) -> float:
+    return a if choose else b
+
+
+def _anywhere(choose: bool) -> bool:
+    return choose
+
+
+def _anywhere_arrays(choose: np.ndarray) -> bool:
+    return bool(np.any(choose))
+
+
 #: one car in Python floats (lists), and N cars in numpy arrays (rows of (S, N) arrays)
-substep = make_substep(math.sqrt)
-substep_arrays = make_substep(np.sqrt)
+substep = make_substep(math.sqrt, make_solve(math.sqrt, _where), _where, _anywhere)
+substep_arrays = make_substep(np.sqrt, make_solve(np.sqrt, np.where), np.where,
+                              _anywhere_arrays)
+SCRATCH_ROWS = 9  # solve's rows 0-7; 8: the first solve's changes of the groups' speeds
 
 
 def new_scratch(groups: int) -> list[list[Any]]:
     """The working rows ``substep`` takes for floats and for arrays (numba's loop takes a
-    ``(7, G)`` array instead)."""
-    return [[0.0] * groups for _ in range(7)]
+    ``(SCRATCH_ROWS, G)`` array instead)."""
+    return [[0.0] * groups for _ in range(SCRATCH_ROWS)]
 
 
 # -- numba's compiled loops (jit.py). They live here, with the function they compile: numba
@@ -248,14 +364,17 @@ except ImportError:  # the fast extra is not installed: Python floats and numpy 
 COMPILED = numba is not None and os.environ.get("SMARTCAR_GYM_NUMBA", "1") != "0"
 
 if COMPILED:
-    _compiled_substep = numba.njit(cache=True)(make_substep(math.sqrt))
+    _jit_where = numba.njit(cache=True)(_where)
+    _compiled_substep = numba.njit(cache=True)(make_substep(
+        math.sqrt, numba.njit(cache=True)(make_solve(math.sqrt, _jit_where)), _jit_where,
+        numba.njit(cache=True)(_anywhere)))
 
     @numba.njit(cache=True)
     def run_car(state: np.ndarray, car: np.ndarray, contacts: np.ndarray, groups: np.ndarray,
                 drive: np.ndarray, dt: float, n: int) -> None:
         """``n`` substeps of ``dt`` s of one car (1D ``state``, ``car``, ``drive``; ``(K, NC)``
         ``contacts``), in place."""
-        scratch = np.zeros((7, (car.shape[0] - 4) // 2))
+        scratch = np.zeros((SCRATCH_ROWS, (car.shape[0] - 4) // 2))
         for _ in range(n):
             _compiled_substep(state, car, contacts, groups, drive, dt, scratch)
 
@@ -264,7 +383,7 @@ if COMPILED:
                  drive: np.ndarray, dt: np.ndarray, n: np.ndarray) -> None:
         """Car i: ``n[i]`` substeps of ``dt[i]`` s; arrays in the batch's layout (``(S, N)``
         state, ``(P, N)`` car, ``(K, NC, N)`` contacts, ``(2G, N)`` drive), in place."""
-        scratch = np.zeros((7, (car.shape[0] - 4) // 2))
+        scratch = np.zeros((SCRATCH_ROWS, (car.shape[0] - 4) // 2))
         # each car's columns gathered into contiguous buffers (the batch is laid out by
         # quantity for numpy; a car's values are N apart), stepped, and its state put back
         column, params = np.empty(state.shape[0]), np.empty(car.shape[0])

@@ -160,13 +160,13 @@ class FitResult:
         return float(np.sqrt(np.mean(np.square(list(self.after.values())))))
 
 
-#: the box the search explores (log-uniform but for ``_LINEAR``), inside ``RANGES``: below a
-#: slip speed of 2 mm/s a 20 ms substep overshoots the tyres' stop at the end of a turn (the
-#: UMBmark square 32 % short at 1 mm/s; docs/planar.md, "The slip speed has a floor")
+#: the box the search explores (log-uniform but for ``_LINEAR``), inside ``RANGES``: the slip
+#: speeds down to 0.2 mm/s where the 20 ms substep was checked against 2 ms (docs/planar.md,
+#: "Integration and step")
 SEARCH: dict[str, tuple[float, float]] = {
     "friction_scale": (0.3, 3.0),
     "lateral_friction_ratio": (0.7, 1.5),
-    "slip_speed": (0.002, 0.05),
+    "slip_speed": (0.0002, 0.05),
     "gearbox_friction_scale": (0.3, 3.0),
     "rolling_resistance": (0.0, 0.05),
 }

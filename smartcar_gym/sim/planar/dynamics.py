@@ -268,11 +268,12 @@ def make_substep(sqrt: Callable[[Value], Value], solve: Callable[..., tuple],
         vx = c * vxw + s * vyw  # body-frame velocity of the centre of mass
         vy = c * vyw - s * vxw
         ng = (len(car) - 4) // 2
+        zero = 0.0 * vx
         du, dv, dw, f1, f2 = solve(state, car, contacts, groups, drive, dt, scratch,
-                                   vx, vy, w, False, vx, vy, w)
+                                   vx, vy, w, False, zero, zero, zero)
         # did the tangent step carry a slip through zero (a tyre's, or a gearbox's speed)?
         out, first = scratch[7], scratch[8]
-        crossed = vx > vx  # False, or no car
+        crossed = zero > zero  # False: no car yet
         for g in range(ng):
             o = state[7 + ng + g]
             first[g] = out[g]
@@ -293,9 +294,9 @@ def make_substep(sqrt: Callable[[Value], Value], solve: Callable[..., tuple],
             ky2 = row[6] * row[6]
             crossed = crossed | (kx2 * sx * (sx + px) + ky2 * sy * (sy + py) < 0.0)
         if anywhere(crossed):
-            # there the tangent overshoots the stop: solve again from the start with those
-            # forces' secants at zero slip (a stiffness under which a slip cannot cross zero)
-            bu, bv, bw, b1, b2 = solve(state, car, contacts, groups, drive, dt, scratch,
+            # there the tangent overshoots the stop: solve again from the start, those forces
+            # by their secants where their slips pass nearest zero (a slip cannot cross zero)
+            bu, bv, bw, _, _ = solve(state, car, contacts, groups, drive, dt, scratch,
                                        vx, vy, w, True, du, dv, dw)
             du = where(crossed, bu, du)
             dv = where(crossed, bv, dv)

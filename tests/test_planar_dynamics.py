@@ -160,6 +160,32 @@ def test_a_stop_within_the_substep_lands_at_rest_not_past_it() -> None:
     assert 0.0 < state[0] < v0 ** 2 / (2 * MU * 9.81) + eps * dt
 
 
+def test_the_second_solve_changes_only_cars_that_reverse_a_slip() -> None:
+    """The tangent step alone (``anywhere`` never true) against the full step: a car rolling on
+    under a gentle torque reverses nothing and is stepped bit for bit the same; the sliding
+    block, whose stop the tangent step overshoots, is not: alone, it rattles between about
+    +-5 cm/s, substep after substep."""
+    from smartcar_gym.sim.planar.dynamics import _where, make_solve, make_substep
+
+    tangent_only = make_substep(math.sqrt, make_solve(math.sqrt, _where), _where,
+                                lambda crossed: False)
+    v = 0.2
+    rolling = [0.0, 0.0, 1.0, 0.0, v, 0.0, 0.0, 0.0, 0.0, v / RADIUS, v / RADIUS, 0.0, 0.0]
+    for state0, groups, drive in ((rolling, GROUPS, [0.01, 0.012, 0.001, 0.001]),
+                                  (sliding_block(0.05), SLIDING, [0.0] * 4)):
+        full, alone = list(state0), list(state0)
+        speeds = []
+        for _ in range(10):
+            substep(full, car(slip=3e-4), CONTACTS, groups, drive, 0.02, new_scratch(2))
+            tangent_only(alone, car(slip=3e-4), CONTACTS, groups, drive, 0.02, new_scratch(2))
+            speeds.append((full[4], alone[4]))
+        if groups is GROUPS:
+            assert full == alone
+        else:
+            assert all(0.0 <= v < 3e-4 for v, _ in speeds)
+            assert all(abs(w) > 0.04 for _, w in speeds) and min(w for _, w in speeds) < 0.0
+
+
 def test_a_stop_converges_with_the_substep() -> None:
     """The same block from 0.3 m/s (a 61 ms stop), never moving backwards: its slide at 1 ms
     within 0.3 mm of the exact v0^2 / (2 mu g) = 9.2 mm, and at 20 ms short of it by about

@@ -18,9 +18,14 @@ from typing import Any
 
 import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback
-from stable_baselines3.common.evaluation import evaluate_policy
 from stable_baselines3.common.vec_env import VecEnv, sync_envs_normalization
 
+from smartcar_gym.agents.eval_worker import (
+    EvalWorker,
+    Records,
+    normalization_stats,
+    run_episodes,
+)
 from smartcar_gym.agents.model_files import vecnormalize_path_for
 from smartcar_gym.agents.run_files import (
     CHECKPOINT_RE,
@@ -32,6 +37,7 @@ from smartcar_gym.agents.run_files import (
     checkpoint_steps,
     file_mode,
     find_latest_checkpoint,
+    move_model_atomic,
     replay_buffer_path_for,
     save_model_atomic,
 )
@@ -135,11 +141,15 @@ class SuccessEvalCallback(BaseCallback):
     success rate, then mean return) is saved to ``best_model_path`` with its statistics, and its
     scores to ``best_model.json``. The eval env's normalisation statistics are synced from the
     training env before each evaluation (frozen, raw rewards).
+
+    ``eval_env`` may be an ``EvalWorker`` (``eval_async``): each evaluation is then sent to it
+    with a snapshot of the model (``<eval_dir>/pending_<steps>.zip``) and training goes on; its
+    result is recorded, as above, at the first step after it comes, or in ``drain()``.
     """
 
     def __init__(
         self,
-        eval_env: VecEnv,
+        eval_env: VecEnv | EvalWorker,
         eval_dir: str | os.PathLike,
         best_model_path: str | os.PathLike | None,
         eval_freq: int,
@@ -149,7 +159,8 @@ class SuccessEvalCallback(BaseCallback):
         eval_start: int = 0,
     ) -> None:
         super().__init__()
-        self.eval_env = eval_env
+        self.worker = eval_env if isinstance(eval_env, EvalWorker) else None
+        self.eval_env = None if self.worker is not None else eval_env
         self.eval_dir = Path(eval_dir)
         self.best_model_path = None if best_model_path is None else Path(best_model_path)
         self.eval_freq = int(eval_freq)
@@ -161,8 +172,6 @@ class SuccessEvalCallback(BaseCallback):
         self.best_score: tuple[float, float] | None = None
         self.last_result: EvalResult | None = None
         self._next = 0
-        self._episode_success: list[bool] = []
-        self._episode_distance: list[float] = []
 
     @property
     def npz_path(self) -> Path:
@@ -173,6 +182,10 @@ class SuccessEvalCallback(BaseCallback):
     def best_json_path(self) -> Path | None:
         """Scores of the best model, beside it."""
         return None if self.best_model_path is None else self.best_model_path.with_suffix(".json")
+
+    def snapshot_path(self, steps: int) -> Path:
+        """Where an asynchronous evaluation keeps its model until its result comes."""
+        return self.eval_dir / f"pending_{int(steps)}.zip"
 
     def _init_callback(self) -> None:
         self.num_timesteps = self.model.num_timesteps  # not yet set by BaseCallback here
@@ -209,47 +222,68 @@ class SuccessEvalCallback(BaseCallback):
             self.best_score = (best["success_rate"], best["mean_reward"])
 
     def _on_step(self) -> bool:
+        if self.worker is not None:
+            for steps, records in self.worker.results():
+                self._record(steps, records)
         if self.eval_freq > 0 and self.num_timesteps >= self._next:
             self.evaluate()
             self._next = self._next_after(self.num_timesteps)
         return True
 
-    def _collect(self, locals_: dict[str, Any], globals_: dict[str, Any]) -> None:
-        if locals_["done"]:
-            info = locals_["info"]
-            self._episode_success.append(bool(info.get("is_success", False)))
-            self._episode_distance.append(float(info.get("distance", np.nan)))
+    def evaluate(self) -> EvalResult | None:
+        """Run the evaluation episodes now, log and save them, update the best model.
 
-    def evaluate(self) -> EvalResult:
-        """Run the evaluation episodes now, log and save them, update the best model."""
+        With an ``EvalWorker``: send them to it and return None (``drain`` waits for them)."""
+        if self.worker is not None:
+            if self.best_model_path is not None:
+                save_model_atomic(self.model, self.snapshot_path(self.num_timesteps))
+            self.worker.submit(self.num_timesteps, self.model.policy,
+                               normalization_stats(self.training_env), self.n_eval_episodes,
+                               self.eval_seed, self.deterministic)
+            return None
         if self.model.get_vec_normalize_env() is not None:
             sync_envs_normalization(self.training_env, self.eval_env)
-        self.eval_env.seed(self.eval_seed)  # the same goals at every evaluation
-        self._episode_success, self._episode_distance = [], []
-        returns, lengths = evaluate_policy(
-            self.model, self.eval_env, n_eval_episodes=self.n_eval_episodes,
-            deterministic=self.deterministic, return_episode_rewards=True,
-            callback=self._collect, warn=False,
-        )
-        result = _summarise(
-            self.num_timesteps, list(returns), list(lengths), self._episode_success,
-            self._episode_distance,
-        )
-        self.history.append(
-            (result, list(returns), list(lengths), self._episode_success, self._episode_distance)
-        )
+        records = run_episodes(self.model, self.eval_env, self.n_eval_episodes, self.eval_seed,
+                               self.deterministic)
+        return self._record(self.num_timesteps, records)
+
+    def drain(self) -> None:
+        """Wait for the evaluations sent to the ``EvalWorker`` and record them (no worker:
+        nothing to wait for)."""
+        if self.worker is not None:
+            for steps, records in self.worker.wait():
+                self._record(steps, records)
+
+    def discard_pending(self) -> None:
+        """Remove the snapshots of evaluations whose results will not come (a stopped run)."""
+        for path in self.eval_dir.glob("pending_*.zip"):
+            vecnormalize_path_for(path).unlink(missing_ok=True)
+            path.unlink(missing_ok=True)
+
+    def _record(self, steps: int, records: Records) -> EvalResult:
+        """Log and save one evaluation's records; keep its model if it is the best."""
+        returns, lengths, successes, distances = (list(r) for r in records)
+        result = _summarise(steps, returns, lengths, successes, distances)
+        self.history.append((result, returns, lengths, successes, distances))
         self.last_result = result
         self._save_history()
         for key in ("success_rate", "mean_reward", "mean_final_distance", "mean_ep_length"):
             self.logger.record(f"eval/{key}", getattr(result, key))
-        self.logger.record("time/total_timesteps", self.num_timesteps, exclude="tensorboard")
-        self.logger.dump(self.num_timesteps)
+        self.logger.record("time/total_timesteps", steps, exclude="tensorboard")
+        self.logger.dump(steps)
         score = (result.success_rate, result.mean_reward)
         is_best = self.best_score is None or score > self.best_score
+        snapshot = None if self.worker is None else self.snapshot_path(steps)
         if self.best_model_path is not None and is_best:
             self.best_score = score
-            save_model_atomic(self.model, self.best_model_path)
+            if snapshot is None:
+                save_model_atomic(self.model, self.best_model_path)
+            else:
+                move_model_atomic(snapshot, self.best_model_path)
             atomic_write_text(self.best_json_path, json.dumps(asdict(result), indent=2) + "\n")
+        elif snapshot is not None:
+            vecnormalize_path_for(snapshot).unlink(missing_ok=True)
+            snapshot.unlink(missing_ok=True)
         return result
 
     def _save_history(self) -> None:

@@ -86,6 +86,17 @@ def save_model_atomic(model: BaseAlgorithm, path: str | os.PathLike) -> Path:
     return path
 
 
+def move_model_atomic(source: str | os.PathLike, path: str | os.PathLike) -> Path:
+    """Move a model saved by ``save_model_atomic`` (and its statistics) onto ``path``, in
+    ``save_model_atomic``'s order: the statistics, then the zip, each by one rename."""
+    source, path = Path(source), Path(path)
+    stats = vecnormalize_path_for(source)
+    if stats.exists():
+        os.replace(stats, vecnormalize_path_for(path))
+    os.replace(source, path)
+    return path
+
+
 def checkpoint_path(run_dir: str | os.PathLike, num_timesteps: int) -> Path:
     """``<run_dir>/checkpoints/ckpt_<steps>_steps.zip``."""
     return Path(run_dir) / "checkpoints" / f"ckpt_{num_timesteps}_steps.zip"

@@ -99,6 +99,9 @@ def new_config(args: argparse.Namespace, command: str) -> dict[str, Any]:
             check_engine(eval_engine, "eval_engine")
         except ValueError as err:
             raise HyperparamsError(str(err)) from None
+    if not isinstance(hyperparams.get("eval_async", False), bool):
+        raise HyperparamsError(f"eval_async must be true or false, got "
+                               f"{hyperparams['eval_async']!r}")
     return {
         "algo": algo,
         "env": env_id,
@@ -115,6 +118,9 @@ def new_config(args: argparse.Namespace, command: str) -> dict[str, Any]:
         # the one that does best there
         "eval_engine": eval_engine,
         "eval_start": int(timesteps) // 2 if args.eval_start is None else args.eval_start,
+        # evaluations in a second process while training goes on (batched runs)
+        "eval_async": (hyperparams.get("eval_async", False)
+                       if getattr(args, "eval_async", None) is None else args.eval_async),
         "checkpoint_freq": 50_000 if args.checkpoint_freq is None else args.checkpoint_freq,
         "save_replay_buffer": bool(args.save_replay_buffer),
         "device": args.device,
@@ -188,8 +194,8 @@ def resume_config(parser: argparse.ArgumentParser, args: argparse.Namespace,
     if given:
         parser.error(f"--resume reloads the run's config.yaml; {', '.join(given)} cannot be "
                      "changed (allowed: --timesteps, --eval-freq, --eval-episodes, "
-                     "--eval-start, --checkpoint-freq, --device, --torch-threads, --no-progress, "
-                     "--save-replay-buffer)")
+                     "--eval-start, --eval-async, --checkpoint-freq, --device, --torch-threads, "
+                     "--no-progress, --save-replay-buffer)")
     run_dir = args.resume
     config_path = run_dir / "config.yaml"
     if not config_path.is_file():
@@ -200,8 +206,8 @@ def resume_config(parser: argparse.ArgumentParser, args: argparse.Namespace,
         parser.error(f"--resume: {config_path} is not valid YAML: {err}")
     if not isinstance(config, dict):
         parser.error(f"--resume: {config_path} is not a run config (expected a mapping)")
-    for key in ("eval_freq", "eval_episodes", "eval_start", "checkpoint_freq"):
-        if getattr(args, key) is not None:
+    for key in ("eval_freq", "eval_episodes", "eval_start", "checkpoint_freq", "eval_async"):
+        if getattr(args, key, None) is not None:
             config[key] = getattr(args, key)
     if args.timesteps is not None:
         config["n_timesteps"] = args.timesteps

@@ -80,6 +80,10 @@ def build_parser() -> argparse.ArgumentParser:
                              "instead of the training env's, e.g. train on planar, evaluate on "
                              "pybullet (default: the hyperparameters' eval_engine, else the "
                              "training engine)")
+    parser.add_argument("--eval-async", action=argparse.BooleanOptionalAction, default=None,
+                        help="run the evaluations in a second process while training goes on "
+                             "(with --vectorization batched; default: the hyperparameters' "
+                             "eval_async, else no)")
     parser.add_argument("--run-dir", type=Path, default=None,
                         help="default: runs/<algo>_<env>_s<seed>")
     parser.add_argument("--eval-freq", type=non_negative_int_arg, default=None,
@@ -196,6 +200,8 @@ def print_summary(result: TrainResult, config: dict[str, Any]) -> None:
     table.add_row("environment steps", steps)
     table.add_row("wall time", f"{result.wall_time_s / 60:.1f} min ({result.wall_time_s:.0f} s)")
     table.add_row("steps/s", f"{result.steps_per_s:,.0f} (incl. evaluation)")
+    if result.final_eval_s >= 0.5:
+        table.add_row("then", f"{result.final_eval_s:.0f} s to the last evaluation")
     for name, ev in (("final eval", result.final_eval), ("best eval", result.best_eval)):
         if ev:
             table.add_row(name, f"success {ev['success_rate']:.0%}, return "

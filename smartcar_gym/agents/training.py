@@ -42,6 +42,9 @@ class TrainResult:
     interrupted: bool
     stop_signal: str | None = None  # "SIGINT" or "SIGTERM" when interrupted
     final_eval: dict[str, Any] | None = None
+    #: seconds after training until the best model was known: the final evaluation and, with
+    #: eval_async, the evaluations still running (and saving model.zip and a checkpoint)
+    final_eval_s: float = 0.0
     best_eval: dict[str, Any] | None = None
     files: list[str] = field(default_factory=list)
 
@@ -81,7 +84,6 @@ def train(
         SuccessEvalCallback,
         atomic_write_text,
         checkpoint_steps,
-        close_vec_env,
         save_model_atomic,
     )
 
@@ -109,7 +111,7 @@ def train(
         except BaseException:
             for env in (venv, eval_env):
                 if env is not None:
-                    close_vec_env(env)
+                    close_env(env)
             raise
 
     target = int(config["n_timesteps"])
@@ -152,14 +154,18 @@ def train(
                     checkpoints.init_callback(model)
                 checkpoints.save()
                 save_model_atomic(model, run_dir / "model.zip")
-                if evaluation is not None and not (aborted or stop.requested):
+                if evaluation is not None and not aborted:
                     if evaluation.model is None:
                         evaluation.init_callback(model)
+                    evaluation.drain()  # eval_async: the evaluations still in the worker
                     last = evaluation.last_result
-                    if last is None or last.timesteps != model.num_timesteps:
+                    if not stop.requested and (last is None
+                                               or last.timesteps != model.num_timesteps):
                         evaluation.evaluate()
+                        evaluation.drain()
             except KeyboardInterrupt:
                 aborted = True
+            final_eval_s = time.monotonic() - t0 - wall
         except BaseException:
             # Workers left alive would keep the process from exiting (they ignore SIGTERM, so
             # multiprocessing's exit handler waits for them forever).
@@ -168,7 +174,9 @@ def train(
         finally:
             for env in (venv, eval_env):
                 if env is not None:
-                    close_vec_env(env, force=aborted or failed)
+                    close_env(env, force=aborted or failed)
+            if evaluation is not None:
+                evaluation.discard_pending()
         interrupted = aborted or stop.requested
         stop_signal = signal.Signals(stop.signum or signal.SIGINT).name if interrupted else None
 
@@ -178,6 +186,7 @@ def train(
     result = TrainResult(
         run_dir=str(run_dir), start_timesteps=start, num_timesteps=int(model.num_timesteps),
         wall_time_s=wall, steps_per_s=trained / wall if wall > 0 else 0.0,
+        final_eval_s=final_eval_s,
         interrupted=interrupted, stop_signal=stop_signal,
         final_eval=None if evaluation is None or evaluation.last_result is None
         else asdict(evaluation.last_result),
@@ -211,18 +220,19 @@ def _undo_on_failure(run_dir: Path, monitor_prefix: str) -> Iterator[None]:
 
 def _make_envs(config: dict[str, Any], run_dir: Path, seed: int, segment: int,
                checkpoint: str | os.PathLike | None) -> tuple[Any, Any]:
-    """The training VecEnv (Monitor files ``seg<segment>_<i>``) and the eval VecEnv (or None),
+    """The training VecEnv (Monitor files ``seg<segment>_<i>``) and the eval VecEnv (or None;
+    with ``eval_async`` an ``EvalWorker`` that builds it in a process of its own),
     wrapped as the hyperparameters say: zoo's env_wrapper and vec_env_wrapper, VecNormalize
     (statistics from ``checkpoint``), VecFrameStack."""
     from stable_baselines3.common.vec_env import VecFrameStack
 
-    from smartcar_gym.agents.callbacks import close_vec_env
     from smartcar_gym.agents.env_factory import (
         EnvSetupError,
         check_env,
         make_vec_env,
         wrap_normalize,
     )
+    from smartcar_gym.agents.eval_worker import EvalWorker
     from smartcar_gym.agents.model_files import vecnormalize_path_for
     from smartcar_gym.sim.engines import DEFAULT_ENGINE, on_engine
 
@@ -244,6 +254,10 @@ def _make_envs(config: dict[str, Any], run_dir: Path, seed: int, segment: int,
         return env if n_stack is None else VecFrameStack(env, n_stack)
 
     batched = config.get("vectorization", "subproc") == "batched"
+    if config.get("eval_async") and config["eval_freq"] > 0 and not batched:
+        raise RunSetupError("eval_async evaluates in a second process beside a batched run "
+                            "(--vectorization batched); a subproc run's env workers have the "
+                            "cores already")
     if batched:
         from smartcar_gym.agents.vec_env import make_batched_vec_env
 
@@ -269,21 +283,42 @@ def _make_envs(config: dict[str, Any], run_dir: Path, seed: int, segment: int,
             # evaluated on another engine (planar training, pybullet evaluations)
             env_kwargs = on_engine(env_kwargs, eval_engine)
         if config["eval_freq"] > 0:
-            if batched:  # wrapped as the training env (on pybullet: a loop of single envs)
-                eval_env = make_batched_vec_env(env_id, min(n_envs, int(config["eval_episodes"])),
-                                                env_kwargs=env_kwargs,
-                                                monitor_kwargs=monitor_kwargs)
+            def make_eval_env() -> Any:
+                if batched:  # wrapped as the training env (on pybullet: a loop of single envs)
+                    env = make_batched_vec_env(env_id, min(n_envs, int(config["eval_episodes"])),
+                                               env_kwargs=env_kwargs,
+                                               monitor_kwargs=monitor_kwargs)
+                else:
+                    n_eval_envs = min(n_envs, int(config["eval_episodes"]), os.cpu_count() or 1)
+                    env = make_vec_env(env_id, n_eval_envs, env_kwargs=env_kwargs,
+                                       env_wrapper=wrapper, monitor_kwargs=monitor_kwargs)
+                return wrap(env, training=False)
+
+            if config.get("eval_async"):  # runs before it existed: in the training process
+                try:  # here, not in the worker: a clear error now
+                    check_env(env_id, env_kwargs, monitor_kwargs=monitor_kwargs)
+                except EnvSetupError as err:
+                    raise RunSetupError(f"the eval env: {err}") from err
+                eval_env = EvalWorker(make_eval_env)
             else:
-                n_eval_envs = min(n_envs, int(config["eval_episodes"]), os.cpu_count() or 1)
-                eval_env = make_vec_env(env_id, n_eval_envs, env_kwargs=env_kwargs,
-                                        env_wrapper=wrapper, monitor_kwargs=monitor_kwargs)
-            eval_env = wrap(eval_env, training=False)
+                eval_env = make_eval_env()
     except BaseException:
         for env in (venv, eval_env):
             if env is not None:
-                close_vec_env(env)
+                close_env(env)
         raise
     return venv, eval_env
+
+
+def close_env(env: Any, force: bool = False) -> None:
+    """Close a VecEnv (``close_vec_env``) or stop an ``EvalWorker``."""
+    from smartcar_gym.agents.callbacks import close_vec_env
+    from smartcar_gym.agents.eval_worker import EvalWorker
+
+    if isinstance(env, EvalWorker):
+        env.close(force=force)
+    else:
+        close_vec_env(env, force=force)
 
 
 def _make_model(config: dict[str, Any], venv: Any, seed: int, tb_dir: Path,

@@ -43,12 +43,9 @@ ARGV = ["--engine", "planar", "--vectorization", "batched", "--n-envs", "4", "--
 
 @pytest.mark.slow
 def test_async_evaluations_are_the_training_process_s_own(tmp_path):
-    runs = {}
-    for flag in ("--no-eval-async", "--eval-async"):
-        run_dir = tmp_path / flag.strip("-")
-        assert train.main([*ARGV, "--run-dir", str(run_dir), flag]) == 0
-        runs[flag] = run_dir
-    sync, asynchronous = runs["--no-eval-async"], runs["--eval-async"]
+    sync, asynchronous = tmp_path / "sync", tmp_path / "async"
+    assert train.main([*ARGV, "--run-dir", str(sync), "--no-eval-async"]) == 0
+    assert train.main([*ARGV, "--run-dir", str(asynchronous)]) == 0  # the preset's eval_async
     config = yaml.safe_load((asynchronous / "config.yaml").read_text())
     assert config["eval_async"] is True and config["eval_engine"] == "pybullet"
     assert yaml.safe_load((sync / "config.yaml").read_text())["eval_async"] is False

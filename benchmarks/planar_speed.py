@@ -1,6 +1,6 @@
 """How fast the planar engine steps, against one pybullet SmartCar-v0 env, measured interleaved.
 
-    python benchmarks/planar_speed.py --rounds 7          # about 3 minutes on 2 cores
+    python benchmarks/planar_speed.py --rounds 7          # about 5 minutes on 2 cores
 
 Each round times, one after the other in this process, with random actions:
 - one pybullet ``SmartCar-v0`` env (the reference);
@@ -74,7 +74,8 @@ def batch(cars: int, steps: int, compiled: bool = True) -> tuple[float, float]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--rounds", type=int, default=5)
-    parser.add_argument("--steps", type=int, default=600, help="steps of each single env")
+    # 600 steps a round let the one-env ratio move between 3.5 and 7.1 from round to round
+    parser.add_argument("--steps", type=int, default=1500, help="steps of each single env")
     parser.add_argument("--cars", type=int, default=4096)
     parser.add_argument("--batch-steps", type=int, default=20)
     args = parser.parse_args()

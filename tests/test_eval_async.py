@@ -71,7 +71,11 @@ def test_async_evaluations_are_the_training_process_s_own(tmp_path):
     assert summary["final_eval"]["timesteps"] == 1536 and summary["final_eval_s"] > 0
 
 
-def test_a_worker_whose_env_fails_says_why():
+@pytest.mark.parametrize("forkserver", [True, False], ids=["forkserver", "spawn"])
+def test_a_worker_whose_env_fails_says_why(forkserver, monkeypatch):
+    if not forkserver:  # as on Windows, which has no forkserver
+        monkeypatch.setattr("multiprocessing.get_all_start_methods", lambda: ["spawn"])
+
     def make_env():
         raise ValueError("no world here")
 

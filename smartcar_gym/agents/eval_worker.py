@@ -129,8 +129,13 @@ class EvalWorker:
     def __init__(self, make_env: Callable[[], Any]) -> None:
         from stable_baselines3.common.vec_env.base_vec_env import CloudpickleWrapper
 
-        context = multiprocessing.get_context("forkserver")
-        multiprocessing.set_forkserver_preload(list(PRELOAD))
+        # forkserver (as SB3's SubprocVecEnv on Linux and macOS): the worker does not inherit
+        # the training process's threads and state; spawn where there is none (Windows)
+        if "forkserver" in multiprocessing.get_all_start_methods():
+            context = multiprocessing.get_context("forkserver")
+            multiprocessing.set_forkserver_preload(list(PRELOAD))
+        else:
+            context = multiprocessing.get_context("spawn")
         self._conn, child = context.Pipe()
         self._process = context.Process(target=_serve, args=(child, CloudpickleWrapper(make_env)),
                                         daemon=True, name="smartcar-eval-worker")

@@ -20,6 +20,7 @@ import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecEnv, sync_envs_normalization
 
+from smartcar_gym.agents.env_factory import close_vec_env
 from smartcar_gym.agents.eval_worker import (
     EvalWorker,
     Records,
@@ -38,6 +39,7 @@ from smartcar_gym.agents.run_files import (
     file_mode,
     find_latest_checkpoint,
     move_model_atomic,
+    remove_model,
     replay_buffer_path_for,
     save_model_atomic,
 )
@@ -257,8 +259,7 @@ class SuccessEvalCallback(BaseCallback):
     def discard_pending(self) -> None:
         """Remove the snapshots of evaluations whose results will not come (a stopped run)."""
         for path in self.eval_dir.glob("pending_*.zip"):
-            vecnormalize_path_for(path).unlink(missing_ok=True)
-            path.unlink(missing_ok=True)
+            remove_model(path)
 
     def _record(self, steps: int, records: Records) -> EvalResult:
         """Log and save one evaluation's records; keep its model if it is the best."""
@@ -282,8 +283,7 @@ class SuccessEvalCallback(BaseCallback):
                 move_model_atomic(snapshot, self.best_model_path)
             atomic_write_text(self.best_json_path, json.dumps(asdict(result), indent=2) + "\n")
         elif snapshot is not None:
-            vecnormalize_path_for(snapshot).unlink(missing_ok=True)
-            snapshot.unlink(missing_ok=True)
+            remove_model(snapshot)
         return result
 
     def _save_history(self) -> None:
@@ -400,21 +400,3 @@ class StopOnSigint(BaseCallback):
 
     def _on_step(self) -> bool:
         return not self.requested
-
-
-def close_vec_env(venv: VecEnv, force: bool = False) -> None:
-    """Close a VecEnv; with ``force`` (after an abrupt interrupt) do not wait for pending
-    worker replies and kill workers that are still alive."""
-    base = venv
-    while hasattr(base, "venv"):
-        base = base.venv
-    if force and hasattr(base, "waiting"):
-        base.waiting = False  # the replies of an interrupted step may never come
-    try:
-        venv.close()
-    except (EOFError, OSError):
-        pass
-    for process in getattr(base, "processes", []):
-        if process.is_alive():
-            process.kill()  # workers ignore SIGTERM (see env_factory.make_env)
-            process.join(timeout=5)

@@ -182,6 +182,24 @@ def make_vec_env(
     return venv
 
 
+def close_vec_env(venv: Any, force: bool = False) -> None:
+    """Close a VecEnv; with ``force`` (after an abrupt interrupt) do not wait for pending
+    worker replies and kill workers that are still alive."""
+    base = venv
+    while hasattr(base, "venv"):
+        base = base.venv
+    if force and hasattr(base, "waiting"):
+        base.waiting = False  # the replies of an interrupted step may never come
+    try:
+        venv.close()
+    except (EOFError, OSError):
+        pass
+    for process in getattr(base, "processes", []):
+        if process.is_alive():
+            process.kill()  # workers ignore SIGTERM (see make_env)
+            process.join(timeout=5)
+
+
 def wrap_normalize(
     venv,
     normalize: dict[str, Any] | None,

@@ -97,6 +97,13 @@ def move_model_atomic(source: str | os.PathLike, path: str | os.PathLike) -> Pat
     return path
 
 
+def remove_model(path: str | os.PathLike) -> None:
+    """Remove a model saved by ``save_model_atomic`` and its statistics, if they exist."""
+    path = Path(path)
+    vecnormalize_path_for(path).unlink(missing_ok=True)
+    path.unlink(missing_ok=True)
+
+
 def checkpoint_path(run_dir: str | os.PathLike, num_timesteps: int) -> Path:
     """``<run_dir>/checkpoints/ckpt_<steps>_steps.zip``."""
     return Path(run_dir) / "checkpoints" / f"ckpt_{num_timesteps}_steps.zip"

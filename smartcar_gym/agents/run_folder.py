@@ -207,7 +207,7 @@ def resume_config(parser: argparse.ArgumentParser, args: argparse.Namespace,
     if not isinstance(config, dict):
         parser.error(f"--resume: {config_path} is not a run config (expected a mapping)")
     for key in ("eval_freq", "eval_episodes", "eval_start", "checkpoint_freq", "eval_async"):
-        if getattr(args, key, None) is not None:
+        if getattr(args, key) is not None:
             config[key] = getattr(args, key)
     if args.timesteps is not None:
         config["n_timesteps"] = args.timesteps

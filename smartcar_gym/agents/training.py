@@ -312,7 +312,7 @@ def _make_envs(config: dict[str, Any], run_dir: Path, seed: int, segment: int,
 
 def close_env(env: Any, force: bool = False) -> None:
     """Close a VecEnv (``close_vec_env``) or stop an ``EvalWorker``."""
-    from smartcar_gym.agents.callbacks import close_vec_env
+    from smartcar_gym.agents.env_factory import close_vec_env
     from smartcar_gym.agents.eval_worker import EvalWorker
 
     if isinstance(env, EvalWorker):

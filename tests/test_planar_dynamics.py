@@ -23,14 +23,20 @@ MASS, IZ, RADIUS, MU = 1.5, 0.012, 0.025, 0.5
 LOAD = MASS * 9.81 / 4
 
 
-def car(slip: float = 0.01, stiction: float = 0.05, inertia: float = 2e-3,
-        coulomb: float = 0.03) -> list[float]:
-    return [MASS, IZ, slip ** 2, stiction ** 2, inertia, inertia, coulomb, coulomb]
-
-
 HEIGHT = 0.04  # the centre of mass above the ground (m): the load transfer
+
+
+def car(slip: float = 0.01, stiction: float = 0.05, inertia: float = 2e-3,
+        coulomb: float = 0.03, reaction: float = 1.0) -> list[float]:
+    """The car's parameters; each side's axle along +y (the contacts roll at -r along x per
+    rad/s), ``reaction`` of its spin inertia reacting on the loads."""
+    spin = reaction * inertia
+    return [MASS, IZ, slip ** 2, stiction ** 2, HEIGHT, inertia, inertia, coulomb, coulomb,
+            0.0, 0.0, spin, spin]
+
+
 TRANSFER = load_transfer(np.array([(0.08, 0.08), (-0.08, 0.08), (0.08, -0.08),
-                                   (-0.08, -0.08)]), HEIGHT)
+                                   (-0.08, -0.08)]))
 CONTACTS = [[x, y, -RADIUS, 0.0, LOAD, MU, MU * 1.03, float(lx), float(ly)]
             for (x, y), (lx, ly) in zip(((0.08, 0.08), (-0.08, 0.08), (0.08, -0.08),
                                          (-0.08, -0.08)), TRANSFER, strict=True)]
@@ -134,6 +140,42 @@ def test_a_motor_torque_spins_a_free_wheel_group_as_newton_says() -> None:
     assert state[10] == 0.0 and state[4] == 0.0
 
 
+@pytest.mark.parametrize("reaction", [1.0, 0.5, 0.0])
+def test_wheels_spinning_up_load_the_rear_as_their_torque_says(reaction: float) -> None:
+    """Hand-derived: a car lifted off the ground (no contacts: the body cannot accelerate), a
+    torque tau on each group spins it up at tau / J; the wheels' angular momentum along +y
+    then grows at ``reaction * 2 tau``, a moment the loads supply: their pitch moment
+    sum(x dN) is ``-reaction * 2 tau`` (the load moves to the rear wheels, as a wheelie's
+    does)."""
+    tau, inertia, dt = 0.05, 2e-3, 0.01
+    state = [0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0] + [0.0] * 4 + [0.0, 0.0]
+    substep(state, car(inertia=inertia, coulomb=0.0, reaction=reaction), [], (),
+            [tau, tau, 0.0, 0.0], dt, new_scratch(2))
+    assert state[9] == pytest.approx(dt * tau / inertia, rel=1e-12)
+    assert state[4] == 0.0 and state[5] == 0.0
+    assert state[11] == pytest.approx(-reaction * 2 * tau, rel=1e-12)
+    assert state[12] == pytest.approx(0.0, abs=1e-15)
+    loads = [row[4] + row[7] * state[11] + row[8] * state[12] for row in CONTACTS]
+    front, rear = loads[0] + loads[2], loads[1] + loads[3]
+    assert rear - front == pytest.approx(reaction * 2 * tau / 0.08, rel=1e-12)
+
+
+def test_spinning_wheels_turned_with_the_body_load_the_outer_side() -> None:
+    """Hand-derived gyroscope: wheels spinning forward at om (angular momentum J om along +y)
+    on a body yawing left at w (lifted: nothing changes either) need the moment
+    w x L = -w J om along x: the loads carry the roll moment sum(y dN) = -2 w J om, more load
+    on the right (outer) wheels."""
+    inertia, om, w = 2e-3, 20.0, 1.5
+    state = [0.0, 0.0, 1.0, 0.0, 0.0, 0.0, w] + [0.0, 0.0, om, om] + [0.0, 0.0]
+    substep(state, car(inertia=inertia, coulomb=0.0), [], (), [0.0] * 4, 0.01,
+            new_scratch(2))
+    assert state[6] == w and state[9] == om
+    assert state[12] == pytest.approx(-2 * w * inertia * om, rel=1e-12)
+    loads = [row[4] + row[7] * state[11] + row[8] * state[12] for row in CONTACTS]
+    assert loads[2] + loads[3] - loads[0] - loads[1] == pytest.approx(
+        2 * w * inertia * om / 0.08, rel=1e-12)
+
+
 SLIDING = tuple(-1 for _ in CONTACTS)  # every contact slides: a block on the ground
 
 
@@ -210,13 +252,14 @@ def test_braking_moves_load_to_the_front_wheels() -> None:
     """Hand-derived: a ground force F along x at the ground, the centre of mass h above it,
     four wheels at x = +-a: the front pair gains h F / (2 a) in all, the rear pair loses it."""
     transfer = load_transfer(np.array([(0.08, 0.08), (-0.08, 0.08), (0.08, -0.08),
-                                       (-0.08, -0.08)]), HEIGHT)
-    braking = -2.0  # N: the ground pushes the car backwards
-    change = transfer @ np.array([braking, 0.0])
+                                       (-0.08, -0.08)]))
+    braking = -2.0  # N: the ground pushes the car backwards; the loads carry -h F
+    change = transfer @ np.array([-HEIGHT * braking, 0.0])
     front = change[[0, 2]].sum()
     assert front == pytest.approx(-HEIGHT * braking / (2 * 0.08))
     assert change.sum() == pytest.approx(0.0, abs=1e-12)
-    turning = transfer @ np.array([0.0, 3.0])  # pushed towards +y: the right side (y < 0) gains
+    # pushed towards +y: the right side (y < 0) gains
+    turning = transfer @ np.array([0.0, -HEIGHT * 3.0])
     assert turning[2] > 0 > turning[0] and turning[[2, 3]].sum() == pytest.approx(
         HEIGHT * 3.0 / (2 * 0.08))
 

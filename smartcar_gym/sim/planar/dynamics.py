@@ -51,19 +51,24 @@ sqrt(s'^2 + eps^2)`` gives when ``s'`` comes to rest. The other forces keep thei
 a car that reverses nothing keeps the first solve, bit for bit.
 
 **Load transfer.** A contact's normal load is its static share of the weight plus its share of
-the moment that the ground's force on the body, acting at the ground, exerts about the centre of
-mass (``load_per_fx``, ``load_per_fy``: from the same force and moment balance as the static
-loads, with the centre of mass's height), from that force at the previous substep; a load that
-would pull is zero. Braking moves load forward, turning moves it outward.
+the pitch and roll moments about the centre of mass that the loads carry, as the body neither
+pitches nor rolls (``load_per_pitch``, ``load_per_roll``: the same least-squares split as the
+static loads), from the previous substep: the moment of the ground's force, which acts the
+centre of mass's ``height`` below it (the force the substep applied, ``m dv / dt``), less the
+rate of change of the wheel groups' angular momentum (``spin_x``, ``spin_y`` per rad/s: the
+axle's direction times the spin inertia that reacts on the body), spun up or down along their
+axles and turned with the body. A load that would pull is zero. Braking moves load forward,
+turning moves it outward, and so do wheels braking and spinning forward in a turn.
 
 **Layout.** A car is three flat sequences, indexed the same way whether they hold floats (a
 Python list: one car), ``(N,)`` arrays (rows of an ``(S, N)`` array: N cars at once in numpy)
 or float64 scalars (one car's row in the compiled loop, ``jit.py``):
 
 * ``state`` (``state_size(G)``): x, y, c, s, vx, vy, w, then each group's angle, then speed,
-  then the ground's force on the body at the last substep (body frame, N: the load transfer);
-* ``car`` (``car_size(G)``): mass, yaw inertia, eps^2, eps_w^2, then each group's spin
-  inertia, then its Coulomb torque;
+  then the pitch and roll moments (N m, body frame) the loads carry from the last substep;
+* ``car`` (``car_size(G)``): mass, yaw inertia, eps^2, eps_w^2, the centre of mass's height,
+  then each group's spin inertia, then its Coulomb torque, then its angular momentum per
+  rad/s along x, then along y;
 * ``contacts``: K rows of ``CONTACT_FIELDS``; ``groups``: each contact's wheel group (-1:
   sliding), shared by all cars;
 * ``drive`` (2G): each group's motor drive torque (N m), then its back-EMF damping
@@ -82,13 +87,16 @@ import numpy as np
 Value = Any  # a float, or an (N,) float64 array of cars
 #: one contact's row: position from the centre of mass (body frame, m), rolling velocity per
 #: rad/s of its group (m/rad), static normal load (N), friction coefficients along and across
-#: x, and how its load changes per newton of ground force on the body along x and y (N/N: load
-#: transfer)
+#: x, and how its load changes per newton-metre of the pitch and roll moments the loads carry
+#: (N/(N m): load transfer)
 CONTACT_FIELDS = ("x", "y", "roll_x", "roll_y", "load", "friction_x", "friction_y",
-                  "load_per_fx", "load_per_fy")
+                  "load_per_pitch", "load_per_roll")
 NC = len(CONTACT_FIELDS)
 BODY = ("x", "y", "c", "s", "vx", "vy", "w")
-CAR = ("mass", "yaw_inertia", "eps2", "eps_w2")
+CAR = ("mass", "yaw_inertia", "eps2", "eps_w2", "height")
+#: per wheel group, after ``CAR``: spin inertia, Coulomb torque, angular momentum per rad/s
+#: along the body's x and y (the axle's direction times the spin inertia)
+GROUP = ("inertia", "coulomb", "spin_x", "spin_y")
 
 
 def state_size(groups: int) -> int:
@@ -98,7 +106,7 @@ def state_size(groups: int) -> int:
 
 def car_size(groups: int) -> int:
     """Length of a car's parameters with ``groups`` wheel groups."""
-    return len(CAR) + 2 * groups
+    return len(CAR) + len(GROUP) * groups
 
 
 def make_solve(sqrt: Callable[[Value], Value],
@@ -110,7 +118,7 @@ def make_solve(sqrt: Callable[[Value], Value],
               du: Value, dv: Value, dw: Value) -> tuple:
         """The velocity change ``(du, dv, dw)`` of the body (body frame) over ``dt`` from
         ``(vx, vy, w)`` and the groups' speeds in ``state``; each group's goes to scratch row
-        7. The ground's force at the start, ``(f1, f2)``, comes back too.
+        7.
 
         Each force enters by its tangent (its Jacobian at the start) or, ``again`` after a
         first solve whose changes were ``(du, dv, dw)`` and scratch row 8, where that solve
@@ -118,9 +126,9 @@ def make_solve(sqrt: Callable[[Value], Value],
         solve's slip path nearest zero, the force ``-A s`` linear in the new slip.
         """
         eps2 = car[2]
-        ng = (len(car) - 4) // 2
-        fxp = state[7 + 2 * ng]  # the ground's force at the last substep: the load transfer
-        fyp = state[8 + 2 * ng]
+        ng = (len(car) - 5) // 4
+        pitch = state[7 + 2 * ng]  # the moments the loads carried at the last substep
+        roll = state[8 + 2 * ng]
         f1 = f2 = f3 = 0.0
         a11 = a12 = a13 = a22 = a23 = a33 = 0.0
         fg, c1, c2, c3, dg, diag, rhs = (scratch[0], scratch[1], scratch[2], scratch[3],
@@ -141,7 +149,7 @@ def make_solve(sqrt: Callable[[Value], Value],
             uy = ky * sy
             e2 = kx * kx * eps2
             q2 = ux * ux + uy * uy + e2
-            load = row[4] + row[7] * fxp + row[8] * fyp
+            load = row[4] + row[7] * pitch + row[8] * roll
             load = 0.5 * (load + abs(load))  # a wheel lifted off carries nothing
             a = load / sqrt(q2)
             h = a / q2
@@ -202,7 +210,7 @@ def make_solve(sqrt: Callable[[Value], Value],
         eps_w2 = car[3]
         for g in range(ng):
             o = state[7 + ng + g]
-            coulomb = car[4 + ng + g]
+            coulomb = car[5 + ng + g]
             b = drive[ng + g]
             q2 = o * o + eps_w2
             root = sqrt(q2)
@@ -214,7 +222,7 @@ def make_solve(sqrt: Callable[[Value], Value],
                 friction = where(crossed, sec * o, friction)
                 stiff = where(crossed, sec, stiff)
             rg = dt * (fg[g] + drive[g] - b * o - friction)
-            dgg = car[4 + g] + dt * (dg[g] + b + stiff)
+            dgg = car[5 + g] + dt * (dg[g] + b + stiff)
             inv = 1.0 / dgg
             x1 = dt * c1[g]
             x2 = dt * c2[g]
@@ -246,7 +254,7 @@ def make_solve(sqrt: Callable[[Value], Value],
         out = scratch[7]
         for g in range(ng):
             out[g] = (rhs[g] - dt * (c1[g] * du + c2[g] * dv + c3[g] * dw)) * diag[g]
-        return du, dv, dw, f1, f2
+        return du, dv, dw
 
     return solve
 
@@ -267,10 +275,10 @@ def make_substep(sqrt: Callable[[Value], Value], solve: Callable[..., tuple],
         c, s, vxw, vyw, w = state[2], state[3], state[4], state[5], state[6]
         vx = c * vxw + s * vyw  # body-frame velocity of the centre of mass
         vy = c * vyw - s * vxw
-        ng = (len(car) - 4) // 2
+        ng = (len(car) - 5) // 4
         zero = 0.0 * vx
-        du, dv, dw, f1, f2 = solve(state, car, contacts, groups, drive, dt, scratch,
-                                   vx, vy, w, False, zero, zero, zero)
+        du, dv, dw = solve(state, car, contacts, groups, drive, dt, scratch,
+                           vx, vy, w, False, zero, zero, zero)
         # did the tangent step carry a slip through zero (a tyre's, or a gearbox's speed)?
         out, first = scratch[7], scratch[8]
         crossed = zero > zero  # False: no car yet
@@ -296,25 +304,36 @@ def make_substep(sqrt: Callable[[Value], Value], solve: Callable[..., tuple],
         if anywhere(crossed):
             # there the tangent overshoots the stop: solve again from the start, those forces
             # by their secants where their slips pass nearest zero (a slip cannot cross zero)
-            bu, bv, bw, _, _ = solve(state, car, contacts, groups, drive, dt, scratch,
-                                       vx, vy, w, True, du, dv, dw)
+            bu, bv, bw = solve(state, car, contacts, groups, drive, dt, scratch,
+                               vx, vy, w, True, du, dv, dw)
             du = where(crossed, bu, du)
             dv = where(crossed, bv, dv)
             dw = where(crossed, bw, dw)
             for g in range(ng):
                 out[g] = where(crossed, out[g], first[g])
+        w = w + dw
+        # the wheels' angular momentum (body frame) changes at (tx, ty): spun up or down
+        # along their axles, and turned with the body (gyroscopic); the ground's loads supply
+        # that moment, as they do the moment of the ground's force about the centre of mass
+        tx = zero
+        ty = zero
         for g in range(ng):
             o = state[7 + ng + g] + out[g]
             state[7 + ng + g] = o
             state[7 + g] = state[7 + g] + dt * o
+            hx = car[5 + 2 * ng + g]
+            hy = car[5 + 3 * ng + g]
+            rate = out[g] / dt
+            tx = tx + (hx * rate - w * hy * o)
+            ty = ty + (hy * rate + w * hx * o)
         vxw = vxw + (c * du - s * dv)
         vyw = vyw + (s * du + c * dv)
-        w = w + dw
         half = 0.5 * dt * w
         h2 = half * half
         scale = 1.0 / (1.0 + h2)
-        state[7 + 2 * ng] = f1
-        state[8 + 2 * ng] = f2
+        lever = car[4] * car[0] / dt  # the ground's force over the substep: m du / dt
+        state[7 + 2 * ng] = -lever * du - ty  # the pitch moment the loads carry
+        state[8 + 2 * ng] = -lever * dv + tx  # and the roll moment
         turned_c = (c * (1.0 - h2) - 2.0 * half * s) * scale  # c, s may be views of state
         turned_s = (s * (1.0 - h2) + 2.0 * half * c) * scale
         state[0] = state[0] + dt * vxw
@@ -375,7 +394,7 @@ if COMPILED:
                 drive: np.ndarray, dt: float, n: int) -> None:
         """``n`` substeps of ``dt`` s of one car (1D ``state``, ``car``, ``drive``; ``(K, NC)``
         ``contacts``), in place."""
-        scratch = np.zeros((SCRATCH_ROWS, (car.shape[0] - 4) // 2))
+        scratch = np.zeros((SCRATCH_ROWS, (car.shape[0] - 5) // 4))
         for _ in range(n):
             _compiled_substep(state, car, contacts, groups, drive, dt, scratch)
 
@@ -384,7 +403,7 @@ if COMPILED:
                  drive: np.ndarray, dt: np.ndarray, n: np.ndarray) -> None:
         """Car i: ``n[i]`` substeps of ``dt[i]`` s; arrays in the batch's layout (``(S, N)``
         state, ``(P, N)`` car, ``(K, NC, N)`` contacts, ``(2G, N)`` drive), in place."""
-        scratch = np.zeros((SCRATCH_ROWS, (car.shape[0] - 4) // 2))
+        scratch = np.zeros((SCRATCH_ROWS, (car.shape[0] - 5) // 4))
         # each car's columns gathered into contiguous buffers (the batch is laid out by
         # quantity for numpy; a car's values are N apart), stepped, and its state put back
         column, params = np.empty(state.shape[0]), np.empty(car.shape[0])
@@ -403,14 +422,15 @@ else:
     run_car = run_cars = None
 
 
-def load_transfer(points: np.ndarray, height: float) -> np.ndarray:
-    """(K, 2): how each contact's load changes per newton of the ground's force on the body
-    along x and along y, for a centre of mass ``height`` m above the ground: the force acts at
-    the ground, so its moment about the centre of mass, ``-height * F``, is what the loads'
-    moments must balance (the same least-squares split as ``static_loads``)."""
+def load_transfer(points: np.ndarray) -> np.ndarray:
+    """(K, 2): how each contact's load changes per newton-metre of the pitch moment
+    (``sum(x_k dN_k)``) and of the roll moment (``sum(y_k dN_k)``) the loads must carry about
+    the centre of mass, the loads' sum unchanged (the same least-squares split as
+    ``static_loads``). The substep asks them to carry ``-h F`` (the ground's force ``F`` acts
+    ``h`` below the centre of mass) less the rate of change of the wheels' angular momentum."""
     points = np.asarray(points, dtype=float)
     a = np.vstack([np.ones(len(points)), points[:, 0], points[:, 1]])
-    moments = np.array([[0.0, 0.0], [-height, 0.0], [0.0, -height]])
+    moments = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
     return a.T @ np.linalg.solve(a @ a.T, moments)
 
 

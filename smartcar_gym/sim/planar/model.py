@@ -15,7 +15,9 @@ a ``PlanarCar``: the flat sequences the equations of motion take (``dynamics``):
   (a caster ball fixed to the body: boxes by their bottom corners, spheres and upright
   cylinders by their lowest point, lying cylinders by their two bottom ends).
 * **loads**: static, from the centre of mass over the contacts (``dynamics.static_loads``), and
-  how the ground's force moves them (``dynamics.load_transfer``: the centre of mass's height).
+  how moments about the centre of mass move them (``dynamics.load_transfer``): the ground's
+  force acting the centre of mass's height below it, and the wheels' spin momentum changing
+  (its share ``spin_reaction``).
 * **inertia**: the whole robot's mass and yaw inertia about its centre of mass; each group's
   spin inertia is its wheels' inertia about their axles (with the rotor's, which the robot adds
   with ``add_axle_inertia``).
@@ -264,20 +266,23 @@ def build_car(tables: RobotTables, ground_z: float, actuation: Actuation,
             raise
         raise ValueError(f"{exc} (planar.load_shift_x {params.load_shift_x:g} m from "
                          f"{params.source})") from None
-    transfer = load_transfer(np.array(points), float(com[2] - ground_z))
+    transfer = load_transfer(np.array(points))
     contacts = [[float(p[0] - com[0]), float(p[1] - com[1]), float(wx), float(wy), float(load),
                  float(mu), float(mu * (params.lateral_friction_ratio if g >= 0 else 1.0)),
                  float(lx), float(ly)]
                 for p, (g, wx, wy), mu, load, (lx, ly)
                 in zip(points, rolling, bounds, loads, transfer, strict=True)]
-    group_inertia, coulomb = [], []
+    group_inertia, coulomb, momentum = [], [], []
     for g, members in enumerate(groups.members):
         spin = 0.0
+        along = np.zeros(3)  # the group's angular momentum per rad/s, body frame (N m s)
         for joint, sign in members:
             link = tables.links[joint]
             _, rotation = tables.inertial_pose(joint)
             a = rotation.T @ tables.axis(joint)
             spin += sign * sign * float(a @ link.inertia @ a)
+            along += sign * tables.axis(joint) * float(a @ link.inertia @ a)
+        momentum.append(along * params.spin_reaction)
         rolling_torque = sum(params.rolling_resistance * load * radius
                              for load, radius, (cg, _, _) in zip(loads, radii, rolling,
                                                                   strict=True) if cg == g)
@@ -290,5 +295,6 @@ def build_car(tables: RobotTables, ground_z: float, actuation: Actuation,
             raise ValueError(f"{tables.robot.name}: wheel joints {joints} have no inertia about "
                              "their axles")
     car = [mass, yaw_inertia, params.slip_speed ** 2, params.stiction_speed ** 2,
-           *group_inertia, *coulomb]
+           float(com[2] - ground_z), *group_inertia, *coulomb,
+           *(float(h[0]) for h in momentum), *(float(h[1]) for h in momentum)]
     return PlanarCar(car, contacts, tuple(g for g, _, _ in rolling), groups, com)

@@ -59,6 +59,13 @@ class PlanarParams:
             centre of mass that is not where the URDF says, or a split of the weight over
             four or more wheels that rigid geometry leaves open). It sets how differently
             the car turns driving forward and in reverse.
+        spin_reaction: the share of the wheel groups' spin inertia whose angular momentum
+            the body carries: when the wheels spin up or down, or the body turns them, the
+            ground's loads supply the moment (load moves to the front wheels as they brake,
+            outward as the car turns). 1: all of it, as pybullet's axle inertia does; 0: none,
+            as MuJoCo's joint armature (the rotor seen through the gearbox) does. A real
+            gearmotor's rotor reacts with its own momentum, a share of the reflected
+            inertia's.
         source: the file the values came from ("built-in" for the defaults).
     """
 
@@ -69,6 +76,7 @@ class PlanarParams:
     gearbox_friction_scale: float = 1.0
     stiction_speed: float = 0.05
     load_shift_x: float = 0.0
+    spin_reaction: float = 1.0
     source: str = dataclasses.field(default="built-in", compare=False)
 
 
@@ -81,6 +89,7 @@ RANGES: dict[str, tuple[float, float, str]] = {
     "gearbox_friction_scale": (0.0, 10.0, ""),
     "stiction_speed": (1e-4, 10.0, "rad/s"),
     "load_shift_x": (-1.0, 1.0, "m"),
+    "spin_reaction": (0.0, 2.0, ""),
 }
 KEYS = tuple(RANGES)
 

@@ -45,19 +45,19 @@ def test_odometry_drifts_as_on_its_engine(engine, shipped_model, shipped_config)
     assert value == pytest.approx(reference, abs=0.03)
 
 
-#: the casterbot's gates: the squares and the coast-down are left out (below)
-CASTERBOT_GATES = [(m, tol) for m, tol in GATES if not m.name.startswith(("UMBmark", "coast"))]
+#: the casterbot's gates: the squares are left out (below)
+CASTERBOT_GATES = [(m, tol) for m, tol in GATES if not m.name.startswith("UMBmark")]
 
 
 @pytest.mark.slow
 def test_a_users_robot_is_identified_inside_the_gates() -> None:
     """The casterbot fixture (two wheels and a sliding caster ball), fitted from the fit's own
     drives on pybullet (``smartcar-calibrate --fit planar --model ...``, seed 0), drives like
-    pybullet's casterbot within the speed, spin and odometry gates (docs/planar.md, "A user's
-    robot"). Two rows are not gated: its UMBmark square ends 0.11-0.22 m from the start on
+    pybullet's casterbot within the speed, spin, coast-down and odometry gates (docs/planar.md,
+    "A user's robot"). Its UMBmark square is not gated: it ends 0.11-0.22 m from the start on
     pybullet itself as the side goes from 0.98 to 1.02 m (a small difference of large moves;
-    the 1 m square's value is a draw from that spread), and its coast-down comes out 11 %
-    short, outside the 10 % gate; it is held within 15 % here, so that it cannot drift."""
+    the 1 m square's value is a draw from that spread: seeds 0, 1 and 2 of the fit give +9,
+    +41 and +30 %)."""
     from pathlib import Path
 
     from smartcar_gym.calibration.planar_fit import fit
@@ -69,10 +69,44 @@ def test_a_users_robot_is_identified_inside_the_gates() -> None:
     model = load_model(str(fixture / "urdf" / "casterbot.urdf.xacro"))
     config = load_controller_config(str(fixture / "config" / "casterbot_arbotix.yaml"))
     params = fit(model, config, record(model, config, "pybullet")).params
-    for maneuver, tolerance in [*CASTERBOT_GATES, (coast_down(0.3), 0.15)]:
+    for maneuver, tolerance in CASTERBOT_GATES:
         reference = maneuver.measure(model, config, "pybullet")
         value = maneuver.measure(model, config, "planar", planar_params=params)
         assert value == pytest.approx(reference, rel=tolerance), maneuver.name
     reference = odometry_error().measure(model, config, "pybullet")
     value = odometry_error().measure(model, config, "planar", planar_params=params)
     assert value == pytest.approx(reference, abs=0.03)
+
+
+def reversal_turn(engine: str, **kwargs) -> float:
+    """True over odometry yaw while reversing out of a fast left arc (SmartCar-v0 actions
+    ``(1, 1)`` for 1.2 s, then ``(-0.9, 0.7)`` for 0.9 s): the wheels brake through zero with
+    the turn held, and their spin momentum loads the front wheels (docs/planar.md)."""
+    import gymnasium as gym
+    import numpy as np
+
+    env = gym.make("SmartCar-v0", engine=engine, goal_range=(2.3, 2.4), arena_size=20.0,
+                   max_episode_steps=1000, **kwargs)
+    try:
+        env.reset(seed=0)
+        for _ in range(12):
+            info = env.step(np.array([1.0, 1.0], dtype=np.float32))[4]
+        start = info["pose"][2], info["odom_pose"][2]
+        for _ in range(9):
+            info = env.step(np.array([-0.9, 0.7], dtype=np.float32))[4]
+    finally:
+        env.close()
+    turned = [(after - before + np.pi) % (2 * np.pi) - np.pi
+              for before, after in zip(start, (info["pose"][2], info["odom_pose"][2]),
+                                       strict=True)]
+    return float(turned[0] / turned[1])
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_a_reversal_out_of_a_turn_turns_as_on_its_engine(engine) -> None:
+    """pybullet turns 0.86 of its odometry's turn here, MuJoCo 0.75: pybullet's rotor inertia
+    sits on the wheel link and its momentum loads the front wheels as they brake, MuJoCo's
+    armature has none. Each fit follows its engine (the model without the spin moment: 0.75
+    on both)."""
+    reference = reversal_turn(engine)
+    assert reversal_turn("planar", planar_params=engine) == pytest.approx(reference, abs=0.03)

@@ -14,7 +14,8 @@ generation's candidates replayed together as one batch of cars (``planar_replay`
 
 What each parameter needs to be seen (``EXCITATION``): spins in place (friction, the lateral
 friction ratio), straight driving (the slip stiffness), slow driving (the gearbox's dead band),
-a stop from speed (rolling resistance) and turning in reverse (the load shift). A recording
+a stop from speed (rolling resistance), turning in reverse (the load shift) and a reversal
+out of a fast turn (the wheels' spin moment on the loads, ``spin_reaction``). A recording
 set without one of them is refused with the maneuver named, unless those parameters are kept
 (``keep``).
 """
@@ -40,14 +41,18 @@ POSITION_SCALE_M = 0.01  # 2 cm/s of speed error over a window counts 1
 YAW_SCALE_RAD = 0.02  # 0.04 rad/s of turn rate error counts 1
 #: what the fit searches by default (the stiction speed is a numerical regularisation)
 FREE = ("friction_scale", "lateral_friction_ratio", "slip_speed", "gearbox_friction_scale",
-        "rolling_resistance", "load_shift_x")
+        "rolling_resistance", "load_shift_x", "spin_reaction")
 #: searched on a linear scale (log space cannot reach 0 or a negative shift)
-_LINEAR = ("rolling_resistance", "load_shift_x")
+_LINEAR = ("rolling_resistance", "load_shift_x", "spin_reaction")
 #: the load shift is searched within this share of the ground contacts' length (x extent)
 LOAD_SHIFT_SHARE = 0.1
 #: a fit whose RMS scaled residual stays above this has not converged
 CONVERGED_RMS = 3.0
 MIN_SECONDS = 2.0  # of a maneuver, in all recordings together, for it to count as seen
+#: but for a stop from speed (one period) and a reversal (its braking lasts a few tenths of a
+#: second, while the car still moves the old way at this speed or more)
+MIN_REVERSAL_S = 0.3
+REVERSAL_SPEED = 0.15
 
 
 class FitError(ValueError):
@@ -75,6 +80,8 @@ EXCITATION = (
              ("rolling_resistance",)),
     Maneuver("turning in reverse", "linear.x <= -0.1 m/s, |angular.z| >= 0.5 rad/s",
              ("load_shift_x",)),
+    Maneuver("reversal out of a turn", "linear.x against the true motion while it is still "
+             f">= {REVERSAL_SPEED:g} m/s, |angular.z| >= 0.5 rad/s", ("spin_reaction",)),
 )
 
 
@@ -87,6 +94,9 @@ def _classes(recording: Recording) -> dict[str, int]:
     step = np.diff(recording.truth[:, :2], axis=0)
     speed = np.hypot(step[:, 0], step[:, 1]) * recording.rate_hz
     before = np.concatenate([[0.0], speed[:-1]])  # the true speed when the command arrived
+    yaw = recording.truth[:-1, 2]
+    ahead = (step[:, 0] * np.cos(yaw) + step[:, 1] * np.sin(yaw)) * recording.rate_hz
+    ahead = np.concatenate([[0.0], ahead[:-1]])  # the true forward speed then
     stopped = silent | ((av < 1e-3) & (aw < 1e-3))
     return {
         "spin in place": int(np.sum(~silent & (av <= 0.03) & (aw >= 0.3))),
@@ -94,6 +104,9 @@ def _classes(recording: Recording) -> dict[str, int]:
         "slow driving": int(np.sum(~silent & (av >= 0.02) & (av <= 0.12) & (aw <= 0.3))),
         "stop from speed": int(np.sum(stopped & (before >= 0.1))),
         "turning in reverse": int(np.sum(~silent & (v <= -0.1) & (aw >= 0.5))),
+        "reversal out of a turn": int(np.sum(~silent & (v * ahead < 0.0) & (av >= 0.1)
+                                             & (np.abs(ahead) >= REVERSAL_SPEED)
+                                             & (aw >= 0.5))),
     }
 
 
@@ -106,7 +119,8 @@ def check_excitation(recordings: Sequence[Recording], free: Sequence[str]) -> di
             seconds[name] += count / r.rate_hz
     for m in EXCITATION:
         needs = [p for p in m.needed_by if p in free]
-        enough = MIN_SECONDS if m.name != "stop from speed" else 1.0 / recordings[0].rate_hz
+        enough = {"stop from speed": 1.0 / recordings[0].rate_hz,
+                  "reversal out of a turn": MIN_REVERSAL_S}.get(m.name, MIN_SECONDS)
         if needs and seconds[m.name] < enough:
             raise FitError(
                 f"too little excitation: the recordings hold {seconds[m.name]:.1f} s of "
@@ -169,6 +183,7 @@ SEARCH: dict[str, tuple[float, float]] = {
     "slip_speed": (0.0002, 0.05),
     "gearbox_friction_scale": (0.3, 3.0),
     "rolling_resistance": (0.0, 0.05),
+    "spin_reaction": (0.0, 1.5),
 }
 
 

@@ -73,7 +73,9 @@ def fit_maneuvers(rate_hz: float, max_linear: float = 0.5,
                   max_angular: float = 2.0) -> dict[str, list[Twist]]:
     """The drives the fit makes itself on a physics engine: straight runs at five speeds and
     spins at three rates, each from rest and then stopped to coast, two arcs driven forward
-    and the same two in reverse, and 10 s of seeded random twists (about 70 s in all)."""
+    and the same two in reverse, two reversals out of a fast arc (the turn held while the
+    wheels brake through zero: the wheels' spin moment loads the front, ``spin_reaction``),
+    and 10 s of seeded random twists (about 76 s in all)."""
     stop = hold((0.0, 0.0), 1.5, rate_hz)
     drives: dict[str, list[Twist]] = {}
     for v in (0.05, 0.1, 0.2, 0.3, 0.5):
@@ -84,6 +86,11 @@ def fit_maneuvers(rate_hz: float, max_linear: float = 0.5,
     drives["arc 0.3 m/s -1.5 rad/s"] = hold((0.3, -1.5), 3.0, rate_hz) + stop
     drives["arc -0.2 m/s 1 rad/s"] = hold((-0.2, 1.0), 3.0, rate_hz) + stop
     drives["arc -0.3 m/s -1.5 rad/s"] = hold((-0.3, -1.5), 3.0, rate_hz) + stop
+    fast, turn = min(0.45, max_linear), min(1.4, max_angular)
+    for side, label in ((1.0, "left"), (-1.0, "right")):
+        drives[f"reversal out of a {label} arc"] = (
+            hold((fast, side * turn), 1.2, rate_hz) + hold((-fast, side * turn), 1.2, rate_hz)
+            + stop)
     drives["random twists"] = random_commands(10.0, rate_hz, FIT_SEED, max_linear, max_angular,
                                               hold_s=0.5)
     return drives

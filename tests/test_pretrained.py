@@ -1,8 +1,8 @@
 """Regression gate: the shipped PPO policy still drives SmartCar-v0 to its goals.
 
 If a change to the model, controller or env breaks this test, retrain and re-export the policy
-with the commands in the README ("Training"): ``smartcar-train`` with the shipped defaults,
-then ``python -m smartcar_gym.agents.export runs/ppo_SmartCar-v0_s0``.
+with ``smartcar-train`` and the shipped defaults (the pybullet run: docs/results.md), then
+``python -m smartcar_gym.agents.export runs/ppo_SmartCar-v0_s0``.
 """
 
 import pytest
@@ -19,8 +19,7 @@ def test_shipped_policy_is_in_the_package():
     """The policy is part of the package (``smartcar-eval --pretrained``): missing is a failure."""
     for name in (PRETRAINED_MODEL, "provenance.json"):
         assert (FOLDER / name).is_file(), (
-            f"smartcar_gym/pretrained/{name} is missing: retrain and re-export (README, "
-            "'Training')")
+            f"smartcar_gym/pretrained/{name} is missing: retrain and re-export (docs/results.md)")
 
 
 def test_shipped_policy_is_small_and_documented():
@@ -39,5 +38,5 @@ def test_shipped_policy_reaches_its_goals():
     assert summary["success_rate"] >= MIN_SUCCESS_RATE, (
         f"shipped policy: {summary['success_rate']:.1%} success over 64 episodes "
         f"(< {MIN_SUCCESS_RATE:.0%}); failed (seed, final distance m): {failures}. "
-        "Retrain with the README's command if the env, model or controller changed."
+        "Retrain with smartcar-train (docs/results.md) if the env, model or controller changed."
     )

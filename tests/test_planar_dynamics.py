@@ -79,8 +79,8 @@ def test_numbas_loop_is_the_same_function_bit_for_bit() -> None:
     dt = rng.uniform(0.001, 0.03, n)
     steps = rng.integers(0, 5, n)
     compiled = states.copy()
-    jit.run_cars(compiled, np.repeat(np.array(car())[:, None], n, axis=1),
-                 np.repeat(np.array(CONTACTS)[:, :, None], n, axis=2),
+    jit.run_cars(compiled, np.repeat(np.array(car())[None, :], n, axis=0),
+                 np.repeat(np.array(CONTACTS)[None, :, :], n, axis=0),
                  np.array(GROUPS, dtype=np.int64), drive, dt, steps)
     for i in range(n):
         one = states[:, i].tolist()

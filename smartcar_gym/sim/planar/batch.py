@@ -4,9 +4,9 @@ Each car is a column: its state ``(S, N)``, its parameters ``(P, N)`` and contac
 ``(K, NC, N)`` in ``dynamics``' layout (every car has the template's wheel groups and contacts;
 the values may differ per car), its motors' drive ``(2G, N)``. ``step`` gives every listed car
 its own number of substeps of its own length, as its single env's clock would: numba's loop
-(``jit.run_cars``) when installed, else ``dynamics.substep_arrays`` over the cars still
-stepping (their columns taken out and put back). A car of the batch is the same car as
-``PlanarBody`` steps alone, bit for bit.
+(``jit.run_cars``, which reads the parameters laid out by car: ``rows``) when installed,
+else ``dynamics.substep_arrays`` over the cars still stepping (their columns taken out and put
+back). A car of the batch is the same car as ``PlanarBody`` steps alone, bit for bit.
 """
 
 from __future__ import annotations
@@ -39,6 +39,7 @@ class PlanarBatch:
         self.contacts = _columns(np.array(model.contacts, dtype=np.float64).reshape(-1, NC),
                                  self.n)
         self.drive = _columns(np.zeros(2 * self.ng), self.n)
+        self._rows: tuple[np.ndarray, np.ndarray] | None = None
         #: worlds the engine found unstable (MuJoCo's batch reports them): the planar
         #: engine's implicit step has none, so this stays empty
         self.unstable: list = []
@@ -57,6 +58,15 @@ class PlanarBatch:
             raise ValueError("a car of the batch must have the template's contacts and groups")
         self.car[:, idx] = np.array(model.car)[:, None]
         self.contacts[:, :, idx] = np.array(model.contacts).reshape(-1, NC)[:, :, None]
+        self._rows = None
+
+    def rows(self) -> tuple[np.ndarray, np.ndarray]:
+        """``car`` and ``contacts`` laid out by car, ``(N, P)`` and ``(N, K, NC)``, for numba's
+        loop; made again after ``set_model`` (the only writer of ``car`` and ``contacts``)."""
+        if self._rows is None:
+            self._rows = (np.ascontiguousarray(self.car.T),
+                          np.ascontiguousarray(self.contacts.transpose(2, 0, 1)))
+        return self._rows
 
     def step(self, cars: np.ndarray, nstep: np.ndarray, dt: np.ndarray) -> None:
         """Car ``cars[k]``: ``nstep[k]`` substeps of ``dt[k]`` s."""
@@ -66,7 +76,8 @@ class PlanarBatch:
             n_all = np.zeros(self.n, dtype=np.int64)
             dt_all = np.zeros(self.n)
             n_all[cars], dt_all[cars] = nstep, dt
-            jit.run_cars(self.state, self.car, self.contacts, self.contact_groups, self.drive,
+            car_rows, contact_rows = self.rows()
+            jit.run_cars(self.state, car_rows, contact_rows, self.contact_groups, self.drive,
                          dt_all, n_all)
             return
         cars, nstep = np.asarray(cars), np.asarray(nstep)

@@ -399,22 +399,23 @@ if COMPILED:
             _compiled_substep(state, car, contacts, groups, drive, dt, scratch)
 
     @numba.njit(cache=True)
-    def run_cars(state: np.ndarray, car: np.ndarray, contacts: np.ndarray, groups: np.ndarray,
-                 drive: np.ndarray, dt: np.ndarray, n: np.ndarray) -> None:
-        """Car i: ``n[i]`` substeps of ``dt[i]`` s; arrays in the batch's layout (``(S, N)``
-        state, ``(P, N)`` car, ``(K, NC, N)`` contacts, ``(2G, N)`` drive), in place."""
-        scratch = np.zeros((SCRATCH_ROWS, (car.shape[0] - 5) // 4))
-        # each car's columns gathered into contiguous buffers (the batch is laid out by
-        # quantity for numpy; a car's values are N apart), stepped, and its state put back
-        column, params = np.empty(state.shape[0]), np.empty(car.shape[0])
-        touches, motors = np.empty(contacts.shape[:2]), np.empty(drive.shape[0])
+    def run_cars(state: np.ndarray, car_rows: np.ndarray, contact_rows: np.ndarray,
+                 groups: np.ndarray, drive: np.ndarray, dt: np.ndarray, n: np.ndarray) -> None:
+        """Car i: ``n[i]`` substeps of ``dt[i]`` s, in place. ``state`` ``(S, N)`` and ``drive``
+        ``(2G, N)`` in the batch's layout (by quantity, for numpy); the parameters by car,
+        ``car_rows`` ``(N, P)`` and ``contact_rows`` ``(N, K, NC)`` (``PlanarBatch.rows``):
+        a car's 60-odd parameters then lie together (measured: the loop 9 % faster than
+        gathering them from ``(P, N)`` and ``(K, NC, N)`` at 4,096 cars)."""
+        scratch = np.zeros((SCRATCH_ROWS, (car_rows.shape[1] - 5) // 4))
+        # each car's state gathered into a contiguous buffer (a car's values are N apart),
+        # stepped, and put back
+        column, motors = np.empty(state.shape[0]), np.empty(drive.shape[0])
         for i in range(state.shape[1]):
             if n[i] == 0:
                 continue
             column[:] = state[:, i]
-            params[:] = car[:, i]
-            touches[:, :] = contacts[:, :, i]
             motors[:] = drive[:, i]
+            params, touches = car_rows[i], contact_rows[i]
             for _ in range(n[i]):
                 _compiled_substep(column, params, touches, groups, motors, dt[i], scratch)
             state[:, i] = column

@@ -280,8 +280,9 @@ def build_car(tables: RobotTables, ground_z: float, actuation: Actuation,
             link = tables.links[joint]
             _, rotation = tables.inertial_pose(joint)
             a = rotation.T @ tables.axis(joint)
-            spin += sign * sign * float(a @ link.inertia @ a)
-            along += sign * tables.axis(joint) * float(a @ link.inertia @ a)
+            about = float(a @ link.inertia @ a)  # the wheel's inertia about its axle
+            spin += sign * sign * about
+            along += sign * tables.axis(joint) * about
         momentum.append(along * params.spin_reaction)
         rolling_torque = sum(params.rolling_resistance * load * radius
                              for load, radius, (cg, _, _) in zip(loads, radii, rolling,

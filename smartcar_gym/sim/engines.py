@@ -1,115 +1,187 @@
-"""Which physics engine runs a world: ``ENGINES`` and ``make_simulator``.
+"""Which physics engine runs a world: a registry of engine descriptions (``Engine``).
 
-pybullet is the default and always installed; MuJoCo comes with the ``mujoco`` extra
-(``pip install "smartcar-gym[mujoco]"``) and is imported only when a MuJoCo world is made;
-``planar`` (``sim/planar/``: a rigid car in the plane on identified tyres, numpy only) is
-always available.
+Each engine is one folder under ``sim/`` whose package exports ``ENGINE``, an ``Engine``: how
+to make its simulator (and its car batch, if it has one), its substep default and range,
+whether it can open a window, the env keywords only it takes, and the extra that installs
+it. The package itself imports no physics library: the factories import the engine's modules
+when called, so that listing the engines costs nothing and says which extra is missing.
+
+The built-in engines are pybullet (the default, always installed), MuJoCo (the ``mujoco``
+extra) and planar (numpy only). ``register_engine`` adds another, and so does an entry point
+in the ``smartcar_gym.engines`` group of an installed package (its object: an ``Engine``);
+docs/engines.md shows how to write one.
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from importlib.metadata import entry_points
 from typing import Any
 
-ENGINES: tuple[str, ...] = ("pybullet", "mujoco", "planar")
 DEFAULT_ENGINE = "pybullet"
-MUJOCO_EXTRA = 'pip install "smartcar-gym[mujoco]"'
+#: the entry-point group another package registers its engines in
+ENTRY_POINT_GROUP = "smartcar_gym.engines"
+#: the packages of the built-in engines, each exporting ``ENGINE``
+BUILT_IN = ("smartcar_gym.sim.pybullet", "smartcar_gym.sim.mujoco", "smartcar_gym.sim.planar")
 
 
-# env kwargs that only one engine takes (SmartCarEnv refuses them on another)
-ENGINE_KWARGS: dict[str, tuple[str, ...]] = {"planar": ("planar_params",)}
+@dataclass(frozen=True)
+class Engine:
+    """One physics engine, as the envs and tools see it.
+
+    ``simulator(**options)`` makes a world (the ``Simulator`` protocol: ``max_substep_s``,
+    ``gui`` and the engine's own ``kwargs`` as keywords); ``car_batch`` (or None) makes the
+    batch of N cars the batched vector env steps (the ``CarBatch`` protocol). ``module`` is the
+    library the engine needs and ``extra`` the pip line that installs it: without it, making
+    a world is an ImportError that says what to install.
+    """
+
+    name: str
+    simulator: Callable[..., Any]
+    max_substep_s: float
+    substep_range_s: tuple[float, float]
+    #: why no window can open in this process (None: one can, given a display)
+    window_unavailable: Callable[[], str | None] = lambda: None
+    #: env keywords only this engine takes, with their check/resolve function
+    kwargs: dict[str, Callable[[Any], Any]] = field(default_factory=dict)
+    car_batch: Callable[..., Any] | None = None
+    #: whether ``car_batch`` runs differential-drive models (one drive wheel a side)
+    batches_differential: bool = False
+    module: str | None = None
+    extra: str | None = None
+    summary: str = ""
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not self.name.isidentifier():
+            raise ValueError(f"an engine's name must be an identifier, got {self.name!r}")
+        low, high = self.substep_range_s
+        if not 0 < low <= self.max_substep_s <= high:
+            raise ValueError(f"engine {self.name!r}: max_substep_s {self.max_substep_s} is not in "
+                             f"its substep_range_s {self.substep_range_s}")
+
+    def missing(self, exc: ModuleNotFoundError) -> ImportError:
+        """The error for a world of this engine whose library is not installed."""
+        how = f": {self.extra}" if self.extra else ""
+        return ImportError(f"engine={self.name!r} needs the {exc.name} package, which is not "
+                           f"installed{how}")
+
+
+_REGISTRY: dict[str, Engine] = {}
+_loaded = False
+
+
+def register_engine(engine: Engine, *, replace: bool = False) -> Engine:
+    """Add ``engine`` to the registry (``replace``: over one of the same name)."""
+    if not isinstance(engine, Engine):
+        raise TypeError(f"register_engine takes an Engine, got {type(engine).__name__}")
+    _load()
+    if engine.name in _REGISTRY and not replace:
+        raise ValueError(f"engine {engine.name!r} is registered already (replace=True to "
+                         "replace it)")
+    _REGISTRY[engine.name] = engine
+    return engine
+
+
+def _load() -> None:
+    """The built-in engines, then those of the ``smartcar_gym.engines`` entry points."""
+    global _loaded
+    if _loaded:
+        return
+    _loaded = True
+    for package in BUILT_IN:
+        engine = importlib.import_module(package).ENGINE
+        _REGISTRY.setdefault(engine.name, engine)
+    for point in entry_points(group=ENTRY_POINT_GROUP):
+        engine = point.load()
+        if not isinstance(engine, Engine):
+            raise TypeError(f"entry point {point.name!r} of {ENTRY_POINT_GROUP} ({point.value}) "
+                            f"is a {type(engine).__name__}, not an Engine")
+        _REGISTRY.setdefault(engine.name, engine)
+
+
+def engine_names() -> tuple[str, ...]:
+    """Every registered engine's name, the built-in ones first."""
+    _load()
+    return tuple(_REGISTRY)
+
+
+def get_engine(name: object, what: str = "engine") -> Engine:
+    """The registered engine called ``name``; ValueError listing the engines otherwise."""
+    _load()
+    if not isinstance(name, str) or name not in _REGISTRY:
+        raise ValueError(f"{what} must be one of {', '.join(map(repr, _REGISTRY))}, "
+                         f"got {name!r}")
+    return _REGISTRY[name]
+
+
+def check_engine(value: object, name: str = "engine") -> str:
+    """``value`` if it names an engine; ValueError listing the engines otherwise."""
+    return get_engine(value, name).name
+
+
+def engine_kwargs() -> set[str]:
+    """Every env keyword that only one engine takes."""
+    _load()
+    return {key for engine in _REGISTRY.values() for key in engine.kwargs}
 
 
 def on_engine(env_kwargs: dict[str, Any], engine: str) -> dict[str, Any]:
     """``env_kwargs`` moved to ``engine``: ``engine`` set, and the kwargs only another engine
     takes left out (a planar run's ``planar_params``, when its policy is driven on pybullet)."""
-    check_engine(engine)
-    others = {key for name, keys in ENGINE_KWARGS.items() if name != engine for key in keys}
+    own = get_engine(engine).kwargs
+    others = engine_kwargs() - set(own)
     return {**{k: v for k, v in env_kwargs.items() if k not in others}, "engine": engine}
 
 
-def check_engine(value: object, name: str = "engine") -> str:
-    """``value`` if it names an engine; ValueError listing the engines otherwise."""
-    if not isinstance(value, str) or value not in ENGINES:
-        raise ValueError(f"{name} must be one of {', '.join(map(repr, ENGINES))}, got {value!r}")
-    return value
-
-
 def default_max_substep(engine: str) -> float:
-    """The longest physics substep (s) an engine steps by default: 10 ms on pybullet and
-    MuJoCo, ``planar.simulator.PLANAR_MAX_SUBSTEP_S`` on the planar engine."""
-    if check_engine(engine) == "planar":
-        from smartcar_gym.sim.planar.simulator import PLANAR_MAX_SUBSTEP_S
-
-        return PLANAR_MAX_SUBSTEP_S
-    from smartcar_gym.sim.clock import DEFAULT_MAX_SUBSTEP_S
-
-    return DEFAULT_MAX_SUBSTEP_S
+    """The longest physics substep (s) ``engine`` steps by default."""
+    return get_engine(engine).max_substep_s
 
 
 def substep_range(engine: str) -> tuple[float, float]:
-    """The substeps (s) an engine accepts as ``max_substep_s``: ``clock.MAX_SUBSTEP_RANGE_S``
-    (above 20 ms pybullet's contacts jitter), up to 50 ms on the planar engine (its implicit
-    step is stable at any length)."""
-    if check_engine(engine) == "planar":
-        from smartcar_gym.sim.planar.simulator import PLANAR_SUBSTEP_RANGE_S
-
-        return PLANAR_SUBSTEP_RANGE_S
-    from smartcar_gym.sim.clock import MAX_SUBSTEP_RANGE_S
-
-    return MAX_SUBSTEP_RANGE_S
-
-
-def mujoco_simulator_class() -> type:
-    """The MuJoCo ``Simulator`` class; ImportError naming the extra if mujoco is missing."""
-    try:
-        from smartcar_gym.sim.mujoco.simulator import MujocoSimulator
-    except ModuleNotFoundError as exc:
-        if exc.name != "mujoco":
-            raise
-        raise ImportError(
-            f"engine='mujoco' needs the mujoco package, which is not installed: {MUJOCO_EXTRA}"
-        ) from None
-    return MujocoSimulator
+    """The substeps (s) ``engine`` accepts as ``max_substep_s``."""
+    return get_engine(engine).substep_range_s
 
 
 def window_unavailable(engine: str) -> str | None:
-    """Why a world of ``engine`` cannot open a window (``render_mode="human"``: pybullet's
-    GUI, MuJoCo's viewer) in this process at all; None where it can, given a display."""
-    if engine == "planar":
-        return "the planar engine draws top-down pictures only (no window)"
-    if engine != "mujoco":
-        return None
-    try:
-        from smartcar_gym.sim.mujoco.window import unavailable
-    except ModuleNotFoundError as exc:
-        if exc.name != "mujoco":
-            raise
-        return None  # making the world says which extra is missing
-    return unavailable()
+    """Why a world of ``engine`` cannot open a window (``render_mode="human"``) in this
+    process at all; None where it can, given a display."""
+    return get_engine(engine).window_unavailable()
 
 
 def make_simulator(engine: str = DEFAULT_ENGINE, **options: Any) -> Any:
-    """A new simulator of ``engine`` (see ``ENGINES``) with the ``Simulator`` keywords
-    (``max_substep_s``, ``gui``, ``gravity_m_s2``, ``ground_friction``, ...)."""
-    engine = check_engine(engine)
-    if engine != "planar":
-        options.pop("planar_params", None)
-    if engine == "pybullet":
-        from smartcar_gym.sim.simulator import Simulator
-
-        return Simulator(**options)
-    if engine == "planar":
-        from smartcar_gym.sim.planar.simulator import PlanarSimulator
-
-        return PlanarSimulator(**options)
-    return mujoco_simulator_class()(**options)
+    """A new simulator of ``engine`` with the simulator keywords (``max_substep_s``, ``gui``,
+    ``gravity_m_s2``, ``ground_friction``, ...); keywords only another engine takes (a None
+    ``planar_params`` on pybullet) are dropped."""
+    spec = get_engine(engine)
+    for key in engine_kwargs() - set(spec.kwargs):
+        options.pop(key, None)
+    try:
+        return spec.simulator(**options)
+    except ModuleNotFoundError as exc:
+        if spec.module is None or exc.name != spec.module:
+            raise
+        raise spec.missing(exc) from None
 
 
 def add_engine_argument(parser: argparse.ArgumentParser | Any, default: str | None = None,
                         what: str = "the env's") -> None:
-    """``--engine {pybullet,mujoco,planar}`` on a command line (``args.engine``; None: not
-    given)."""
-    parser.add_argument("--engine", choices=ENGINES, default=default,
+    """``--engine NAME`` on a command line (``args.engine``; None: not given), its choices
+    the registered engines."""
+    _load()
+    notes = "; ".join(f"{e.name}: {e.summary}" for e in _REGISTRY.values() if e.summary)
+    parser.add_argument("--engine", choices=engine_names(), default=default,
                         help=f"physics engine of {what} simulation (default: {DEFAULT_ENGINE}; "
-                             f"mujoco needs the extra: {MUJOCO_EXTRA}; planar: docs/planar.md)")
+                             f"{notes})")
+
+
+def __getattr__(name: str) -> Any:
+    """``ENGINES``: the registered engines' names (as ``engine_names()``), read when asked."""
+    if name == "ENGINES":
+        return engine_names()
+    if name == "MUJOCO_EXTRA":
+        return get_engine("mujoco").extra
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -3,7 +3,8 @@
 ``model`` builds the ``MjSpec`` of one robot from its URDF (reusable for batched worlds),
 ``simulator`` is ``MujocoSimulator`` (the clock, stepping, the world's spec, model and data),
 ``body`` the ``Body`` handles and the visual-only markers, ``render`` the offscreen camera.
-Importing this package imports ``mujoco``.
+``ENGINE`` describes the engine to ``sim.engines``; importing this package does not import
+``mujoco`` (making a world does, and says which extra is missing).
 
 Headless rendering: MuJoCo picks its OpenGL backend from ``MUJOCO_GL`` when ``mujoco`` is first
 imported. Without a display and without ``MUJOCO_GL`` set, this package sets it to ``egl`` if
@@ -15,6 +16,12 @@ from __future__ import annotations
 import ctypes.util
 import os
 import sys
+from typing import Any
+
+from smartcar_gym.sim.clock import DEFAULT_MAX_SUBSTEP_S, MAX_SUBSTEP_RANGE_S
+from smartcar_gym.sim.engines import Engine
+
+EXTRA = 'pip install "smartcar-gym[mujoco]"'
 
 
 def _pick_headless_gl() -> None:
@@ -29,3 +36,31 @@ def _pick_headless_gl() -> None:
 
 
 _pick_headless_gl()
+
+
+def _simulator(**options: Any) -> Any:
+    from smartcar_gym.sim.mujoco.simulator import MujocoSimulator
+
+    return MujocoSimulator(**options)
+
+
+def _window_unavailable() -> str | None:
+    try:
+        from smartcar_gym.sim.mujoco.window import unavailable
+    except ModuleNotFoundError as exc:
+        if exc.name != "mujoco":
+            raise
+        return None  # making the world says which extra is missing
+    return unavailable()
+
+
+ENGINE = Engine(
+    name="mujoco",
+    simulator=_simulator,
+    max_substep_s=DEFAULT_MAX_SUBSTEP_S,
+    substep_range_s=MAX_SUBSTEP_RANGE_S,
+    window_unavailable=_window_unavailable,
+    module="mujoco",
+    extra=EXTRA,
+    summary=f"needs the extra: {EXTRA}",
+)

@@ -26,15 +26,10 @@ import numpy as np
 from smartcar_gym.model.errors import ModelError
 from smartcar_gym.sim.body import BASE, LinkDynamics
 from smartcar_gym.sim.clock import EventClock, check_max_substep
-from smartcar_gym.sim.planar import jit
+from smartcar_gym.sim.planar import PLANAR_MAX_SUBSTEP_S, PLANAR_SUBSTEP_RANGE_S, jit
 from smartcar_gym.sim.planar.dynamics import NC, new_scratch, state_size, substep
 from smartcar_gym.sim.planar.model import Actuation, Groups, PlanarCar, RobotTables, build_car
 from smartcar_gym.sim.planar.params import PlanarParams, resolve
-
-#: the planar engine's longest substep by default and at most (s): its implicit step is stable
-#: at any length; 0.02 s is within 1 % of 2 ms stepping on every fidelity figure (docs/planar.md)
-PLANAR_MAX_SUBSTEP_S = 0.02
-PLANAR_SUBSTEP_RANGE_S = (1e-4, 0.05)
 
 Vec3 = tuple[float, float, float]
 Quat = tuple[float, float, float, float]

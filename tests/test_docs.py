@@ -25,3 +25,28 @@ def test_readme_links_point_to_files_in_the_repository():
     missing = [link for link in links if not (ROOT / link.partition("#")[0]).exists()]
     assert not missing, f"README.md links to missing files: {missing}"
 
+
+
+DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+#: pip installing the package by its PyPI name, which has no release yet
+PYPI_INSTALL = re.compile(r"pip install (?:-U )?\"?smartcar-gym\b")
+
+
+def _version() -> str:
+    return re.search(r'^version = "([^"]+)"', (ROOT / "pyproject.toml").read_text(), re.M).group(1)
+
+
+def test_install_lines_use_a_checkout_or_its_wheel_and_pypi_only_once_released():
+    assert PYPI_INSTALL.search('pip install "smartcar-gym[train]"')
+    assert not PYPI_INSTALL.search('pip install -e ".[train]"')
+    lines = [(path.name, line) for path in DOCS for line in path.read_text().splitlines()]
+    wrong = [f"{name}: {line.strip()}" for name, line in lines if PYPI_INSTALL.search(line)
+             # a PyPI line says it is for later; "error:" quotes a message the package prints
+             and "once released" not in line.lower() and "error:" not in line]
+    assert not wrong, f"install lines that name a PyPI release (there is none yet): {wrong}"
+
+
+def test_the_wheel_the_docs_name_is_this_version():
+    names = {name for path in DOCS for name in re.findall(r"smartcar_gym-[^\s/`\"\[]+\.whl",
+                                                          path.read_text())}
+    assert names == {f"smartcar_gym-{_version()}-py3-none-any.whl"}

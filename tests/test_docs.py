@@ -50,3 +50,22 @@ def test_the_wheel_the_docs_name_is_this_version():
     names = {name for path in DOCS for name in re.findall(r"smartcar_gym-[^\s/`\"\[]+\.whl",
                                                           path.read_text())}
     assert names == {f"smartcar_gym-{_version()}-py3-none-any.whl"}
+
+
+def test_the_env_cards_are_written_once_in_the_docstrings():
+    import inspect
+
+    import mkdocs_hooks
+    from smartcar_gym.envs.goal_env import SmartCarGoalEnv
+    from smartcar_gym.envs.nav_env import SmartCarNavEnv
+    from smartcar_gym.envs.smartcar_env import SmartCarEnv
+
+    source = (ROOT / "docs" / "env.md").read_text()
+    page = mkdocs_hooks.on_page_markdown(source)
+    for env in (SmartCarEnv, SmartCarNavEnv, SmartCarGoalEnv):
+        first = inspect.getdoc(env).split("\n\n")[1]            # the description's first paragraph
+        assert first in page and first not in source, env.__name__
+    assert "<!-- docstring" not in page
+    # no hand-made copy of the card beside them: not in the page, not in the README
+    for text in (source, (ROOT / "README.md").read_text()):
+        assert not re.search(r"^\| (Action|Observation|Reward) \|", text, re.M)

@@ -69,3 +69,20 @@ def test_the_env_cards_are_written_once_in_the_docstrings():
     # no hand-made copy of the card beside them: not in the page, not in the README
     for text in (source, (ROOT / "README.md").read_text()):
         assert not re.search(r"^\| (Action|Observation|Reward) \|", text, re.M)
+
+
+def _layout() -> str:
+    page = (ROOT / "docs" / "development.md").read_text()
+    return re.search(r"```\n(smartcar_gym/ .*?)```", page, flags=re.S).group(1)
+
+
+def test_the_layout_names_every_package_and_only_folders_that_exist():
+    package = ROOT / "smartcar_gym"
+    packages = sorted(str(init.parent.relative_to(package)) for init in package.rglob("__init__.py")
+                      if init.parent != package)
+    named = re.findall(r"^  ([\w/]+)/ ", _layout(), flags=re.M)
+    assert "sim/pybullet" in packages and "envs/vector" in packages, packages
+    missing = [path for path in packages if path not in named]
+    assert not missing, f"docs/development.md's layout omits {missing}"
+    stale = [path for path in named if not (package / path).is_dir()]
+    assert not stale, f"docs/development.md's layout names folders that are gone: {stale}"

@@ -16,11 +16,15 @@ import yaml
 from smartcar_gym.agents.evaluate import build_parser
 
 pytest.importorskip("check_jsonschema", reason="check-jsonschema is in the test extra")
+tomllib = pytest.importorskip("tomllib", reason="Python 3.11 reads pyproject.toml")
 
 DOC = Path(__file__).resolve().parent.parent / "docs" / "ci.md"
 SCHEMAS = {".github/workflows/policy-gate.yml": "vendor.github-workflows",
            ".gitlab-ci.yml": "vendor.gitlab-ci"}
 CPU_TORCH = "pip install torch==2.13.0 --index-url https://download.pytorch.org/whl/cpu"
+VERSION = tomllib.loads((DOC.parent.parent / "pyproject.toml").read_text())["project"]["version"]
+#: where docs/ci.md's jobs take the package from: the wheel `python -m build` makes, kept in wheels/
+WHEEL = f"wheels/smartcar_gym-{VERSION}-py3-none-any.whl"
 
 
 def _blocks() -> dict[str, str]:
@@ -64,8 +68,11 @@ def test_the_ci_file_installs_cpu_torch_caches_pip_and_gates_batched(name):
         commands = job["before_script"] + job["script"]
     lines = [line.strip() for command in commands for line in command.splitlines()]
     torch = next(i for i, line in enumerate(lines) if "torch" in line)
-    package = next(i for i, line in enumerate(lines) if "smartcar-gym[" in line)
+    package = next(i for i, line in enumerate(lines) if "smartcar_gym-" in line)
     assert lines[torch] == CPU_TORCH and torch < package  # CPU torch before the package
+    # the wheel built from this checkout (smartcar-gym is not on PyPI), at its version
+    assert lines[package] == f'pip install "{WHEEL}[train,mujoco]"', lines[package]
+    assert not any("smartcar-gym" in line for line in lines if line.startswith("pip"))
     (gate,) = [c for c in commands if c.lstrip().startswith("smartcar-eval")]
     argv = shlex.split(" ".join(gate.split()))
     args = build_parser().parse_args(argv[1:])

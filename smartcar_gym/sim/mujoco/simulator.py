@@ -28,8 +28,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from smartcar_gym.sim.body import BASE
-from smartcar_gym.sim.camera import BoxPart
+from smartcar_gym.sim.contracts import BASE, BoxPart
 from smartcar_gym.sim.clock import DEFAULT_MAX_SUBSTEP_S, EventClock, check_max_substep
 from smartcar_gym.sim.mujoco import mjlog
 from smartcar_gym.sim.mujoco.body import Marker, MujocoBody, wxyz

@@ -14,7 +14,7 @@ from pathlib import Path
 
 from smartcar_gym.model.errors import ModelError
 from smartcar_gym.model.unloadable import why_unloadable
-from smartcar_gym.sim.bullet import bullet_client, pybullet, silenced_output
+from smartcar_gym.sim.pybullet.bullet import bullet_client, pybullet, silenced_output
 
 
 def load_body(client: bullet_client.BulletClient, path: str | os.PathLike,

@@ -1,4 +1,4 @@
-"""A body in the simulator, addressed by joint names: poses, joint states, actuation, dynamics.
+"""pybullet's ``Body`` (``sim.contracts.Body``): one body's poses, joints and dynamics.
 
 Handles are made by ``Simulator.load_urdf`` / ``add_visual``; every pybullet call about one body
 goes through here. Actuation that pybullet forgets after a step (joint torques) or scales with
@@ -10,26 +10,16 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Sequence
-from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
 
+from smartcar_gym.sim.contracts import BASE, LinkDynamics, Quat, Vec3
+
 if TYPE_CHECKING:
-    from smartcar_gym.sim.simulator import Simulator
+    from smartcar_gym.sim.pybullet.simulator import Simulator
 
-Vec3 = tuple[float, float, float]
-Quat = tuple[float, float, float, float]
-BASE = -1  # pybullet's link index of a body's base
-
-
-@dataclass(frozen=True)
-class LinkDynamics:
-    """A link's mass (kg), diagonal inertia about its centre of mass (kg m^2) and friction."""
-
-    mass_kg: float
-    inertia_diagonal: Vec3
-    lateral_friction: float
+__all__ = ["BASE", "Body", "LinkDynamics"]
 
 
 class Body:
@@ -164,7 +154,7 @@ class Body:
     # -- queries -------------------------------------------------------------------------------
     def hide_from_rays(self) -> None:
         """Let ray casts pass through every link of this body; its collisions are unchanged."""
-        from smartcar_gym.sim.rays import ALL_GROUPS, HIDDEN_GROUP
+        from smartcar_gym.sim.pybullet.rays import ALL_GROUPS, HIDDEN_GROUP
 
         client = self.sim.client
         for link in [BASE, *range(client.getNumJoints(self.uid))]:

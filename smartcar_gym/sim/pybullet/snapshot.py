@@ -9,8 +9,8 @@ import imageio.v3 as iio
 import numpy as np
 
 from smartcar_gym.model.loader import RobotModel
-from smartcar_gym.sim.camera import model_image
-from smartcar_gym.sim.simulator import Simulator
+from smartcar_gym.sim.pybullet.camera import model_image
+from smartcar_gym.sim.pybullet.simulator import Simulator
 
 SETTLE_SUBSTEP_S = 1 / 240
 

@@ -27,9 +27,9 @@ from pathlib import Path
 
 import numpy as np
 
-from smartcar_gym.sim import camera
-from smartcar_gym.sim.body import Body
-from smartcar_gym.sim.bullet import connect, pybullet, silenced_output
+from smartcar_gym.sim.pybullet import camera
+from smartcar_gym.sim.pybullet.body import Body
+from smartcar_gym.sim.pybullet.bullet import connect, pybullet, silenced_output
 from smartcar_gym.sim.clock import (  # noqa: F401 (the clock's names, as they were here)
     DEFAULT_MAX_SUBSTEP_S,
     MAX_FIRINGS_PER_INSTANT,
@@ -258,7 +258,7 @@ class Simulator(EventClock):
         from the collision shapes). pybullet's importer messages are silenced; a file it cannot
         load raises ``ModelError`` naming the file (and the reason where it can be told).
         """
-        from smartcar_gym.sim.loading import load_body  # imports the model package (xacro)
+        from smartcar_gym.sim.pybullet.loading import load_body  # imports the model package (xacro)
 
         self._check_new_name(name)
         flags = pybullet.URDF_USE_INERTIA_FROM_FILE | pybullet.URDF_USE_IMPLICIT_CYLINDER
@@ -323,7 +323,7 @@ class Simulator(EventClock):
 
     def ray_batch(self, starts: np.ndarray, ends: np.ndarray):
         """``smartcar_gym.sim.rays.cast_rays`` of checked (N, 3) arrays: pybullet's batch."""
-        from smartcar_gym.sim.rays import bullet_rays
+        from smartcar_gym.sim.pybullet.rays import bullet_rays
 
         return bullet_rays(self.client, starts, ends)
 

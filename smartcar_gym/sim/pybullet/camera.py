@@ -3,21 +3,13 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 import numpy as np
 
-from smartcar_gym.sim.bullet import bullet_client, pybullet
+from smartcar_gym.sim.contracts import BoxPart
+from smartcar_gym.sim.pybullet.bullet import bullet_client, pybullet
 
-
-@dataclass(frozen=True)
-class BoxPart:
-    """One box of a composite visual shape: half extents and pose in the shape's frame (m)."""
-
-    half_extents: tuple[float, float, float]
-    position: tuple[float, float, float]
-    orientation: tuple[float, float, float, float]
-    rgba: tuple[float, float, float, float]
+__all__ = ["BoxPart", "model_image", "orbit_image", "visual_batch", "visual_body"]
 
 
 def visual_body(client: bullet_client.BulletClient, shape: str, size: Sequence[float],

@@ -27,19 +27,16 @@ from pathlib import Path
 
 import numpy as np
 
-from smartcar_gym.sim.pybullet import camera
-from smartcar_gym.sim.pybullet.body import Body
-from smartcar_gym.sim.pybullet.bullet import connect, pybullet, silenced_output
-from smartcar_gym.sim.clock import (  # noqa: F401 (the clock's names, as they were here)
+from smartcar_gym.sim.clock import (
     DEFAULT_MAX_SUBSTEP_S,
-    MAX_FIRINGS_PER_INSTANT,
-    MAX_SUBSTEP_RANGE_S,
     NS_PER_S,
     EventClock,
-    EventSource,
     check_max_substep,
     seconds_to_ns,
 )
+from smartcar_gym.sim.pybullet import camera
+from smartcar_gym.sim.pybullet.body import Body
+from smartcar_gym.sim.pybullet.bullet import connect, pybullet, silenced_output
 
 Vec3 = tuple[float, float, float]
 Quat = tuple[float, float, float, float]

@@ -47,7 +47,7 @@ from smartcar_gym.envs.randomization import FACTORS, Randomization
 from smartcar_gym.model import ModelError, load_model
 from smartcar_gym.model.contact import WHEEL_CONTACTS
 from smartcar_gym.sim.clock import check_max_substep
-from smartcar_gym.sim.engines import add_engine_argument
+from smartcar_gym.sim.engines import DEFAULT_ENGINE, add_engine_argument
 
 PROG = "smartcar-calibrate"
 
@@ -80,7 +80,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--wheel-contact", choices=WHEEL_CONTACTS, default="sphere")
     parser.add_argument("--max-substep-s", type=float, default=0.01,
                         help="longest physics substep (s), as the env's max_substep_s")
-    add_engine_argument(parser, default="pybullet", what="the calibration drives'")
+    add_engine_argument(parser, default=DEFAULT_ENGINE, what="the calibration drives'")
     parser.add_argument("--randomize", metavar="SPEC", help="how the simulated car differs "
                         "from the YAML: a preset (default), a YAML file or a mapping such as "
                         "\"{track: 1.1}\"; drawn once")

@@ -23,9 +23,12 @@ from smartcar_gym.calibration.planar_fit import FitError, FitResult, describe, f
 from smartcar_gym.calibration.recording import Recording, record
 from smartcar_gym.controller import ArbotixConfig
 from smartcar_gym.model import ModelError, RobotModel
+from smartcar_gym.sim.engines import get_engine
 from smartcar_gym.sim.planar.params import KEYS, PlanarParams, PlanarParamsError, dump, resolve
 
 PROG = "smartcar-calibrate"
+#: the env keyword that carries the parameters this fit identifies
+PARAMS_KEYWORD = "planar_params"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -59,10 +62,12 @@ def recordings_of(args: argparse.Namespace, model: RobotModel,
                                      cmd_topic=args.cmd_topic, odom_topic=args.odom_topic,
                                      rate_hz=config.rate_hz)
         return recordings, f"{args.bag} ({len(recordings)} episodes)"
-    if args.engine == "planar" and args.start is None:
-        raise FitError("--engine planar: fitting the planar engine to itself needs --start "
-                       "(the parameters to recover)")
-    options = {"planar_params": resolve(args.start)} if args.engine == "planar" else {}
+    # an engine that takes the fitted parameters runs the planar model itself
+    fitted = PARAMS_KEYWORD in get_engine(args.engine).kwargs
+    if fitted and args.start is None:
+        raise FitError(f"--engine {args.engine}: fitting the planar engine to itself needs "
+                       "--start (the parameters to recover)")
+    options = {PARAMS_KEYWORD: resolve(args.start)} if fitted else {}
     return record(model, config, args.engine, **options), f"the fit's drives on {args.engine}"
 
 

@@ -22,6 +22,9 @@ from smartcar_gym.model import RobotModel
 from smartcar_gym.sim.clock import NS_PER_S
 from smartcar_gym.sim.planar.params import PlanarParams
 
+#: the engine whose model the fit identifies (the replays run on it)
+FITTED_ENGINE = "planar"
+
 
 class FleetReplay:
     """Replays ``recordings`` on the planar engine for many candidate parameter sets."""
@@ -33,7 +36,7 @@ class FleetReplay:
         self.model, self.config = model, config
         self.recordings = list(recordings)
         # the template: the robot as the env spawns it, for its contacts and actuation
-        self.template = SmartCarEnv(model=model, controller_config=config, engine="planar")
+        self.template = SmartCarEnv(model=model, controller_config=config, engine=FITTED_ENGINE)
         self.template.reset(seed=0)
         self.body = self.template.robot.body
         self.length = max(len(r.commands) for r in self.recordings)
@@ -52,7 +55,8 @@ class FleetReplay:
             if self._venv is not None:
                 self._venv.close()
             self._venv = SmartCarPlanarVectorEnv(num_envs=n, model=self.model,
-                                                 controller_config=self.config, engine="planar")
+                                                 controller_config=self.config,
+                                                 engine=FITTED_ENGINE)
         return self._venv
 
     def run(self, candidates: Sequence[PlanarParams]

@@ -16,6 +16,7 @@ from smartcar_gym.calibration.estimate import Estimate, fit
 from smartcar_gym.controller import ArbotixConfig
 from smartcar_gym.envs.robots.variation import Variation
 from smartcar_gym.model import RobotModel
+from smartcar_gym.sim.engines import DEFAULT_ENGINE
 
 #: fit name -> (runs it uses, whether their true end headings are used)
 FITS: dict[str, tuple[tuple[str, ...], bool]] = {
@@ -53,7 +54,7 @@ def drive_all(driver: Driver, plan: Plan) -> tuple[Run, ...]:
 def calibrate(model: RobotModel, config: ArbotixConfig, plan: Plan | None = None,
               fit_name: str = "spin", variation: Variation | None = None,
               ground_friction: float = 1.0, wheel_contact: str = "sphere",
-              max_substep_s: float = 0.01, engine: str = "pybullet") -> Calibration:
+              max_substep_s: float = 0.01, engine: str = DEFAULT_ENGINE) -> Calibration:
     """Calibrate ``config``'s odometry for ``model`` (on a plant ``variation``, if given).
 
     The plant stays the same for the runs after calibration: its encoders count the same

@@ -325,7 +325,7 @@ class SmartCarNavEnv(SmartCarEnv):
         self._scan_markers.draw(self.laser.hit_points, self.laser.origin)
         target, distance = self._camera()
         if self.render_mode == "human":
-            self.sim.point_gui_camera(target, distance, yaw_deg=0.0, pitch_deg=CAMERA_PITCH_DEG)
+            self._show(target, distance, CAMERA_PITCH_DEG)
             return None
         return self.sim.render(self.render_width, self.render_height, target, distance,
                                yaw_deg=0.0, pitch_deg=CAMERA_PITCH_DEG)

@@ -30,7 +30,7 @@ import yaml
 from smartcar_gym.checks import is_real
 from smartcar_gym.controller.latency import MAX_LATENCY_PERIODS
 from smartcar_gym.envs.robots.variation import Variation
-from smartcar_gym.sim.body import BASE
+from smartcar_gym.sim.contracts import BASE
 from smartcar_gym.sim.dynamics import set_lateral_friction
 
 PRESETS = ("default",)

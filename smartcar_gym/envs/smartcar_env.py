@@ -7,7 +7,7 @@ import os
 import threading
 import warnings
 from collections.abc import Iterator, Sequence
-from contextlib import contextmanager
+from contextlib import contextmanager, nullcontext
 from typing import Any
 
 import gymnasium as gym
@@ -30,18 +30,18 @@ from smartcar_gym.envs.robots.smartcar import Pose2D, SmartCarRobot
 from smartcar_gym.envs.tasks.reach import GoalReachingTask
 from smartcar_gym.model import RobotModel, load_model
 from smartcar_gym.model.contact import check_wheel_contact
-from smartcar_gym.sim.clock import EventClock, check_max_substep
+from smartcar_gym.sim.clock import check_max_substep
+from smartcar_gym.sim.contracts import Simulator, window_of
 from smartcar_gym.sim.engines import (
     DEFAULT_ENGINE,
     check_engine,
     default_max_substep,
+    engine_options,
     make_simulator,
     substep_range,
     window_unavailable,
 )
 from smartcar_gym.sim.markers import SceneMarkers
-from smartcar_gym.sim.planar.params import PlanarParams
-from smartcar_gym.sim.planar.params import resolve as resolve_planar
 
 MAX_RENDER_PX = 4096  # 8000 x 8000 took 2.4 GB and minutes per frame
 #: the rows of SmartCar-v0's observation, in order (entries come from robot, task and env)
@@ -262,17 +262,15 @@ class SmartCarEnv(gym.Env):
         randomize: str | os.PathLike | dict | Randomization | None = None,
         engine: str | None = None,
         stop_speed: float | None = None,
-        planar_params: str | os.PathLike | dict | PlanarParams | None = None,
+        planar_params: str | os.PathLike | dict | Any | None = None,
     ) -> None:
         self.engine = DEFAULT_ENGINE if engine is None else check_engine(engine)
         self.metadata = {**self.metadata, "render_modes": self._render_modes(render_mode)}
         checks.one_of("render_mode", render_mode, list(self.metadata["render_modes"]),
                       none_ok=True)
-        if planar_params is not None and self.engine != "planar":
-            raise ValueError(f"planar_params is the planar engine's; pass engine='planar' "
-                             f"(engine is {self.engine!r})")
-        #: the planar engine's free parameters (None on the other engines)
-        self.planar_params = resolve_planar(planar_params) if self.engine == "planar" else None
+        #: the env keywords only this env's engine takes, resolved (``Engine.kwargs``);
+        #: a keyword of another engine's is refused
+        self.engine_options = engine_options(self.engine, {"planar_params": planar_params})
         checks.one_of("controller_mode", controller_mode, MODES, none_ok=True)
         self.render_mode = render_mode
         self.wheel_contact = check_wheel_contact(wheel_contact)
@@ -312,7 +310,7 @@ class SmartCarEnv(gym.Env):
                             f"engine={engine!r} only holds the kinematically moved body")
         self.metadata = {**self.metadata, "render_fps": self.controller_config.rate_hz}
 
-        self.sim: EventClock | None = None
+        self.sim: Simulator | None = None
         self._open()
         self.observation = self._declare_observation()
         #: what each observation entry is, in order (wheels as found: left then right)
@@ -323,6 +321,12 @@ class SmartCarEnv(gym.Env):
         self._distance = 0.0
         self._odometry_error = 0.0
         self._prev_action = np.zeros(2, dtype=np.float32)
+
+    @property
+    def planar_params(self) -> Any:
+        """The planar engine's free parameters (``sim.planar.params.PlanarParams``; None on an
+        engine that does not take ``planar_params``)."""
+        return self.engine_options.get("planar_params")
 
     def _render_modes(self, render_mode: Any) -> RenderModes:
         """The modes this env's engine supports here: without a window (MuJoCo's viewer on
@@ -374,8 +378,7 @@ class SmartCarEnv(gym.Env):
     def _open(self) -> None:
         """Connect a fresh simulator (its own world) with the robot and the markers."""
         self.sim = make_simulator(self.engine, max_substep_s=self.max_substep_s,
-                                  gui=self.render_mode == "human",
-                                  planar_params=self.planar_params)
+                                  gui=self.render_mode == "human", **self.engine_options)
         self.robot = SmartCarRobot(
             self.sim, self.robot_model, self.controller_config, mode=self.controller_mode,
             wheel_contact=self.wheel_contact,
@@ -397,7 +400,9 @@ class SmartCarEnv(gym.Env):
                 self._open()
             if goal is None:
                 goal = self.task.sample_goal(self.np_random, np.zeros(2))
-            with self.sim.building():  # the GUI must not draw a half-built world
+            window = window_of(self.sim)
+            # a window must not draw a half-built world
+            with window.building() if window is not None else nullcontext():
                 self.sim.reset()
                 start = (0.0, 0.0, 0.0)
                 if self.randomization is not None:
@@ -481,11 +486,17 @@ class SmartCarEnv(gym.Env):
         distance = max(0.9, 1.1 * span + 0.5)
         target3 = (float(target[0]), float(target[1]), 0.0)
         if self.render_mode == "human":
-            self.sim.point_gui_camera(target3, distance, yaw_deg=0.0, pitch_deg=-60.0)
+            self._show(target3, distance, -60.0)
             return None
         return self.sim.render(
             self.render_width, self.render_height, target3, distance, yaw_deg=0.0, pitch_deg=-60.0
         )
+
+    def _show(self, target: Sequence[float], distance: float, pitch_deg: float) -> None:
+        """Point the window's camera (``render_mode="human"``), looking north."""
+        window = window_of(self.sim)
+        if window is not None:
+            window.point_gui_camera(target, distance, yaw_deg=0.0, pitch_deg=pitch_deg)
 
     def close(self) -> None:
         if getattr(self, "sim", None) is not None:

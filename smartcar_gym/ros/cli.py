@@ -32,7 +32,7 @@ from smartcar_gym.agents.model_files import PRETRAINED_POLICIES
 from smartcar_gym.ros.debian import RosUnavailable, import_ros
 from smartcar_gym.ros.driving import STOP_ON
 from smartcar_gym.ros.package import package_folder
-from smartcar_gym.sim.engines import add_engine_argument
+from smartcar_gym.sim.engines import DEFAULT_ENGINE, add_engine_argument
 
 PROG = "smartcar-ros"
 STALE_AFTER_S = 0.5  # five controller periods of the shipped config
@@ -80,7 +80,7 @@ def build_parser() -> argparse.ArgumentParser:
     bringup.add_argument("--mode", choices=("hardware", "sim"),
                          help="hardware (PID, encoders, motors) or sim (kinematic, the "
                               "driver's sim: true); default: the config's sim parameter")
-    add_engine_argument(bringup, default="pybullet", what="the robot's")
+    add_engine_argument(bringup, default=DEFAULT_ENGINE, what="the robot's")
     bringup.add_argument("--speed", type=_positive, default=1.0, metavar="N",
                          help="simulated seconds per wall-clock second (default 1); other "
                               "than 1 needs /use_sim_time true")

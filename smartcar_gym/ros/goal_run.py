@@ -31,7 +31,7 @@ from smartcar_gym.ros import messages as m
 from smartcar_gym.ros.bringup import start_robot
 from smartcar_gym.ros.driving import GoalDriver
 from smartcar_gym.ros.settings import PolicySettings
-from smartcar_gym.sim.simulator import NS_PER_S
+from smartcar_gym.sim.clock import NS_PER_S
 
 ARENA_MARGIN_M = 0.3  # goals are kept this far inside the arena the policy was trained in
 

@@ -14,7 +14,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from smartcar_gym.sim.simulator import NS_PER_S
+from smartcar_gym.sim.clock import NS_PER_S
 
 # Behind the wall clock by more than this (s), the pacer stops catching up: it lets the
 # simulated time fall behind (the lag is reported) instead of running a burst of steps.

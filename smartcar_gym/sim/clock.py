@@ -1,7 +1,7 @@
 """The engine-neutral part of a simulator: the integer-ns clock and event-driven stepping.
 
 ``EventClock`` keeps the time, the event sources and the registry of named bodies; an engine's
-simulator (``smartcar_gym.sim.simulator`` for pybullet, ``smartcar_gym.sim.mujoco`` for MuJoCo)
+simulator (``sim.pybullet.simulator``, ``sim.mujoco.simulator``, ``sim.planar.simulator``)
 subclasses it and steps its physics in ``_step_physics``. Nothing here imports a physics engine.
 
 **Time.** The clock counts integer nanoseconds from the start of an episode, so event times

@@ -11,7 +11,7 @@ import math
 from collections.abc import Iterable
 
 from smartcar_gym.checks import is_real
-from smartcar_gym.sim.body import Body
+from smartcar_gym.sim.contracts import Body
 
 
 def _check_factor(name: str, factor: float) -> float:

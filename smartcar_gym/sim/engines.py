@@ -128,6 +128,23 @@ def engine_kwargs() -> set[str]:
     return {key for engine in _REGISTRY.values() for key in engine.kwargs}
 
 
+def engine_options(engine: str, given: dict[str, Any]) -> dict[str, Any]:
+    """The env keywords only some engine takes (``given``: name -> value, None where not
+    given), for a world of ``engine``: each of ``engine``'s own resolved by its ``kwargs``
+    function (None included: its default); ValueError for a value given for another
+    engine's."""
+    spec = get_engine(engine)
+    for key, value in given.items():
+        if value is not None and key not in spec.kwargs:
+            owner = next((e.name for e in _REGISTRY.values() if key in e.kwargs), None)
+            if owner is None:
+                raise ValueError(f"{key} is no engine's keyword; the engines' keywords are "
+                                 f"{sorted(engine_kwargs())}")
+            raise ValueError(f"{key} is the {owner} engine's; pass engine={owner!r} "
+                             f"(engine is {engine!r})")
+    return {key: resolve(given.get(key)) for key, resolve in spec.kwargs.items()}
+
+
 def on_engine(env_kwargs: dict[str, Any], engine: str) -> dict[str, Any]:
     """``env_kwargs`` moved to ``engine``: ``engine`` set, and the kwargs only another engine
     takes left out (a planar run's ``planar_params``, when its policy is driven on pybullet)."""

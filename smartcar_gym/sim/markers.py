@@ -12,9 +12,7 @@ from collections import deque
 
 import numpy as np
 
-from smartcar_gym.sim.body import Body
-from smartcar_gym.sim.camera import BoxPart
-from smartcar_gym.sim.simulator import Simulator
+from smartcar_gym.sim.contracts import Body, BoxPart, Simulator
 
 TRAIL_COLOR = (221 / 255, 200 / 255, 14 / 255, 1.0)  # the seed's rviz Odometry colour
 GOAL_COLOR = (0.1, 0.8, 0.2, 0.6)

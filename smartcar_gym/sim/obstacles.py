@@ -10,16 +10,15 @@ contact points from the engine).
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
 
-from smartcar_gym.sim.clock import EventClock
+from smartcar_gym.sim.contracts import Body, Simulator
 
 SHAPES = ("box", "cylinder")
 OBSTACLE_COLOR = (0.55, 0.55, 0.6, 1.0)
 
 
 def add_obstacle(
-    sim: EventClock,
+    sim: Simulator,
     name: str,
     shape: str,
     size: Sequence[float],
@@ -27,7 +26,7 @@ def add_obstacle(
     yaw: float = 0.0,
     height: float = 0.3,
     rgba: Sequence[float] = OBSTACLE_COLOR,
-) -> Any:
+) -> Body:
     """A static obstacle standing on the ground, centred on ``position`` (x, y), turned by ``yaw``.
 
     ``size`` is (length along x, width along y) of a box before the turn, or (diameter,) of a
@@ -45,7 +44,7 @@ def add_obstacle(
                                               height / 2.0), yaw, rgba)
 
 
-def nearest_distance(body: Any, others: Sequence[Any], max_distance_m: float) -> float:
+def nearest_distance(body: Body, others: Sequence[Body], max_distance_m: float) -> float:
     """The smallest distance (m) between ``body``'s collision shapes and those of ``others``
     at their current poses (< 0: overlapping), or ``max_distance_m`` if none is nearer."""
     nearest = max_distance_m

@@ -30,8 +30,8 @@ from smartcar_gym.controller.latency import CommandDelay
 from smartcar_gym.envs.robots.variation import Variation
 from smartcar_gym.model import ModelError, RobotModel, Wheel
 from smartcar_gym.model.contact import WheelContact, simulated_urdf
-from smartcar_gym.sim.body import BASE, Body
-from smartcar_gym.sim.simulator import NS_PER_S, Simulator, seconds_to_ns
+from smartcar_gym.sim.clock import NS_PER_S, seconds_to_ns
+from smartcar_gym.sim.contracts import BASE, Body, ConvergesContacts, Simulator
 
 GEAR_MAX_FORCE_NM = 100.0  # the chain between a side's wheels: far above any motor torque
 SETTLE_S = 0.1  # wheels onto the ground before the controller starts
@@ -89,7 +89,7 @@ class SmartCarRobot:
     differ from its model and YAML (domain randomisation).
 
     A differential-drive model (one drive wheel per side, ``model.drive_kind``) spawns with its
-    contacts solved to convergence (``Simulator.converge_contacts``) and its encoders starting
+    contacts solved to convergence (``contracts.ConvergesContacts``) and its encoders starting
     mid-tick, so that a mirror-symmetric robot drives straight; a skid base (the smartcar)
     steps exactly as before.
     """
@@ -213,7 +213,9 @@ class SmartCarRobot:
         urdf_path = self.model.write_urdf(sim.scratch_dir, self._urdf)
         body = sim.load_urdf(self.name, urdf_path, (x, y, self.spawn_z), yaw)
         self.body = body
-        if self.model.drive_kind == "differential":  # its yaw feels any lopsided solve
+        # its yaw feels any lopsided solve (an engine that solves contacts exactly has no
+        # solver to converge)
+        if self.model.drive_kind == "differential" and isinstance(sim, ConvergesContacts):
             sim.converge_contacts()
         self._wheel_idx = [body.joint_index(w.joint) for w in self.wheels]
         self._encoder_idx = [body.joint_index(w.joint) for w in self.encoder_wheels]

@@ -24,7 +24,7 @@ from smartcar_gym.controller.encoder_faults import FaultyEncoder
 from smartcar_gym.model import RobotModel, Wheel
 from smartcar_gym.model.contact import round_wheel_shapes
 from smartcar_gym.model.urdf import parse_xml, serialize_xml
-from smartcar_gym.sim.body import BASE, Body
+from smartcar_gym.sim.contracts import BASE, Body
 from smartcar_gym.sim.dynamics import scale_lateral_friction, scale_mass
 
 

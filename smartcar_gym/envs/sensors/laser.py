@@ -18,10 +18,9 @@ from smartcar_gym.envs.sensors.scan import LaserConfig, LaserScan
 from smartcar_gym.model import RobotModel
 from smartcar_gym.model.kinematics import link_frames, quaternion_matrix
 from smartcar_gym.model.urdf import UrdfRobot
-from smartcar_gym.sim.body import Body
-from smartcar_gym.sim.camera import BoxPart
+from smartcar_gym.sim.clock import seconds_to_ns
+from smartcar_gym.sim.contracts import Body, BoxPart, Simulator
 from smartcar_gym.sim.rays import cast_rays, hide_from_rays
-from smartcar_gym.sim.simulator import Simulator, seconds_to_ns
 
 HIT_COLOR = (0.95, 0.1, 0.1, 1.0)
 _HIDDEN = (0.0, 0.0, -10.0)

@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING
 import mujoco
 import numpy as np
 
-from smartcar_gym.sim.body import BASE, LinkDynamics
+from smartcar_gym.sim.contracts import BASE, LinkDynamics
 from smartcar_gym.sim.mujoco.model import GROUP_COLLISION, GROUP_HIDDEN, GROUP_WORLD
 
 if TYPE_CHECKING:

@@ -28,9 +28,8 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from smartcar_gym.sim.body import BASE
-from smartcar_gym.sim.camera import BoxPart
 from smartcar_gym.sim.clock import DEFAULT_MAX_SUBSTEP_S, EventClock, check_max_substep
+from smartcar_gym.sim.contracts import BASE, BoxPart
 from smartcar_gym.sim.mujoco import mjlog
 from smartcar_gym.sim.mujoco.body import Marker, MujocoBody, wxyz
 from smartcar_gym.sim.mujoco.model import (
@@ -55,10 +54,9 @@ _SHAPES = {"box": mujoco.mjtGeom.mjGEOM_BOX, "cylinder": mujoco.mjtGeom.mjGEOM_C
 class MujocoSimulator(EventClock):
     """A MuJoCo world (gravity, a ground plane) with the event-driven clock.
 
-    Args: as pybullet's ``Simulator``. ``gui`` opens MuJoCo's own viewer (``window.Window``)
-    at the first ``point_gui_camera``; without a display it is refused in one line, as
-    pybullet's GUI is. ``solver_iterations`` is pybullet's and unused (MuJoCo's Newton solver
-    stops when it has converged).
+    Args: as ``sim.contracts.Simulator``. ``gui`` opens MuJoCo's own viewer
+    (``window.Window``) at the first ``point_gui_camera``; without a display it is refused in
+    one line, as pybullet's GUI is.
     """
 
     engine = "mujoco"
@@ -69,7 +67,6 @@ class MujocoSimulator(EventClock):
         gui: bool = False,
         gravity_m_s2: float = 9.81,
         ground_friction: float = 1.0,
-        solver_iterations: int = 10,
     ) -> None:
         self.gui = False
         if gui:
@@ -82,7 +79,6 @@ class MujocoSimulator(EventClock):
         self.window = None
         self.gravity_m_s2 = gravity_m_s2
         self.ground_friction = ground_friction
-        self.solver_iterations = int(solver_iterations)
         self._scratch = None
         self._renderer = None
         self._closed = False
@@ -151,7 +147,8 @@ class MujocoSimulator(EventClock):
 
     @contextlib.contextmanager
     def building(self) -> Iterator[None]:
-        """Nothing to pause without a GUI."""
+        """Nothing to pause (``contracts.Window``): MuJoCo's viewer draws only in
+        ``point_gui_camera``, on the caller's thread, never while the world is rebuilt."""
         yield
 
     def close(self) -> None:

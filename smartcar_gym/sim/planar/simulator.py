@@ -1,4 +1,4 @@
-"""``PlanarSimulator``: the simulator facade on the planar engine, pybullet's interface.
+"""``PlanarSimulator``: the simulator facade on the planar engine (``sim.contracts``).
 
 The world is flat ground, static obstacles (boxes and upright cylinders) and robots, each a
 ``PlanarBody``: a rigid body in the plane on its wheel groups (``model.build_car``), stepped by
@@ -15,9 +15,8 @@ numpy; ``batch.PlanarBatch`` steps N cars in arrays with the same function, bit 
 
 from __future__ import annotations
 
-import contextlib
 import math
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -355,8 +354,8 @@ class PlanarBody:
 class PlanarSimulator(EventClock):
     """A flat world stepped by the planar engine, with the event-driven clock.
 
-    Args: as pybullet's ``Simulator`` (``gui`` is refused: the planar engine draws
-    ``rgb_array`` pictures only; ``solver_iterations`` is pybullet's and unused), plus
+    Args: as ``sim.contracts.Simulator`` (``gui`` is refused: the planar engine draws
+    ``rgb_array`` pictures only), plus
     ``planar_params``: the model's free parameters (``params.resolve``: None for the shipped
     pybullet fit, "mujoco", a file, a dict or a ``PlanarParams``).
     """
@@ -369,7 +368,6 @@ class PlanarSimulator(EventClock):
         gui: bool = False,
         gravity_m_s2: float = 9.81,
         ground_friction: float = 1.0,
-        solver_iterations: int = 10,
         planar_params: Any = None,
     ) -> None:
         if gui:
@@ -381,7 +379,6 @@ class PlanarSimulator(EventClock):
         self.gui = False
         self.gravity_m_s2 = gravity_m_s2
         self.ground_friction = ground_friction
-        self.solver_iterations = int(solver_iterations)
         self.params: PlanarParams = resolve(planar_params)
         self._scratch = None
         self._closed = False
@@ -393,7 +390,6 @@ class PlanarSimulator(EventClock):
         if self._closed:
             raise RuntimeError("this PlanarSimulator is closed; make a new one")
         self._restart_clock()
-        self.contacts_converged = False
         self.ground = PlanarStatic(self, "plane", "plane")
         self.ground.friction = self.ground_friction
         self._bodies["plane"] = self.ground
@@ -403,15 +399,6 @@ class PlanarSimulator(EventClock):
     def _changed(self) -> None:
         for robot in getattr(self, "_robots", ()):
             robot._changed()
-
-    def converge_contacts(self) -> None:
-        """Nothing to converge: the planar engine solves its contacts exactly."""
-        self.contacts_converged = True
-
-    @contextlib.contextmanager
-    def building(self) -> Iterator[None]:
-        """Nothing to pause without a GUI."""
-        yield
 
     def close(self) -> None:
         """Forget the world and remove the scratch folder (idempotent)."""
@@ -529,7 +516,3 @@ class PlanarSimulator(EventClock):
         from smartcar_gym.sim.planar.render import top_down
 
         return top_down(self, width, height, target, distance, fov_deg)
-
-    def point_gui_camera(self, target: Sequence[float], distance: float, yaw_deg: float,
-                         pitch_deg: float) -> None:
-        """No GUI on the planar engine: nothing to point."""

@@ -1,6 +1,6 @@
 """The pybullet engine, the default: ``ENGINE`` describes it to ``sim.engines``.
 
-Its simulator is ``sim.simulator.Simulator`` (a pybullet client of its own per world, DIRECT
+Its simulator is ``simulator.Simulator`` (a pybullet client of its own per world, DIRECT
 or the GUI); 10 ms substeps by default, at most 20 ms (above that its contacts jitter).
 """
 
@@ -13,7 +13,7 @@ from smartcar_gym.sim.engines import Engine
 
 
 def _simulator(**options: Any) -> Any:
-    from smartcar_gym.sim.simulator import Simulator
+    from smartcar_gym.sim.pybullet.simulator import Simulator
 
     return Simulator(**options)
 

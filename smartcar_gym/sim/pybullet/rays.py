@@ -1,0 +1,26 @@
+"""pybullet's ray casts: one ``rayTestBatch`` call, and a collision filter group of bodies the
+rays pass through.
+
+``Body.hide_from_rays`` moves every link of a body into ``HIDDEN_GROUP``, which ``bullet_rays``
+leaves out of its mask; the body still collides with everything it collided with before (the
+ground and static bodies keep masks that include every group but their own).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from smartcar_gym.sim.rays import RayHits
+
+#: the collision filter group of bodies hidden from rays (bit 10: unused by Bullet's own groups)
+HIDDEN_GROUP = 1 << 10
+ALL_GROUPS = -1
+
+
+def bullet_rays(client, starts: np.ndarray, ends: np.ndarray) -> RayHits:
+    """pybullet's ``rayTestBatch`` of checked rays, single-threaded, hidden bodies left out."""
+    results = client.rayTestBatch(starts, ends, numThreads=1,
+                                  collisionFilterMask=ALL_GROUPS ^ HIDDEN_GROUP)
+    body, _, fraction, point, _ = zip(*results, strict=True)
+    return RayHits(fraction=np.array(fraction, dtype=float), body=np.array(body, dtype=int),
+                   point=np.array(point, dtype=float))

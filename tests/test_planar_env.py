@@ -337,3 +337,21 @@ def test_the_laser_sees_what_pybullets_sees() -> None:
     assert np.array_equal(finite, np.isfinite(scans[1]))
     assert finite.sum() > 20
     assert np.max(np.abs(scans[0][finite] - scans[1][finite])) < 2e-3
+
+
+@pytest.mark.parametrize("values, message", [
+    ({"slip_speed": 0.0}, r"PlanarParams: planar.slip_speed: expected a number in \[0.0001, 1\]"),
+    ({"stiction_speed": 0.0}, r"PlanarParams: planar.stiction_speed: expected a number in"),
+    ({"friction_scale": -1.0}, r"PlanarParams: planar.friction_scale: expected a number in"),
+    ({"load_shift_x": float("nan")}, r"planar.load_shift_x: expected a number in"),
+    ({"spin_reaction": True}, r"planar.spin_reaction: expected a number in"),
+])
+def test_a_params_object_is_checked_as_a_file_is_when_it_is_made(values, message) -> None:
+    """A ``PlanarParams`` made in code meets the ranges a file's values do (a slip speed of 0
+    divided by zero at reset, a negative friction scale drove without a word)."""
+    with pytest.raises(PlanarParamsError, match=message) as caught:
+        PlanarParams(**values)
+    assert "\n" not in str(caught.value)
+    made = PlanarParams(friction_scale=2, slip_speed=0.003)
+    assert made.friction_scale == 2.0 and type(made.friction_scale) is float
+

@@ -79,6 +79,13 @@ class PlanarParams:
     spin_reaction: float = 1.0
     source: str = dataclasses.field(default="built-in", compare=False)
 
+    def __post_init__(self) -> None:
+        """Every value checked against ``RANGES`` as a file's are (PlanarParamsError naming
+        the key; ``PlanarParams`` for an object made in code), and stored as a float."""
+        where = "PlanarParams" if self.source == "built-in" else self.source
+        for key in KEYS:
+            object.__setattr__(self, key, check_value(key, getattr(self, key), where))
+
 
 #: key -> (low, high, unit): the accepted range of each parameter (inclusive)
 RANGES: dict[str, tuple[float, float, str]] = {

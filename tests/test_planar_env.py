@@ -355,3 +355,21 @@ def test_a_params_object_is_checked_as_a_file_is_when_it_is_made(values, message
     made = PlanarParams(friction_scale=2, slip_speed=0.003)
     assert made.friction_scale == 2.0 and type(made.friction_scale) is float
 
+
+
+def test_exponent_notation_in_a_file_is_read_as_the_number(tmp_path) -> None:
+    """PyYAML reads ``5e-4`` (no dot) as text; a parameter file takes it as the number, and a
+    value that is text but no number is named as text."""
+    path = tmp_path / "small.yaml"
+    path.write_text("planar:\n  slip_speed: 5e-4\n  stiction_speed: 1E-3\n"
+                    "  load_shift_x: -4.5e-3\n")
+    params = load(path)
+    assert (params.slip_speed, params.stiction_speed, params.load_shift_x) == (5e-4, 1e-3,
+                                                                                -4.5e-3)
+    path.write_text("planar: {slip_speed: 5e-9}\n")
+    with pytest.raises(PlanarParamsError, match=r"slip_speed: expected a number in "
+                                                r"\[0.0001, 1\] m/s, got 5e-09"):
+        load(path)
+    path.write_text("planar: {slip_speed: fast}\n")
+    with pytest.raises(PlanarParamsError, match=r"got 'fast' \(text\)"):
+        load(path)

@@ -101,18 +101,28 @@ RANGES: dict[str, tuple[float, float, str]] = {
 KEYS = tuple(RANGES)
 
 
-def check_value(key: str, value: Any, source: str) -> float:
-    """``value`` as a float inside ``RANGES[key]``; PlanarParamsError naming file and key."""
+def check_value(key: str, value: Any, source: str, text_numbers: bool = False) -> float:
+    """``value`` as a float inside ``RANGES[key]``; PlanarParamsError naming file and key.
+
+    ``text_numbers``: a string that reads as a number counts as that number (a YAML file's
+    ``5e-4``, which PyYAML reads as text: YAML 1.1 floats need a dot)."""
     low, high, unit = RANGES[key]
+    if text_numbers and isinstance(value, str):
+        try:
+            value = float(value)
+        except ValueError:
+            pass
     if not (is_real(value) and math.isfinite(value) and low <= value <= high):
         unit = f" {unit}" if unit else ""
+        text = " (text)" if isinstance(value, str) else ""
         raise PlanarParamsError(f"{source}: planar.{key}: expected a number in "
-                                f"[{low:g}, {high:g}]{unit}, got {value!r}")
+                                f"[{low:g}, {high:g}]{unit}, got {value!r}{text}")
     return float(value)
 
 
-def from_mapping(values: Any, source: str) -> PlanarParams:
-    """``PlanarParams`` from a ``{key: value}`` mapping (the file's ``planar:`` section)."""
+def from_mapping(values: Any, source: str, text_numbers: bool = False) -> PlanarParams:
+    """``PlanarParams`` from a ``{key: value}`` mapping (the file's ``planar:`` section;
+    ``text_numbers``: as ``check_value``'s)."""
     if not isinstance(values, dict):
         raise PlanarParamsError(f"{source}: planar: expected a mapping of {', '.join(KEYS)}, "
                                 f"got {type(values).__name__}")
@@ -120,13 +130,15 @@ def from_mapping(values: Any, source: str) -> PlanarParams:
     if unknown:
         raise PlanarParamsError(f"{source}: planar.{unknown[0]}: unknown key; the keys are "
                                 f"{', '.join(KEYS)}")
-    checked = {key: check_value(key, value, source) for key, value in values.items()}
+    checked = {key: check_value(key, value, source, text_numbers)
+               for key, value in values.items()}
     return PlanarParams(**checked, source=source)
 
 
 def load(path: str | os.PathLike) -> PlanarParams:
     """Read a parameter file; PlanarParamsError naming the file (and key) when it is
-    missing, not YAML, has no ``planar:`` mapping, or a value is unknown or out of range."""
+    missing, not YAML, has no ``planar:`` mapping, or a value is unknown or out of range.
+    Numbers written in exponent notation without a dot (``5e-4``, text to PyYAML) count."""
     source = str(path)
     try:
         text = Path(path).read_text(encoding="utf-8")
@@ -147,7 +159,7 @@ def load(path: str | os.PathLike) -> PlanarParams:
     if unknown:
         raise PlanarParamsError(f"{source}: {unknown[0]}: unknown section; a planar parameter "
                                 "file holds 'planar:' and optionally 'fit:'")
-    return from_mapping(data["planar"], source)
+    return from_mapping(data["planar"], source, text_numbers=True)
 
 
 def shipped_path(engine: str = DEFAULT_FIT) -> Path:

@@ -373,3 +373,46 @@ def test_exponent_notation_in_a_file_is_read_as_the_number(tmp_path) -> None:
     path.write_text("planar: {slip_speed: fast}\n")
     with pytest.raises(PlanarParamsError, match=r"got 'fast' \(text\)"):
         load(path)
+
+
+MESHBOT = os.path.join(FIXTURES, "meshbot_description", "urdf", "meshbot.urdf")
+
+
+def test_a_planar_car_that_cannot_run_is_refused_when_the_env_is_made() -> None:
+    """A load shift that tips the car, or a robot with too few ground contacts for the planar
+    engine, is refused by ``gym.make`` (not at the first reset), in one line naming the cause:
+    the load shift only where it is the cause, with the range the contacts allow."""
+    with pytest.raises(ValueError) as caught:
+        gym.make("SmartCar-v0", engine="planar", planar_params={"load_shift_x": 0.5})
+    message = str(caught.value)
+    assert "\n" not in message
+    assert "tip over (planar.load_shift_x 0.5 m from planar_params)" in message
+    low, high = (float(v) for v in message.split("contacts allow [")[1].split("]")[0]
+                 .split(", "))
+    assert -0.1 < low < 0.0 < high < 0.1
+    for shift in (low * 0.99, high * 0.99):  # inside: made and reset
+        env = gym.make("SmartCar-v0", engine="planar", planar_params={"load_shift_x": shift})
+        env.reset(seed=0)
+        env.close()
+    with pytest.raises(ValueError) as caught:
+        gym.make("SmartCar-v0", engine="planar", model=MESHBOT)
+    message = str(caught.value)
+    assert "2 ground contacts cannot carry a rigid body" in message
+    assert "load_shift_x" not in message and "\n" not in message
+
+
+@pytest.mark.parametrize("vectorization", ["subproc", "batched"])
+def test_smartcar_eval_refuses_a_planar_car_that_cannot_run_with_exit_2(vectorization,
+                                                                        capsys) -> None:
+    from smartcar_gym.agents import evaluate
+
+    with pytest.raises(SystemExit) as exit_info:
+        evaluate.main(["--random", "--episodes", "2", "--no-progress", "--engine", "planar",
+                       "--vectorization", vectorization, "--env-kwargs",
+                       "planar_params={load_shift_x: 0.5}"])
+    assert exit_info.value.code == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    last = err.strip().splitlines()[-1]
+    assert last.startswith("smartcar-eval: error: cannot make SmartCar-v0")
+    assert "tip over (planar.load_shift_x 0.5 m from planar_params)" in last

@@ -314,6 +314,8 @@ class SmartCarEnv(gym.Env):
 
         self.sim: EventClock | None = None
         self._open()
+        if self.engine == "planar":
+            self._check_planar_car()
         self.observation = self._declare_observation()
         #: what each observation entry is, in order (wheels as found: left then right)
         self.observation_names: tuple[str, ...] = self.observation.names
@@ -385,6 +387,20 @@ class SmartCarEnv(gym.Env):
             else None
         )
         self._needs_reset = True
+
+    def _check_planar_car(self) -> None:
+        """Spawn the robot once in a scratch planar world, so that a car the planar engine
+        cannot run (it would tip over, too few ground contacts) is refused by ``gym.make`` in
+        one line (ModelError), not at the first reset."""
+        sim = make_simulator("planar", max_substep_s=self.max_substep_s,
+                             planar_params=self.planar_params)
+        try:
+            robot = SmartCarRobot(sim, self.robot_model, self.controller_config,
+                                  mode=self.controller_mode, wheel_contact=self.wheel_contact)
+            robot.spawn(settle_s=0.0)
+            robot.body.compiled()
+        finally:
+            sim.close()
 
     # -- gymnasium API -----------------------------------------------------------------------
     def reset(

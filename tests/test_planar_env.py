@@ -416,3 +416,31 @@ def test_smartcar_eval_refuses_a_planar_car_that_cannot_run_with_exit_2(vectoriz
     last = err.strip().splitlines()[-1]
     assert last.startswith("smartcar-eval: error: cannot make SmartCar-v0")
     assert "tip over (planar.load_shift_x 0.5 m from planar_params)" in last
+
+
+AXLEBOT = os.path.join(FIXTURES, "axlebot_description", "urdf", "axlebot.urdf.xacro")
+AXLEBOT_YAML = os.path.join(FIXTURES, "axlebot_description", "config", "axlebot_arbotix.yaml")
+
+
+def test_a_robot_other_than_the_shipped_one_starts_from_neutral_values() -> None:
+    """``planar_params=None`` is the shipped fit for the shipped smartcar only (however its
+    model is given); another robot gets the neutral built-in values. The axlebot (centre of
+    mass 1.4 mm behind its axle, a rear caster) would tip over with the smartcar's 4.5 mm
+    load shift."""
+    from smartcar_gym.model import SHIPPED_MODEL, load_model
+    from smartcar_gym.sim.planar.params import shipped_path
+
+    fit = load(shipped_path())
+    for model in (None, str(SHIPPED_MODEL), load_model()):
+        env = gym.make("SmartCar-v0", engine="planar", model=model)
+        assert env.unwrapped.planar_params == fit and fit.load_shift_x != 0.0
+        env.close()
+    env = gym.make("SmartCar-v0", engine="planar", model=AXLEBOT, controller_config=AXLEBOT_YAML)
+    assert env.unwrapped.planar_params == PlanarParams()
+    env.reset(seed=0)
+    assert -0.0015 < env.unwrapped.robot.body.com[0] < -0.0013
+    env.close()
+    with pytest.raises(ValueError, match=r"tip over \(planar.load_shift_x 0.0045\d* m from "
+                                         r".*planar_pybullet.yaml\)"):
+        gym.make("SmartCar-v0", engine="planar", model=AXLEBOT, controller_config=AXLEBOT_YAML,
+                 planar_params="pybullet")

@@ -41,6 +41,7 @@ from smartcar_gym.sim.engines import (
 )
 from smartcar_gym.sim.markers import SceneMarkers
 from smartcar_gym.sim.planar.params import PlanarParams
+from smartcar_gym.sim.planar.params import for_robot as planar_for_robot
 from smartcar_gym.sim.planar.params import resolve as resolve_planar
 
 MAX_RENDER_PX = 4096  # 8000 x 8000 took 2.4 GB and minutes per frame
@@ -200,8 +201,11 @@ class SmartCarEnv(gym.Env):
     |                   |                | SmartCarSim-v0 steps no physics: its engine only     |
     |                   |                | holds the body                                       |
     | planar_params     | None           | engine="planar"'s parameters: None (the shipped fit  |
-    |                   |                | to pybullet), "mujoco" (the fit to MuJoCo), a file   |
-    |                   |                | of ``smartcar-calibrate --fit planar`` or a dict     |
+    |                   |                | to pybullet for the shipped smartcar, recognised by  |
+    |                   |                | its final URDF; neutral built-in values for any      |
+    |                   |                | other ``model``), "mujoco" (the fit to MuJoCo), a    |
+    |                   |                | file of ``smartcar-calibrate --fit planar``, a dict  |
+    |                   |                | or a ``PlanarParams``                                |
 
     ## Vector envs
 
@@ -271,7 +275,8 @@ class SmartCarEnv(gym.Env):
         if planar_params is not None and self.engine != "planar":
             raise ValueError(f"planar_params is the planar engine's; pass engine='planar' "
                              f"(engine is {self.engine!r})")
-        #: the planar engine's free parameters (None on the other engines)
+        #: the planar engine's free parameters (None on the other engines; None given: set
+        #: for the robot below, ``params.for_robot``)
         self.planar_params = resolve_planar(planar_params) if self.engine == "planar" else None
         checks.one_of("controller_mode", controller_mode, MODES, none_ok=True)
         self.render_mode = render_mode
@@ -304,6 +309,8 @@ class SmartCarEnv(gym.Env):
             else load_controller_config(controller_config)
         )
         self._check_tick_targets()
+        if self.engine == "planar" and planar_params is None:
+            self.planar_params = planar_for_robot(None, self.robot_model.urdf)
         if controller_mode is None:  # as the driver: its `sim` parameter picks the mode
             controller_mode = KINEMATIC if self.controller_config.kinematic else HARDWARE
         self.controller_mode = controller_mode

@@ -15,6 +15,7 @@ the default) and may hold a ``fit:`` mapping that records how it was made (read 
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import os
 from dataclasses import dataclass
@@ -185,6 +186,23 @@ def resolve(spec: Any) -> PlanarParams:
         return load(spec)
     raise PlanarParamsError(f"planar_params must be None, {' or '.join(map(repr, SHIPPED))}, "
                             f"a file path, a dict or a PlanarParams, got {type(spec).__name__}")
+
+
+def for_robot(spec: Any, urdf: str) -> PlanarParams:
+    """``resolve(spec)``, but ``None`` gives the shipped fit only to the shipped smartcar (a
+    robot whose final URDF is the one ``load_model()`` makes: the shipped description, or a
+    copy of it) and the built-in neutral values to any other robot: the fit is the
+    smartcar's (its ``load_shift_x`` would tip a robot balanced near its axle)."""
+    if spec is None and urdf != _shipped_urdf():
+        return PlanarParams()
+    return resolve(spec)
+
+
+@functools.cache
+def _shipped_urdf() -> str:
+    from smartcar_gym.model import load_model
+
+    return load_model().urdf
 
 
 def dump(params: PlanarParams, fit: dict[str, Any] | None = None) -> str:

@@ -435,6 +435,9 @@ def test_a_robot_other_than_the_shipped_one_starts_from_neutral_values() -> None
         env = gym.make("SmartCar-v0", engine="planar", model=model)
         assert env.unwrapped.planar_params == fit and fit.load_shift_x != 0.0
         env.close()
+    nav = gym.make("SmartCarNav-v0", engine="planar")  # the shipped xacro with laser:=true
+    assert nav.unwrapped.planar_params == fit
+    nav.close()
     env = gym.make("SmartCar-v0", engine="planar", model=AXLEBOT, controller_config=AXLEBOT_YAML)
     assert env.unwrapped.planar_params == PlanarParams()
     env.reset(seed=0)

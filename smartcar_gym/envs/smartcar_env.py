@@ -201,11 +201,11 @@ class SmartCarEnv(gym.Env):
     |                   |                | SmartCarSim-v0 steps no physics: its engine only     |
     |                   |                | holds the body                                       |
     | planar_params     | None           | engine="planar"'s parameters: None (the shipped fit  |
-    |                   |                | to pybullet for the shipped smartcar, recognised by  |
-    |                   |                | its final URDF; neutral built-in values for any      |
-    |                   |                | other ``model``), "mujoco" (the fit to MuJoCo), a    |
-    |                   |                | file of ``smartcar-calibrate --fit planar``, a dict  |
-    |                   |                | or a ``PlanarParams``                                |
+    |                   |                | to pybullet for the shipped smartcar: the shipped    |
+    |                   |                | xacro, any xacro args, or a copy of it; neutral      |
+    |                   |                | built-in values for any other ``model``), "mujoco"   |
+    |                   |                | (the fit to MuJoCo), a file of ``smartcar-calibrate  |
+    |                   |                | --fit planar``, a dict or a ``PlanarParams``         |
 
     ## Vector envs
 
@@ -310,7 +310,7 @@ class SmartCarEnv(gym.Env):
         )
         self._check_tick_targets()
         if self.engine == "planar" and planar_params is None:
-            self.planar_params = planar_for_robot(None, self.robot_model.urdf)
+            self.planar_params = planar_for_robot(None, self.robot_model)
         if controller_mode is None:  # as the driver: its `sim` parameter picks the mode
             controller_mode = KINEMATIC if self.controller_config.kinematic else HARDWARE
         self.controller_mode = controller_mode

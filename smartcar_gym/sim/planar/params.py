@@ -188,14 +188,25 @@ def resolve(spec: Any) -> PlanarParams:
                             f"a file path, a dict or a PlanarParams, got {type(spec).__name__}")
 
 
-def for_robot(spec: Any, urdf: str) -> PlanarParams:
-    """``resolve(spec)``, but ``None`` gives the shipped fit only to the shipped smartcar (a
-    robot whose final URDF is the one ``load_model()`` makes: the shipped description, or a
-    copy of it) and the built-in neutral values to any other robot: the fit is the
-    smartcar's (its ``load_shift_x`` would tip a robot balanced near its axle)."""
-    if spec is None and urdf != _shipped_urdf():
+def for_robot(spec: Any, model: Any) -> PlanarParams:
+    """``resolve(spec)``, but ``None`` gives the shipped fit only to the shipped smartcar
+    (``is_shipped_robot``) and the built-in neutral values to any other robot ``model`` (a
+    ``RobotModel``): the fit is the smartcar's, and its ``load_shift_x`` would tip a robot
+    balanced near its axle over."""
+    if spec is None and not is_shipped_robot(model):
         return PlanarParams()
     return resolve(spec)
+
+
+def is_shipped_robot(model: Any) -> bool:
+    """Whether a ``RobotModel`` is the shipped smartcar: loaded from the shipped xacro (with
+    any xacro arguments: the Nav ids' ``laser``), or a copy of it (the same final URDF)."""
+    from smartcar_gym.model import SHIPPED_MODEL
+
+    source = Path(model.source)
+    if source.is_file() and source.resolve() == Path(SHIPPED_MODEL).resolve():
+        return True
+    return model.urdf == _shipped_urdf()
 
 
 @functools.cache

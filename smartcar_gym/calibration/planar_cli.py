@@ -4,7 +4,8 @@
     smartcar-calibrate --fit planar --bag robot.bag --truth-topic /mocap/pose -o mine.yaml
 
 The first drives the robot on a physics engine through the fit's own maneuvers
-(``recording.fit_maneuvers`` and the UMBmark square); the second reads a ROS 1 or ROS 2 bag's
+(``recording.fit_maneuvers``), with ``--wheel-contact`` and ``--max-substep-s`` as the env's;
+the second (where those two and ``--engine`` do not apply: refused) reads a ROS 1 or ROS 2 bag's
 ``cmd_vel``, ``odom`` and ground truth (``bag_source``). Either way the drives are replayed on
 the planar engine and its free parameters fitted (``planar_fit``); the residual of each
 maneuver is printed before (the starting parameters) and after, and ``--output`` writes the
@@ -45,8 +46,35 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     group.add_argument("--start", metavar="FILE",
                        help="start (and kept) values: a parameter file or a shipped fit name "
                             "(default: the built-in defaults)")
-    group.add_argument("--generations", type=int, default=40,
+    group.add_argument("--generations", type=_positive_int, default=40,
                        help="differential evolution generations at most (default: %(default)s)")
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
+    return value
+
+
+#: the options that shape the drives on --engine, and so do not apply to a --bag's
+DRIVE_OPTIONS = (("engine", "--engine"), ("wheel_contact", "--wheel-contact"),
+                 ("max_substep_s", "--max-substep-s"))
+
+
+def bag_conflict(args: argparse.Namespace, parser: argparse.ArgumentParser) -> str | None:
+    """Why the options cannot go with ``--bag`` (None if they can): an option of the drives on
+    ``--engine`` set to other than its default (the bag's drives are the robot's own)."""
+    if args.bag is None:
+        return None
+    for key, flag in DRIVE_OPTIONS:
+        if getattr(args, key) != parser.get_default(key):
+            return (f"{flag} {getattr(args, key)} does not apply with --bag: the fit replays "
+                    "the bag's drives, recorded on the robot")
+    return None
 
 
 def recordings_of(args: argparse.Namespace, model: RobotModel,
@@ -63,12 +91,17 @@ def recordings_of(args: argparse.Namespace, model: RobotModel,
         raise FitError("--engine planar: fitting the planar engine to itself needs --start "
                        "(the parameters to recover)")
     options = {"planar_params": resolve(args.start)} if args.engine == "planar" else {}
-    return record(model, config, args.engine, **options), f"the fit's drives on {args.engine}"
+    recordings = record(model, config, args.engine, wheel_contact=args.wheel_contact,
+                        max_substep_s=args.max_substep_s, **options)
+    return recordings, f"the fit's drives on {args.engine}"
 
 
 def run(args: argparse.Namespace, parser: argparse.ArgumentParser, model: RobotModel,
         config: ArbotixConfig) -> int:
     """The ``--fit planar`` path of ``smartcar-calibrate``; returns the exit code."""
+    conflict = bag_conflict(args, parser)
+    if conflict:
+        parser.error(f"planar fit failed: {conflict}")
     keep = [k.strip() for k in args.keep.split(",") if k.strip()]
     unknown = [k for k in keep if k not in KEYS]
     if unknown:

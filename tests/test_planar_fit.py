@@ -199,6 +199,9 @@ def test_the_command_line_passes_its_drive_options_to_the_recordings(monkeypatch
      "--wheel-contact urdf does not apply with --bag"),
     (["--bag", "robot.bag", "--max-substep-s", "0.002"],
      "--max-substep-s 0.002 does not apply with --bag"),
+    (["--bag", "robot.bag", "--odom-topic", ""], "--odom-topic '': expected a topic name, "
+                                                 "e.g. /odom"),
+    (["--bag", "robot.bag", "--truth-topic", " "], "--truth-topic ' ': expected a topic name"),
 ])
 def test_flags_the_planar_fit_cannot_honour_are_refused_in_one_line(argv, message, capsys):
     with pytest.raises(SystemExit) as stop:

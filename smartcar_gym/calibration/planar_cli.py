@@ -27,6 +27,8 @@ from smartcar_gym.model import ModelError, RobotModel
 from smartcar_gym.sim.planar.params import KEYS, PlanarParams, PlanarParamsError, dump, resolve
 
 PROG = "smartcar-calibrate"
+TOPIC_DEFAULTS = {"--truth-topic": "/base_pose_ground_truth", "--cmd-topic": "/cmd_vel",
+                  "--odom-topic": "/odom"}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -35,11 +37,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     group.add_argument("--bag", type=Path, metavar="FILE",
                        help="fit to a recorded ROS 1 (.bag, .mcap) or ROS 2 bag instead of "
                             "the drives on --engine")
-    group.add_argument("--truth-topic", default="/base_pose_ground_truth", metavar="TOPIC",
+    group.add_argument("--truth-topic", default=TOPIC_DEFAULTS["--truth-topic"],
+                       metavar="TOPIC",
                        help="the bag's ground truth: nav_msgs/Odometry, or a motion-capture "
                             "geometry_msgs/PoseStamped (default: %(default)s)")
-    group.add_argument("--cmd-topic", default="/cmd_vel", metavar="TOPIC")
-    group.add_argument("--odom-topic", default="/odom", metavar="TOPIC")
+    group.add_argument("--cmd-topic", default=TOPIC_DEFAULTS["--cmd-topic"], metavar="TOPIC")
+    group.add_argument("--odom-topic", default=TOPIC_DEFAULTS["--odom-topic"], metavar="TOPIC")
     group.add_argument("--keep", default="", metavar="KEYS",
                        help="parameters not to fit, kept at their start values "
                             f"(comma-separated: {', '.join(KEYS)})")
@@ -82,6 +85,12 @@ def recordings_of(args: argparse.Namespace, model: RobotModel,
     """The drives to fit to, and where they came from (for the report)."""
     if args.bag is not None:
         from smartcar_gym.calibration.bag_source import read_recordings
+
+        for flag in ("--truth-topic", "--cmd-topic", "--odom-topic"):
+            topic = getattr(args, flag[2:].replace("-", "_"))
+            if not topic.strip():
+                raise FitError(f"{flag} {topic!r}: expected a topic name, e.g. "
+                               f"{TOPIC_DEFAULTS[flag]}")
 
         recordings = read_recordings(args.bag, truth_topic=args.truth_topic,
                                      cmd_topic=args.cmd_topic, odom_topic=args.odom_topic,

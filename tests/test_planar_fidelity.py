@@ -49,6 +49,18 @@ def test_odometry_drifts_as_on_its_engine(engine, shipped_model, shipped_config)
 CASTERBOT_GATES = [(m, tol) for m, tol in GATES if not m.name.startswith("UMBmark")]
 
 
+def drives_like_pybullet(model, config, params) -> None:
+    """The planar car with ``params`` within ``CASTERBOT_GATES`` and the odometry gate of the
+    robot on pybullet."""
+    for maneuver, tolerance in CASTERBOT_GATES:
+        reference = maneuver.measure(model, config, "pybullet")
+        value = maneuver.measure(model, config, "planar", planar_params=params)
+        assert value == pytest.approx(reference, rel=tolerance), maneuver.name
+    reference = odometry_error().measure(model, config, "pybullet")
+    value = odometry_error().measure(model, config, "planar", planar_params=params)
+    assert value == pytest.approx(reference, abs=0.03)
+
+
 @pytest.mark.slow
 def test_a_users_robot_is_identified_inside_the_gates() -> None:
     """The casterbot fixture (two wheels and a sliding caster ball), fitted from the fit's own
@@ -69,13 +81,7 @@ def test_a_users_robot_is_identified_inside_the_gates() -> None:
     model = load_model(str(fixture / "urdf" / "casterbot.urdf.xacro"))
     config = load_controller_config(str(fixture / "config" / "casterbot_arbotix.yaml"))
     params = fit(model, config, record(model, config, "pybullet")).params
-    for maneuver, tolerance in CASTERBOT_GATES:
-        reference = maneuver.measure(model, config, "pybullet")
-        value = maneuver.measure(model, config, "planar", planar_params=params)
-        assert value == pytest.approx(reference, rel=tolerance), maneuver.name
-    reference = odometry_error().measure(model, config, "pybullet")
-    value = odometry_error().measure(model, config, "planar", planar_params=params)
-    assert value == pytest.approx(reference, abs=0.03)
+    drives_like_pybullet(model, config, params)
 
 
 def reversal_turn(engine: str, **kwargs) -> float:
@@ -131,10 +137,4 @@ def test_a_robot_balanced_on_its_axle_is_identified_inside_the_gates() -> None:
     config = load_controller_config(str(fixture / "config" / "axlebot_arbotix.yaml"))
     params = fit(model, config, record(model, config, "pybullet"), generations=5).params
     assert -0.0737 <= params.load_shift_x <= 0.00137  # ahead of it the caster would pull
-    for maneuver, tolerance in CASTERBOT_GATES:
-        reference = maneuver.measure(model, config, "pybullet")
-        value = maneuver.measure(model, config, "planar", planar_params=params)
-        assert value == pytest.approx(reference, rel=tolerance), maneuver.name
-    reference = odometry_error().measure(model, config, "pybullet")
-    value = odometry_error().measure(model, config, "planar", planar_params=params)
-    assert value == pytest.approx(reference, abs=0.03)
+    drives_like_pybullet(model, config, params)

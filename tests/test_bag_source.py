@@ -261,6 +261,13 @@ def test_a_missing_topic_is_named_with_the_bag_topics(drive_bag):
     assert recordings[0].odom is None and len(recordings[0].commands) == 20
 
 
+def test_an_empty_topic_name_is_refused_in_one_line(drive_bag):
+    """``odom_topic=""`` said "has no ; topics: ..."; None is the way to read no odometry."""
+    for key in ("truth_topic", "cmd_topic", "odom_topic"):
+        with pytest.raises(BagError, match=rf"drive.bag: {key} '' is not a topic name"):
+            read_recordings(drive_bag, **{key: ""}, rate_hz=RATE_HZ)
+
+
 def test_a_topic_of_another_type_is_refused(drive_bag):
     with pytest.raises(BagError) as error:
         read_recordings(drive_bag, truth_topic="/cmd_vel", rate_hz=RATE_HZ)

@@ -337,3 +337,113 @@ def test_the_laser_sees_what_pybullets_sees() -> None:
     assert np.array_equal(finite, np.isfinite(scans[1]))
     assert finite.sum() > 20
     assert np.max(np.abs(scans[0][finite] - scans[1][finite])) < 2e-3
+
+
+@pytest.mark.parametrize("values, message", [
+    ({"slip_speed": 0.0}, r"PlanarParams: planar.slip_speed: expected a number in \[0.0001, 1\]"),
+    ({"stiction_speed": 0.0}, r"PlanarParams: planar.stiction_speed: expected a number in"),
+    ({"friction_scale": -1.0}, r"PlanarParams: planar.friction_scale: expected a number in"),
+    ({"load_shift_x": float("nan")}, r"planar.load_shift_x: expected a number in"),
+    ({"spin_reaction": True}, r"planar.spin_reaction: expected a number in"),
+])
+def test_a_params_object_is_checked_as_a_file_is_when_it_is_made(values, message) -> None:
+    """A ``PlanarParams`` made in code meets the ranges a file's values do (a slip speed of 0
+    divided by zero at reset, a negative friction scale drove without a word)."""
+    with pytest.raises(PlanarParamsError, match=message) as caught:
+        PlanarParams(**values)
+    assert "\n" not in str(caught.value)
+    made = PlanarParams(friction_scale=2, slip_speed=0.003)
+    assert made.friction_scale == 2.0 and type(made.friction_scale) is float
+
+
+
+def test_exponent_notation_in_a_file_is_read_as_the_number(tmp_path) -> None:
+    """PyYAML reads ``5e-4`` (no dot) as text; a parameter file takes it as the number, and a
+    value that is text but no number is named as text."""
+    path = tmp_path / "small.yaml"
+    path.write_text("planar:\n  slip_speed: 5e-4\n  stiction_speed: 1E-3\n"
+                    "  load_shift_x: -4.5e-3\n")
+    params = load(path)
+    assert (params.slip_speed, params.stiction_speed, params.load_shift_x) == (5e-4, 1e-3,
+                                                                                -4.5e-3)
+    path.write_text("planar: {slip_speed: 5e-9}\n")
+    with pytest.raises(PlanarParamsError, match=r"slip_speed: expected a number in "
+                                                r"\[0.0001, 1\] m/s, got 5e-09"):
+        load(path)
+    path.write_text("planar: {slip_speed: fast}\n")
+    with pytest.raises(PlanarParamsError, match=r"got 'fast' \(text\)"):
+        load(path)
+
+
+MESHBOT = os.path.join(FIXTURES, "meshbot_description", "urdf", "meshbot.urdf")
+
+
+def test_a_planar_car_that_cannot_run_is_refused_when_the_env_is_made() -> None:
+    """A load shift that tips the car, or a robot with too few ground contacts for the planar
+    engine, is refused by ``gym.make`` (not at the first reset), in one line naming the cause:
+    the load shift only where it is the cause, with the range the contacts allow."""
+    with pytest.raises(ValueError) as caught:
+        gym.make("SmartCar-v0", engine="planar", planar_params={"load_shift_x": 0.5})
+    message = str(caught.value)
+    assert "\n" not in message
+    assert "tip over (planar.load_shift_x 0.5 m from planar_params)" in message
+    low, high = (float(v) for v in message.split("contacts allow [")[1].split("]")[0]
+                 .split(", "))
+    assert -0.1 < low < 0.0 < high < 0.1
+    for shift in (low * 0.99, high * 0.99):  # inside: made and reset
+        env = gym.make("SmartCar-v0", engine="planar", planar_params={"load_shift_x": shift})
+        env.reset(seed=0)
+        env.close()
+    with pytest.raises(ValueError) as caught:
+        gym.make("SmartCar-v0", engine="planar", model=MESHBOT)
+    message = str(caught.value)
+    assert "2 ground contacts cannot carry a rigid body" in message
+    assert "load_shift_x" not in message and "\n" not in message
+
+
+@pytest.mark.parametrize("vectorization", ["subproc", "batched"])
+def test_smartcar_eval_refuses_a_planar_car_that_cannot_run_with_exit_2(vectorization,
+                                                                        capsys) -> None:
+    from smartcar_gym.agents import evaluate
+
+    with pytest.raises(SystemExit) as exit_info:
+        evaluate.main(["--random", "--episodes", "2", "--no-progress", "--engine", "planar",
+                       "--vectorization", vectorization, "--env-kwargs",
+                       "planar_params={load_shift_x: 0.5}"])
+    assert exit_info.value.code == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    last = err.strip().splitlines()[-1]
+    assert last.startswith("smartcar-eval: error: cannot make SmartCar-v0")
+    assert "tip over (planar.load_shift_x 0.5 m from planar_params)" in last
+
+
+AXLEBOT = os.path.join(FIXTURES, "axlebot_description", "urdf", "axlebot.urdf.xacro")
+AXLEBOT_YAML = os.path.join(FIXTURES, "axlebot_description", "config", "axlebot_arbotix.yaml")
+
+
+def test_a_robot_other_than_the_shipped_one_starts_from_neutral_values() -> None:
+    """``planar_params=None`` is the shipped fit for the shipped smartcar only (however its
+    model is given); another robot gets the neutral built-in values. The axlebot (centre of
+    mass 1.4 mm behind its axle, a rear caster) would tip over with the smartcar's 4.5 mm
+    load shift."""
+    from smartcar_gym.model import SHIPPED_MODEL, load_model
+    from smartcar_gym.sim.planar.params import shipped_path
+
+    fit = load(shipped_path())
+    for model in (None, str(SHIPPED_MODEL), load_model()):
+        env = gym.make("SmartCar-v0", engine="planar", model=model)
+        assert env.unwrapped.planar_params == fit and fit.load_shift_x != 0.0
+        env.close()
+    nav = gym.make("SmartCarNav-v0", engine="planar")  # the shipped xacro with laser:=true
+    assert nav.unwrapped.planar_params == fit
+    nav.close()
+    env = gym.make("SmartCar-v0", engine="planar", model=AXLEBOT, controller_config=AXLEBOT_YAML)
+    assert env.unwrapped.planar_params == PlanarParams()
+    env.reset(seed=0)
+    assert -0.0015 < env.unwrapped.robot.body.com[0] < -0.0013
+    env.close()
+    with pytest.raises(ValueError, match=r"tip over \(planar.load_shift_x 0.0045\d* m from "
+                                         r".*planar_pybullet.yaml\)"):
+        gym.make("SmartCar-v0", engine="planar", model=AXLEBOT, controller_config=AXLEBOT_YAML,
+                 planar_params="pybullet")

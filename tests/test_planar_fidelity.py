@@ -49,6 +49,18 @@ def test_odometry_drifts_as_on_its_engine(engine, shipped_model, shipped_config)
 CASTERBOT_GATES = [(m, tol) for m, tol in GATES if not m.name.startswith("UMBmark")]
 
 
+def drives_like_pybullet(model, config, params) -> None:
+    """The planar car with ``params`` within ``CASTERBOT_GATES`` and the odometry gate of the
+    robot on pybullet."""
+    for maneuver, tolerance in CASTERBOT_GATES:
+        reference = maneuver.measure(model, config, "pybullet")
+        value = maneuver.measure(model, config, "planar", planar_params=params)
+        assert value == pytest.approx(reference, rel=tolerance), maneuver.name
+    reference = odometry_error().measure(model, config, "pybullet")
+    value = odometry_error().measure(model, config, "planar", planar_params=params)
+    assert value == pytest.approx(reference, abs=0.03)
+
+
 @pytest.mark.slow
 def test_a_users_robot_is_identified_inside_the_gates() -> None:
     """The casterbot fixture (two wheels and a sliding caster ball), fitted from the fit's own
@@ -69,13 +81,7 @@ def test_a_users_robot_is_identified_inside_the_gates() -> None:
     model = load_model(str(fixture / "urdf" / "casterbot.urdf.xacro"))
     config = load_controller_config(str(fixture / "config" / "casterbot_arbotix.yaml"))
     params = fit(model, config, record(model, config, "pybullet")).params
-    for maneuver, tolerance in CASTERBOT_GATES:
-        reference = maneuver.measure(model, config, "pybullet")
-        value = maneuver.measure(model, config, "planar", planar_params=params)
-        assert value == pytest.approx(reference, rel=tolerance), maneuver.name
-    reference = odometry_error().measure(model, config, "pybullet")
-    value = odometry_error().measure(model, config, "planar", planar_params=params)
-    assert value == pytest.approx(reference, abs=0.03)
+    drives_like_pybullet(model, config, params)
 
 
 def reversal_turn(engine: str, **kwargs) -> float:
@@ -110,3 +116,70 @@ def test_a_reversal_out_of_a_turn_turns_as_on_its_engine(engine) -> None:
     on both)."""
     reference = reversal_turn(engine)
     assert reversal_turn("planar", planar_params=engine) == pytest.approx(reference, abs=0.03)
+
+
+@pytest.mark.slow
+def test_a_robot_balanced_on_its_axle_is_identified_inside_the_gates() -> None:
+    """The axlebot fixture (two wheels, a rear caster, the centre of mass 1.4 mm behind the
+    axle: the caster carries under 2 % of the weight), fitted from pybullet's drives in 5
+    generations from neutral values, its load shift inside what its contacts allow, drives
+    like pybullet's axlebot within the casterbot's gates (its UMBmark square is left out for
+    the same reason: a small difference of large moves)."""
+    from pathlib import Path
+
+    from smartcar_gym.calibration.planar_fit import fit
+    from smartcar_gym.calibration.recording import record
+    from smartcar_gym.controller import load_controller_config
+    from smartcar_gym.model import load_model
+
+    fixture = Path(__file__).parent / "fixtures" / "axlebot_description"
+    model = load_model(str(fixture / "urdf" / "axlebot.urdf.xacro"))
+    config = load_controller_config(str(fixture / "config" / "axlebot_arbotix.yaml"))
+    params = fit(model, config, record(model, config, "pybullet"), generations=5).params
+    assert -0.0737 <= params.load_shift_x <= 0.00137  # ahead of it the caster would pull
+    drives_like_pybullet(model, config, params)
+
+
+def alternation(engine: str, steps: int = 2000, **kwargs) -> tuple[float, float]:
+    """Full forward, full reverse, alternating every step (SmartCar-v0 actions ``(+-1, 0)``,
+    200 s): the car's end x (m) and the path it drove (m)."""
+    import gymnasium as gym
+    import numpy as np
+
+    env = gym.make("SmartCar-v0", engine=engine, max_episode_steps=steps + 1, arena_size=100.0,
+                   **kwargs)
+    try:
+        env.reset(seed=0)
+        path, before = 0.0, np.zeros(2)
+        for t in range(steps):
+            info = env.step(np.array([1.0 - 2.0 * (t % 2), 0.0], dtype=np.float32))[4]
+            path += float(np.hypot(*(info["pose"][:2] - before)))
+            before = np.array(info["pose"][:2])
+    finally:
+        env.close()
+    return float(info["pose"][0]), path
+
+
+#: how far the planar car's end may lie from its engine's after ``alternation`` (m)
+ALTERNATION_GATE_M = 0.2
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_alternating_full_forward_and_reverse_creeps_as_little_as_on_its_engine(engine):
+    """Issue 42 item 12: the planar car creeps under +1/-1 alternation (pybullet fit -0.12 m
+    after 2000 steps, the built-in defaults +0.19 m; pybullet +0.003 m, MuJoCo's fit +0.012 m).
+    The wheels never leave the gearbox's dead band: each step's command is undone by the next
+    before the ramped target gets far, and the car drives about 0.5 m in 200 s, back and forth
+    in steps of a few tenths of a millimetre (odometry agrees: the wheels creep, not the
+    tyres). Which way each cycle's creep goes is settled by the integer board PID's limit
+    cycle against the regularised Coulomb friction (``gearbox_friction_scale``,
+    ``stiction_speed``, ``rolling_resistance``): a staircase of those values (the pybullet fit
+    with gearbox friction 0.98, 0.99, 0.992, 1.0 ends +0.16, +0.02, -0.12, +0.01 m; stiction
+    0.005, 0.02, 0.05, 0.2 rad/s ends +0.016, +0.011, -0.12, +0.013 m), not a bias of the
+    model, so the fit cannot aim at it. The gate holds because the creep is bounded by the
+    little the car moves at all: under 0.2 m in 200 s (1 mm/s against the commanded 0.5 m/s),
+    within a path of at most 1 m on either engine."""
+    reference, reference_path = alternation(engine)
+    value, path = alternation("planar", planar_params=engine)
+    assert reference_path < 1.0 and path < 1.0
+    assert abs(value - reference) <= ALTERNATION_GATE_M

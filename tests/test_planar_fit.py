@@ -137,3 +137,74 @@ def test_the_command_line_refuses_bad_input_in_one_line(argv, message, capsys) -
     assert stop.value.code == 2
     err = capsys.readouterr().err.strip().splitlines()[-1]
     assert message in err
+
+
+AXLEBOT = ["--model", "tests/fixtures/axlebot_description/urdf/axlebot.urdf.xacro",
+           "--controller-config", "tests/fixtures/axlebot_description/config/axlebot_arbotix.yaml"]
+
+
+def test_a_robot_balanced_on_its_axle_is_fitted_inside_its_contacts(tmp_path, capsys) -> None:
+    """The axlebot (centre of mass 1.4 mm behind its axle, a rear caster): the fit starts from
+    neutral values, not the smartcar's fit, and searches the load shift only where its
+    contacts carry it (the caster's load never negative); the smartcar's fit as ``--start``
+    is refused in one line with the range."""
+    out = tmp_path / "axlebot.yaml"
+    assert main(["--fit", "planar", "--engine", "pybullet", *AXLEBOT, "--generations", "2",
+                 "-o", str(out)]) == 0
+    assert "wrote" in capsys.readouterr().out
+    assert -0.0737 <= load(out).load_shift_x <= 0.00137
+    with pytest.raises(SystemExit) as stop:
+        main(["--fit", "planar", "--engine", "pybullet", *AXLEBOT, "--start", "pybullet",
+              "--generations", "2"])
+    assert stop.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert "planar.load_shift_x 0.00453577 m" in err and "contacts allow [-0.0736" in err
+
+
+def test_the_drives_honour_the_wheel_contact_and_the_substep(shipped_model, shipped_config):
+    """``record``'s ``wheel_contact`` and ``max_substep_s`` reach the engine: the URDF's
+    cylinders and a shorter substep drive differently from the default spheres at 10 ms."""
+    from smartcar_gym.calibration.maneuvers import hold
+
+    drives = {"arc": hold((0.3, 1.0), 1.0, shipped_config.rate_hz)}
+    runs = [record(shipped_model, shipped_config, "pybullet", drives, **options)[0].truth
+            for options in ({}, {"wheel_contact": "urdf"}, {"max_substep_s": 0.002},
+                            {"max_substep_s": 0.01})]
+    assert not np.array_equal(runs[0], runs[1]) and not np.array_equal(runs[0], runs[2])
+    assert np.array_equal(runs[0], runs[3])  # 10 ms: pybullet's default
+
+
+def test_the_command_line_passes_its_drive_options_to_the_recordings(monkeypatch, capsys):
+    from smartcar_gym.calibration import planar_cli
+
+    seen = {}
+
+    def recorded(model, config, engine, **options):
+        seen.update(options, engine=engine)
+        raise FitError("recorded")
+
+    monkeypatch.setattr(planar_cli, "record", recorded)
+    with pytest.raises(SystemExit):
+        main(["--fit", "planar", "--engine", "pybullet", "--wheel-contact", "urdf",
+              "--max-substep-s", "0.005"])
+    assert seen == {"engine": "pybullet", "wheel_contact": "urdf", "max_substep_s": 0.005}
+    assert "planar fit failed: recorded" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--generations", "-3"], "argument --generations: expected a positive integer, got '-3'"),
+    (["--generations", "0"], "argument --generations: expected a positive integer, got '0'"),
+    (["--bag", "robot.bag", "--engine", "mujoco"], "--engine mujoco does not apply with --bag"),
+    (["--bag", "robot.bag", "--wheel-contact", "urdf"],
+     "--wheel-contact urdf does not apply with --bag"),
+    (["--bag", "robot.bag", "--max-substep-s", "0.002"],
+     "--max-substep-s 0.002 does not apply with --bag"),
+    (["--bag", "robot.bag", "--odom-topic", ""], "--odom-topic '': expected a topic name, "
+                                                 "e.g. /odom"),
+    (["--bag", "robot.bag", "--truth-topic", " "], "--truth-topic ' ': expected a topic name"),
+])
+def test_flags_the_planar_fit_cannot_honour_are_refused_in_one_line(argv, message, capsys):
+    with pytest.raises(SystemExit) as stop:
+        main(["--fit", "planar", *argv])
+    assert stop.value.code == 2
+    assert message in capsys.readouterr().err.strip().splitlines()[-1]

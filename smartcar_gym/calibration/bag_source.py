@@ -113,6 +113,11 @@ def read_recordings(path: str | os.PathLike, truth_topic: str = "/base_pose_grou
     path = Path(path)
     if not (math.isfinite(rate_hz) and rate_hz > 0):
         raise ValueError(f"rate_hz must be a positive number, got {rate_hz!r}")
+    for key, topic in (("truth_topic", truth_topic), ("cmd_topic", cmd_topic),
+                       ("odom_topic", odom_topic)):
+        if topic is not None and not (isinstance(topic, str) and topic.strip()):
+            none = " (None: no odometry)" if key == "odom_topic" else ""
+            raise BagError(f"{path}: {key} {topic!r} is not a topic name{none}")
     if not path.exists():
         raise BagError(f"{path}: no such file or folder")
     if not path.is_dir() and path.suffix not in SUFFIXES:

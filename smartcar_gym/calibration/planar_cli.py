@@ -4,7 +4,8 @@
     smartcar-calibrate --fit planar --bag robot.bag --truth-topic /mocap/pose -o mine.yaml
 
 The first drives the robot on a physics engine through the fit's own maneuvers
-(``recording.fit_maneuvers`` and the UMBmark square); the second reads a ROS 1 or ROS 2 bag's
+(``recording.fit_maneuvers``), with ``--wheel-contact`` and ``--max-substep-s`` as the env's;
+the second (where those two and ``--engine`` do not apply: refused) reads a ROS 1 or ROS 2 bag's
 ``cmd_vel``, ``odom`` and ground truth (``bag_source``). Either way the drives are replayed on
 the planar engine and its free parameters fitted (``planar_fit``); the residual of each
 maneuver is printed before (the starting parameters) and after, and ``--output`` writes the
@@ -29,6 +30,8 @@ from smartcar_gym.sim.planar.params import KEYS, PlanarParams, PlanarParamsError
 PROG = "smartcar-calibrate"
 #: the env keyword that carries the parameters this fit identifies
 PARAMS_KEYWORD = "planar_params"
+TOPIC_DEFAULTS = {"--truth-topic": "/base_pose_ground_truth", "--cmd-topic": "/cmd_vel",
+                  "--odom-topic": "/odom"}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -37,19 +40,47 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     group.add_argument("--bag", type=Path, metavar="FILE",
                        help="fit to a recorded ROS 1 (.bag, .mcap) or ROS 2 bag instead of "
                             "the drives on --engine")
-    group.add_argument("--truth-topic", default="/base_pose_ground_truth", metavar="TOPIC",
+    group.add_argument("--truth-topic", default=TOPIC_DEFAULTS["--truth-topic"],
+                       metavar="TOPIC",
                        help="the bag's ground truth: nav_msgs/Odometry, or a motion-capture "
                             "geometry_msgs/PoseStamped (default: %(default)s)")
-    group.add_argument("--cmd-topic", default="/cmd_vel", metavar="TOPIC")
-    group.add_argument("--odom-topic", default="/odom", metavar="TOPIC")
+    group.add_argument("--cmd-topic", default=TOPIC_DEFAULTS["--cmd-topic"], metavar="TOPIC")
+    group.add_argument("--odom-topic", default=TOPIC_DEFAULTS["--odom-topic"], metavar="TOPIC")
     group.add_argument("--keep", default="", metavar="KEYS",
                        help="parameters not to fit, kept at their start values "
                             f"(comma-separated: {', '.join(KEYS)})")
     group.add_argument("--start", metavar="FILE",
                        help="start (and kept) values: a parameter file or a shipped fit name "
                             "(default: the built-in defaults)")
-    group.add_argument("--generations", type=int, default=40,
+    group.add_argument("--generations", type=_positive_int, default=40,
                        help="differential evolution generations at most (default: %(default)s)")
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
+    return value
+
+
+#: the options that shape the drives on --engine, and so do not apply to a --bag's
+DRIVE_OPTIONS = (("engine", "--engine"), ("wheel_contact", "--wheel-contact"),
+                 ("max_substep_s", "--max-substep-s"))
+
+
+def bag_conflict(args: argparse.Namespace, parser: argparse.ArgumentParser) -> str | None:
+    """Why the options cannot go with ``--bag`` (None if they can): an option of the drives on
+    ``--engine`` set to other than its default (the bag's drives are the robot's own)."""
+    if args.bag is None:
+        return None
+    for key, flag in DRIVE_OPTIONS:
+        if getattr(args, key) != parser.get_default(key):
+            return (f"{flag} {getattr(args, key)} does not apply with --bag: the fit replays "
+                    "the bag's drives, recorded on the robot")
+    return None
 
 
 def recordings_of(args: argparse.Namespace, model: RobotModel,
@@ -57,6 +88,12 @@ def recordings_of(args: argparse.Namespace, model: RobotModel,
     """The drives to fit to, and where they came from (for the report)."""
     if args.bag is not None:
         from smartcar_gym.calibration.bag_source import read_recordings
+
+        for flag in ("--truth-topic", "--cmd-topic", "--odom-topic"):
+            topic = getattr(args, flag[2:].replace("-", "_"))
+            if not topic.strip():
+                raise FitError(f"{flag} {topic!r}: expected a topic name, e.g. "
+                               f"{TOPIC_DEFAULTS[flag]}")
 
         recordings = read_recordings(args.bag, truth_topic=args.truth_topic,
                                      cmd_topic=args.cmd_topic, odom_topic=args.odom_topic,
@@ -68,12 +105,17 @@ def recordings_of(args: argparse.Namespace, model: RobotModel,
         raise FitError(f"--engine {args.engine}: fitting the planar engine to itself needs "
                        "--start (the parameters to recover)")
     options = {PARAMS_KEYWORD: resolve(args.start)} if fitted else {}
-    return record(model, config, args.engine, **options), f"the fit's drives on {args.engine}"
+    recordings = record(model, config, args.engine, wheel_contact=args.wheel_contact,
+                        max_substep_s=args.max_substep_s, **options)
+    return recordings, f"the fit's drives on {args.engine}"
 
 
 def run(args: argparse.Namespace, parser: argparse.ArgumentParser, model: RobotModel,
         config: ArbotixConfig) -> int:
     """The ``--fit planar`` path of ``smartcar-calibrate``; returns the exit code."""
+    conflict = bag_conflict(args, parser)
+    if conflict:
+        parser.error(f"planar fit failed: {conflict}")
     keep = [k.strip() for k in args.keep.split(",") if k.strip()]
     unknown = [k for k in keep if k not in KEYS]
     if unknown:

@@ -34,6 +34,7 @@ from smartcar_gym.calibration.planar_replay import FleetReplay
 from smartcar_gym.calibration.recording import Recording
 from smartcar_gym.controller import ArbotixConfig
 from smartcar_gym.model import RobotModel
+from smartcar_gym.sim.planar.model import load_shift_range
 from smartcar_gym.sim.planar.params import KEYS, PlanarParams
 
 WINDOW_S = 0.5
@@ -44,7 +45,8 @@ FREE = ("friction_scale", "lateral_friction_ratio", "slip_speed", "gearbox_frict
         "rolling_resistance", "load_shift_x", "spin_reaction")
 #: searched on a linear scale (log space cannot reach 0 or a negative shift)
 _LINEAR = ("rolling_resistance", "load_shift_x", "spin_reaction")
-#: the load shift is searched within this share of the ground contacts' length (x extent)
+#: the load shift is searched within this share of the ground contacts' length (x extent),
+#: and inside what they allow (``model.load_shift_range``: no contact would have to pull)
 LOAD_SHIFT_SHARE = 0.1
 #: a fit whose RMS scaled residual stays above this has not converged
 CONVERGED_RMS = 3.0
@@ -193,10 +195,11 @@ class _Search:
     def __init__(self, fleet: FleetReplay, start: PlanarParams, free: Sequence[str]) -> None:
         self.fleet, self.start, self.free = fleet, start, tuple(free)
         self.evaluations = 0
+        low, high = load_shift_bounds(fleet, start)
         xs = [c[0] for c in fleet.body.model_with(start).contacts]
         reach = LOAD_SHIFT_SHARE * (max(xs) - min(xs))
-        self.search = {**SEARCH, "load_shift_x": (start.load_shift_x - reach,
-                                                  start.load_shift_x + reach)}
+        self.search = {**SEARCH, "load_shift_x": (max(start.load_shift_x - reach, low),
+                                                  min(start.load_shift_x + reach, high))}
 
     def params(self, x: np.ndarray) -> PlanarParams:
         values = {k: (float(v) if k in _LINEAR else float(math.exp(v)))
@@ -227,6 +230,19 @@ class _Search:
         xs = np.atleast_2d(np.asarray(xs).T)
         rows = self.per_recording([self.params(x) for x in xs])
         return np.array([sum(v * v for v in row.values()) for row in rows])
+
+
+def load_shift_bounds(fleet: FleetReplay, start: PlanarParams) -> tuple[float, float]:
+    """The ``load_shift_x`` the robot's ground contacts allow (``model.load_shift_range``);
+    FitError when ``start``'s own lies outside them (the robot would tip over)."""
+    neutral = dataclasses.replace(start, load_shift_x=0.0)
+    contacts = np.array(fleet.body.model_with(neutral).contacts)
+    low, high = load_shift_range(contacts[:, :2])  # the rows are from the centre of mass
+    if not low <= start.load_shift_x <= high:
+        raise FitError(f"the start's planar.load_shift_x {start.load_shift_x:g} m (from "
+                       f"{start.source}) would tip this robot over: its contacts allow "
+                       f"[{low:.6g}, {high:.6g}] m; start from another value (--start)")
+    return low, high
 
 
 def fit(model: RobotModel, config: ArbotixConfig, recordings: Sequence[Recording],

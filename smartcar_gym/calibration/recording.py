@@ -118,17 +118,23 @@ def run_commands(robot: SmartCarRobot, commands: np.ndarray) -> tuple[np.ndarray
 
 
 def replay(model: RobotModel, config: ArbotixConfig, engine: str, commands: np.ndarray,
-           start: Sequence[float] = (0.0, 0.0, 0.0), **options: Any,
+           start: Sequence[float] = (0.0, 0.0, 0.0), wheel_contact: str = "sphere",
+           max_substep_s: float | None = None, **options: Any,
            ) -> tuple[np.ndarray, np.ndarray]:
-    """Spawn the robot at rest at ``start`` (x, y, yaw) on ``engine`` (simulator ``options``,
-    e.g. ``planar_params``), drive ``commands``; its true poses and odometry (T + 1, 3)."""
-    sim = make_simulator(engine, max_substep_s=default_max_substep(engine), **options)
+    """Spawn the robot at rest at ``start`` (x, y, yaw) on ``engine`` (its ``wheel_contact``,
+    ``max_substep_s``: the engine's default if None, and simulator ``options``, e.g.
+    ``planar_params``), drive ``commands``; its true poses and odometry (T + 1, 3)."""
+    sim = make_simulator(engine, max_substep_s=_substep(engine, max_substep_s), **options)
     try:
-        robot = SmartCarRobot(sim, model, config)
+        robot = SmartCarRobot(sim, model, config, wheel_contact=wheel_contact)
         robot.spawn(float(start[0]), float(start[1]), float(start[2]))
         return run_commands(robot, commands)
     finally:
         sim.close()
+
+
+def _substep(engine: str, max_substep_s: float | None) -> float:
+    return default_max_substep(engine) if max_substep_s is None else max_substep_s
 
 
 class _RecordingLeg(_Leg):
@@ -151,6 +157,7 @@ class _RecordingLeg(_Leg):
 
 
 def record_square(model: RobotModel, config: ArbotixConfig, engine: str, direction: int = 1,
+                  wheel_contact: str = "sphere", max_substep_s: float | None = None,
                   **options: Any) -> Recording:
     """Borenstein's UMBmark square (``drives.Driver.square``: steered by odometry, 1 m, 0.2 m/s,
     1 rad/s) on ``engine``, recorded period by period: the starts and stops of its turns."""
@@ -160,7 +167,8 @@ def record_square(model: RobotModel, config: ArbotixConfig, engine: str, directi
         legs.append(_RecordingLeg(robot))
         return legs[-1]
 
-    driver = Driver(model, config, max_substep_s=default_max_substep(engine), engine=engine,
+    driver = Driver(model, config, wheel_contact=wheel_contact,
+                    max_substep_s=_substep(engine, max_substep_s), engine=engine,
                     sim_options=options)
     driver.square(Plan(), direction, leg)
     done = legs[-1]
@@ -171,16 +179,20 @@ def record_square(model: RobotModel, config: ArbotixConfig, engine: str, directi
 
 def record(model: RobotModel, config: ArbotixConfig, engine: str,
            drives: dict[str, list[Twist]] | None = None, square: bool = False,
+           wheel_contact: str = "sphere", max_substep_s: float | None = None,
            **options: Any) -> list[Recording]:
     """The fit's drives (``fit_maneuvers`` unless given; with ``square`` the UMBmark square
     too, which quadruples a fit's time and measured no better: docs/planar.md) on
-    ``engine``, one fresh world each."""
+    ``engine`` (its ``wheel_contact`` and ``max_substep_s``, as the env's; None: the engine's
+    default), one fresh world each."""
     drives = fit_maneuvers(config.rate_hz) if drives is None else drives
     out = []
     for name, commands in drives.items():
         array = as_array(commands)
-        truth, odom = replay(model, config, engine, array, **options)
+        truth, odom = replay(model, config, engine, array, wheel_contact=wheel_contact,
+                             max_substep_s=max_substep_s, **options)
         out.append(Recording(name, config.rate_hz, array, truth, odom))
     if square:
-        out.append(record_square(model, config, engine, **options))
+        out.append(record_square(model, config, engine, wheel_contact=wheel_contact,
+                                 max_substep_s=max_substep_s, **options))
     return out

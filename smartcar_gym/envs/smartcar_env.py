@@ -37,6 +37,7 @@ from smartcar_gym.sim.engines import (
     check_engine,
     default_max_substep,
     engine_options,
+    get_engine,
     make_simulator,
     substep_range,
     window_unavailable,
@@ -200,8 +201,11 @@ class SmartCarEnv(gym.Env):
     |                   |                | SmartCarSim-v0 steps no physics: its engine only     |
     |                   |                | holds the body                                       |
     | planar_params     | None           | engine="planar"'s parameters: None (the shipped fit  |
-    |                   |                | to pybullet), "mujoco" (the fit to MuJoCo), a file   |
-    |                   |                | of ``smartcar-calibrate --fit planar`` or a dict     |
+    |                   |                | to pybullet for the shipped smartcar: the shipped    |
+    |                   |                | xacro, any xacro args, or a copy of it; neutral      |
+    |                   |                | built-in values for any other ``model``), "mujoco"   |
+    |                   |                | (the fit to MuJoCo), a file of ``smartcar-calibrate  |
+    |                   |                | --fit planar``, a dict or a ``PlanarParams``         |
 
     ## Vector envs
 
@@ -268,9 +272,10 @@ class SmartCarEnv(gym.Env):
         self.metadata = {**self.metadata, "render_modes": self._render_modes(render_mode)}
         checks.one_of("render_mode", render_mode, list(self.metadata["render_modes"]),
                       none_ok=True)
-        #: the env keywords only this env's engine takes, resolved (``Engine.kwargs``);
-        #: a keyword of another engine's is refused
-        self.engine_options = engine_options(self.engine, {"planar_params": planar_params})
+        #: the env keywords only this env's engine takes, checked (resolved for the robot
+        #: once it is loaded, below: ``Engine.kwargs``); a keyword of another engine's is refused
+        given = {"planar_params": planar_params}
+        self.engine_options = engine_options(self.engine, given)
         checks.one_of("controller_mode", controller_mode, MODES, none_ok=True)
         self.render_mode = render_mode
         self.wheel_contact = check_wheel_contact(wheel_contact)
@@ -302,6 +307,7 @@ class SmartCarEnv(gym.Env):
             else load_controller_config(controller_config)
         )
         self._check_tick_targets()
+        self.engine_options = engine_options(self.engine, given, self.robot_model)
         if controller_mode is None:  # as the driver: its `sim` parameter picks the mode
             controller_mode = KINEMATIC if self.controller_config.kinematic else HARDWARE
         self.controller_mode = controller_mode
@@ -312,6 +318,8 @@ class SmartCarEnv(gym.Env):
 
         self.sim: Simulator | None = None
         self._open()
+        if get_engine(self.engine).spawn_check:
+            self._check_car()
         self.observation = self._declare_observation()
         #: what each observation entry is, in order (wheels as found: left then right)
         self.observation_names: tuple[str, ...] = self.observation.names
@@ -388,6 +396,21 @@ class SmartCarEnv(gym.Env):
             else None
         )
         self._needs_reset = True
+
+    def _check_car(self) -> None:
+        """Spawn the robot once in a scratch world (an engine with ``spawn_check``) and step
+        it once, so that a car the engine cannot run (the planar engine: it would tip over,
+        too few ground contacts) is refused by ``gym.make`` in one line (ModelError), not at
+        the first reset."""
+        sim = make_simulator(self.engine, max_substep_s=self.max_substep_s,
+                             **self.engine_options)
+        try:
+            robot = SmartCarRobot(sim, self.robot_model, self.controller_config,
+                                  mode=self.controller_mode, wheel_contact=self.wheel_contact)
+            robot.spawn(settle_s=0.0)
+            sim.run_until(sim.now_ns + sim.max_substep_ns)
+        finally:
+            sim.close()
 
     # -- gymnasium API -----------------------------------------------------------------------
     def reset(

@@ -45,8 +45,12 @@ class Engine:
     substep_range_s: tuple[float, float]
     #: why no window can open in this process (None: one can, given a display)
     window_unavailable: Callable[[], str | None] = lambda: None
-    #: env keywords only this engine takes, with their check/resolve function
-    kwargs: dict[str, Callable[[Any], Any]] = field(default_factory=dict)
+    #: env keywords only this engine takes, each with its check/resolve function, called with
+    #: the value given (None: not given) and the robot's ``RobotModel`` (None: not known)
+    kwargs: dict[str, Callable[[Any, Any], Any]] = field(default_factory=dict)
+    #: whether making an env spawns its robot once in a scratch world of this engine, so that
+    #: a robot the engine cannot run is refused by ``gym.make`` (cheap engines only)
+    spawn_check: bool = False
     car_batch: Callable[..., Any] | None = None
     #: whether ``car_batch`` runs differential-drive models (one drive wheel a side)
     batches_differential: bool = False
@@ -128,11 +132,11 @@ def engine_kwargs() -> set[str]:
     return {key for engine in _REGISTRY.values() for key in engine.kwargs}
 
 
-def engine_options(engine: str, given: dict[str, Any]) -> dict[str, Any]:
+def engine_options(engine: str, given: dict[str, Any], model: Any = None) -> dict[str, Any]:
     """The env keywords only some engine takes (``given``: name -> value, None where not
-    given), for a world of ``engine``: each of ``engine``'s own resolved by its ``kwargs``
-    function (None included: its default); ValueError for a value given for another
-    engine's."""
+    given), for a world of ``engine`` and the robot ``model``: each of ``engine``'s own
+    resolved by its ``kwargs`` function (None included: its default for that robot);
+    ValueError for a value given for another engine's."""
     spec = get_engine(engine)
     for key, value in given.items():
         if value is not None and key not in spec.kwargs:
@@ -142,7 +146,7 @@ def engine_options(engine: str, given: dict[str, Any]) -> dict[str, Any]:
                                  f"{sorted(engine_kwargs())}")
             raise ValueError(f"{key} is the {owner} engine's; pass engine={owner!r} "
                              f"(engine is {engine!r})")
-    return {key: resolve(given.get(key)) for key, resolve in spec.kwargs.items()}
+    return {key: resolve(given.get(key), model) for key, resolve in spec.kwargs.items()}
 
 
 def on_engine(env_kwargs: dict[str, Any], engine: str) -> dict[str, Any]:

@@ -23,10 +23,12 @@ def _simulator(**options: Any) -> Any:
     return PlanarSimulator(**options)
 
 
-def _resolve_params(value: Any) -> Any:
-    from smartcar_gym.sim.planar.params import resolve
+def _resolve_params(value: Any, model: Any = None) -> Any:
+    """``planar_params`` resolved; not given: the shipped fit for the shipped smartcar, the
+    neutral values for any other robot (``params.for_robot``)."""
+    from smartcar_gym.sim.planar.params import for_robot, resolve
 
-    return resolve(value)
+    return resolve(value) if model is None else for_robot(value, model)
 
 
 ENGINE = Engine(
@@ -36,5 +38,6 @@ ENGINE = Engine(
     substep_range_s=PLANAR_SUBSTEP_RANGE_S,
     window_unavailable=lambda: "the planar engine draws top-down pictures only (no window)",
     kwargs={"planar_params": _resolve_params},
+    spawn_check=True,
     summary="a rigid car on identified tyres, in arrays (docs/planar.md)",
 )

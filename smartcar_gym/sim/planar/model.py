@@ -264,8 +264,10 @@ def build_car(tables: RobotTables, ground_z: float, actuation: Actuation,
     except ValueError as exc:
         if params.load_shift_x == 0.0:
             raise
+        low, high = load_shift_range(np.array(points) - com[:2])  # raises if not the shift
         raise ValueError(f"{exc} (planar.load_shift_x {params.load_shift_x:g} m from "
-                         f"{params.source})") from None
+                         f"{params.source}); this robot's contacts allow "
+                         f"[{low:.6g}, {high:.6g}] m") from None
     transfer = load_transfer(np.array(points))
     contacts = [[float(p[0] - com[0]), float(p[1] - com[1]), float(wx), float(wy), float(load),
                  float(mu), float(mu * (params.lateral_friction_ratio if g >= 0 else 1.0)),
@@ -299,3 +301,22 @@ def build_car(tables: RobotTables, ground_z: float, actuation: Actuation,
            float(com[2] - ground_z), *group_inertia, *coulomb,
            *(float(h[0]) for h in momentum), *(float(h[1]) for h in momentum)]
     return PlanarCar(car, contacts, tuple(g for g, _, _ in rolling), groups, com)
+
+
+def load_shift_range(points: np.ndarray) -> tuple[float, float]:
+    """The ``load_shift_x`` values (m) over which ground contacts at ``points`` ((K, 2), m
+    from the centre of mass) carry the body: every static load of ``static_loads`` at least
+    zero. ValueError (``static_loads``'): they cannot carry it whatever the shift."""
+    points = np.asarray(points, dtype=float)
+    static_loads(points, np.zeros(2), 1.0)  # too few contacts, on one line, or tipping
+    a = np.vstack([np.ones(len(points)), points[:, 0], points[:, 1]])
+    gram = a @ a.T
+    base = a.T @ np.linalg.solve(gram, np.array([1.0, 0.0, 0.0]))  # the loads at no shift
+    per = a.T @ np.linalg.solve(gram, np.array([0.0, 1.0, 0.0]))  # and per metre of it
+    low, high = -np.inf, np.inf
+    for b, p in zip(base, per, strict=True):
+        if p > 1e-12:
+            low = max(low, -b / p)
+        elif p < -1e-12:
+            high = min(high, -b / p)
+    return float(low), float(high)

@@ -15,6 +15,7 @@ the default) and may hold a ``fit:`` mapping that records how it was made (read 
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import os
 from dataclasses import dataclass
@@ -79,6 +80,13 @@ class PlanarParams:
     spin_reaction: float = 1.0
     source: str = dataclasses.field(default="built-in", compare=False)
 
+    def __post_init__(self) -> None:
+        """Every value checked against ``RANGES`` as a file's are (PlanarParamsError naming
+        the key; ``PlanarParams`` for an object made in code), and stored as a float."""
+        where = "PlanarParams" if self.source == "built-in" else self.source
+        for key in KEYS:
+            object.__setattr__(self, key, check_value(key, getattr(self, key), where))
+
 
 #: key -> (low, high, unit): the accepted range of each parameter (inclusive)
 RANGES: dict[str, tuple[float, float, str]] = {
@@ -94,18 +102,28 @@ RANGES: dict[str, tuple[float, float, str]] = {
 KEYS = tuple(RANGES)
 
 
-def check_value(key: str, value: Any, source: str) -> float:
-    """``value`` as a float inside ``RANGES[key]``; PlanarParamsError naming file and key."""
+def check_value(key: str, value: Any, source: str, text_numbers: bool = False) -> float:
+    """``value`` as a float inside ``RANGES[key]``; PlanarParamsError naming file and key.
+
+    ``text_numbers``: a string that reads as a number counts as that number (a YAML file's
+    ``5e-4``, which PyYAML reads as text: YAML 1.1 floats need a dot)."""
     low, high, unit = RANGES[key]
+    if text_numbers and isinstance(value, str):
+        try:
+            value = float(value)
+        except ValueError:
+            pass
     if not (is_real(value) and math.isfinite(value) and low <= value <= high):
         unit = f" {unit}" if unit else ""
+        text = " (text)" if isinstance(value, str) else ""
         raise PlanarParamsError(f"{source}: planar.{key}: expected a number in "
-                                f"[{low:g}, {high:g}]{unit}, got {value!r}")
+                                f"[{low:g}, {high:g}]{unit}, got {value!r}{text}")
     return float(value)
 
 
-def from_mapping(values: Any, source: str) -> PlanarParams:
-    """``PlanarParams`` from a ``{key: value}`` mapping (the file's ``planar:`` section)."""
+def from_mapping(values: Any, source: str, text_numbers: bool = False) -> PlanarParams:
+    """``PlanarParams`` from a ``{key: value}`` mapping (the file's ``planar:`` section;
+    ``text_numbers``: as ``check_value``'s)."""
     if not isinstance(values, dict):
         raise PlanarParamsError(f"{source}: planar: expected a mapping of {', '.join(KEYS)}, "
                                 f"got {type(values).__name__}")
@@ -113,13 +131,15 @@ def from_mapping(values: Any, source: str) -> PlanarParams:
     if unknown:
         raise PlanarParamsError(f"{source}: planar.{unknown[0]}: unknown key; the keys are "
                                 f"{', '.join(KEYS)}")
-    checked = {key: check_value(key, value, source) for key, value in values.items()}
+    checked = {key: check_value(key, value, source, text_numbers)
+               for key, value in values.items()}
     return PlanarParams(**checked, source=source)
 
 
 def load(path: str | os.PathLike) -> PlanarParams:
     """Read a parameter file; PlanarParamsError naming the file (and key) when it is
-    missing, not YAML, has no ``planar:`` mapping, or a value is unknown or out of range."""
+    missing, not YAML, has no ``planar:`` mapping, or a value is unknown or out of range.
+    Numbers written in exponent notation without a dot (``5e-4``, text to PyYAML) count."""
     source = str(path)
     try:
         text = Path(path).read_text(encoding="utf-8")
@@ -140,7 +160,7 @@ def load(path: str | os.PathLike) -> PlanarParams:
     if unknown:
         raise PlanarParamsError(f"{source}: {unknown[0]}: unknown section; a planar parameter "
                                 "file holds 'planar:' and optionally 'fit:'")
-    return from_mapping(data["planar"], source)
+    return from_mapping(data["planar"], source, text_numbers=True)
 
 
 def shipped_path(engine: str = DEFAULT_FIT) -> Path:
@@ -166,6 +186,34 @@ def resolve(spec: Any) -> PlanarParams:
         return load(spec)
     raise PlanarParamsError(f"planar_params must be None, {' or '.join(map(repr, SHIPPED))}, "
                             f"a file path, a dict or a PlanarParams, got {type(spec).__name__}")
+
+
+def for_robot(spec: Any, model: Any) -> PlanarParams:
+    """``resolve(spec)``, but ``None`` gives the shipped fit only to the shipped smartcar
+    (``is_shipped_robot``) and the built-in neutral values to any other robot ``model`` (a
+    ``RobotModel``): the fit is the smartcar's, and its ``load_shift_x`` would tip a robot
+    balanced near its axle over."""
+    if spec is None and not is_shipped_robot(model):
+        return PlanarParams()
+    return resolve(spec)
+
+
+def is_shipped_robot(model: Any) -> bool:
+    """Whether a ``RobotModel`` is the shipped smartcar: loaded from the shipped xacro (with
+    any xacro arguments: the Nav ids' ``laser``), or a copy of it (the same final URDF)."""
+    from smartcar_gym.model import SHIPPED_MODEL
+
+    source = Path(model.source)
+    if source.is_file() and source.resolve() == Path(SHIPPED_MODEL).resolve():
+        return True
+    return model.urdf == _shipped_urdf()
+
+
+@functools.cache
+def _shipped_urdf() -> str:
+    from smartcar_gym.model import load_model
+
+    return load_model().urdf
 
 
 def dump(params: PlanarParams, fit: dict[str, Any] | None = None) -> str:

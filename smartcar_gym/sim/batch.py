@@ -34,6 +34,8 @@ class CarBatch(Protocol):
     Made by ``car_batch(env, num_cars, threads)`` from ``env``, a single smartcar env of the
     engine just reset (spawned and settled): every car starts as its world is then.
     ``threads`` is how many worker threads may step the cars (an engine may ignore it).
+    A batch can be copied (``copy.deepcopy``, pickle); a copy may leave out what ``close``
+    frees, and the env calls ``reopen`` on it before its first reset.
     """
 
     def reset(self, idx: np.ndarray) -> None:

@@ -218,8 +218,7 @@ class CarsVectorEnv(gym.vector.VectorEnv):
         """Every car's observation: ``Observation.build``'s values, in its order and rounding."""
         return self._build(self.observation, self._columns())
 
-    @staticmethod
-    def _car_obs(obs: np.ndarray, i: int) -> np.ndarray:
+    def _car_obs(self, obs: Any, i: int) -> Any:
         """Car ``i``'s observation, copied out of the batch (``final_obs``)."""
         return obs[i].copy()
 

@@ -335,7 +335,7 @@ class SmartCarBatchVectorEnv(CarsVectorEnv):
     def _observe(self) -> Any:
         return self._observer.observe(self, self._columns())
 
-    def _car_obs(self, obs: Any, i: int) -> Any:  # type: ignore[override]
+    def _car_obs(self, obs: Any, i: int) -> Any:
         return self._observer.car_obs(obs, i)
 
     def _info_values(self, success: np.ndarray) -> dict[str, np.ndarray]:

@@ -15,7 +15,6 @@ from typing import Any
 
 import numpy as np
 
-from smartcar_gym.controller.batched import cars_index
 from smartcar_gym.model.kinematics import quaternion_matrix
 from smartcar_gym.sim.planar.batch import PlanarBatch, yaw_quaternion_arrays
 from smartcar_gym.sim.planar.geometry import OBSTACLE_HEIGHT_M, Shapes2D, cast, clearance
@@ -70,7 +69,7 @@ class PlanarCars:
         """Each side's motor output into its wheel groups, with ``set_motor_output``'s and
         ``PlanarBody._drive``'s arithmetic in their order."""
         cars, ng = self.batch, self.batch.ng
-        mask = cars_index(mask)
+        mask = slice(None) if mask.all() else mask  # every car: views, not copies
         drive, damp_side = torque[mask], damping[mask]
         tau = [np.zeros(len(drive)) for _ in range(ng)]
         for (g, sign), k in self._held_joints:

@@ -41,7 +41,7 @@ def test_an_unstable_car_of_a_batch_is_named(tmp_path, monkeypatch):
     envs = gym.make_vec("SmartCar-v0", num_envs=3, vectorization_mode="vector_entry_point",
                         engine="mujoco")
     envs.reset(seed=0)
-    envs.unwrapped.cars.datas[1].qvel[0] = 1e30
+    envs.unwrapped.cars.batch.datas[1].qvel[0] = 1e30
     with pytest.warns(MujocoWarning, match=r"^SmartCar-v0 \(mujoco\): MuJoCo's simulation became "
                                            r"unstable .*; car 1 at x=.* vx=1e\+30") as caught:
         envs.step(np.zeros((3, 2)))

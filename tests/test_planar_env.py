@@ -96,7 +96,7 @@ def test_the_batch_is_n_single_envs_bit_for_bit(env_id: str, mode: str) -> None:
     n, seed = 3, 11
     venv = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point",
                         engine="planar", autoreset_mode=mode, max_episode_steps=25)
-    assert "Planar" in type(venv).__name__
+    assert type(venv).__name__ == "SmartCarBatchVectorEnv" and venv.engine == "planar"
     envs = [gym.make(env_id, engine="planar", max_episode_steps=25) for _ in range(n)]
     obs, _ = venv.reset(seed=seed)
     first = [e.reset(seed=seed + i)[0] for i, e in enumerate(envs)]
@@ -293,7 +293,8 @@ def test_the_nav_batch_is_n_single_envs_bit_for_bit() -> None:
                   proximity_penalty=1.0, max_episode_steps=40)
     venv = gym.make_vec("SmartCarNav-v0", num_envs=n, vectorization_mode="vector_entry_point",
                         **kwargs)
-    assert type(venv).__name__ == "SmartCarNavPlanarVectorEnv"
+    assert type(venv).__name__ == "SmartCarBatchVectorEnv"
+    assert (venv.env_id, venv.engine) == ("SmartCarNav-v0", "planar")
     envs = [gym.make("SmartCarNav-v0", **kwargs) for _ in range(n)]
     obs, info = venv.reset(seed=seed)
     for i, env in enumerate(envs):

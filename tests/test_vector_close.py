@@ -43,14 +43,15 @@ def test_reset_reopens_a_closed_batch(env_id):
     envs = make(env_id)
     first = episode(envs, 4)
     envs.close()
-    with pytest.raises(RuntimeError, match=r"^SmartCar\w*MujocoVectorEnv is closed: call "
-                                           r"reset\(\) to reopen it before step\(\)$"):
+    with pytest.raises(RuntimeError, match=rf"^SmartCarBatchVectorEnv \({env_id} on mujoco\) is "
+                                           r"closed: call reset\(\) to reopen it before "
+                                           r"step\(\)$"):
         envs.step(np.zeros((N, 2)))
     again = episode(envs, 4)  # reopened: the same worlds, the same rollout
     assert all(np.array_equal(a, b) for a, b in zip(first, again, strict=True))
     assert not envs.closed
     envs.close()  # and it closes again
-    assert envs.closed and envs.unwrapped.cars.models == []
+    assert envs.closed and envs.unwrapped.cars.batch.models == []
 
 
 def test_a_closed_numpy_batch_says_so_too():

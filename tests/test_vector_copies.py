@@ -60,7 +60,8 @@ def test_a_copy_of_a_mujoco_batch_is_a_closed_twin(env_id, how):
     assert same(steps(twin, None), steps(envs, None))
     # ... and the same seed gives the same rollout
     assert same(steps(twin, 7), steps(envs, 7))
-    assert twin.unwrapped.cars.datas[0] is not envs.unwrapped.cars.datas[0]
+    twin_worlds, worlds = twin.unwrapped.cars.batch.datas, envs.unwrapped.cars.batch.datas
+    assert twin_worlds[0] is not worlds[0]
     twin.close()
     envs.step(ACTIONS)  # the original keeps its worlds
     envs.close()

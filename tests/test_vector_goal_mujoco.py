@@ -1,4 +1,4 @@
-"""SmartCarGoal-v0 on MuJoCo batched in C (``SmartCarGoalMujocoVectorEnv``): per-car equality
+"""SmartCarGoal-v0 on MuJoCo batched in C (``SmartCarBatchVectorEnv``): per-car equality
 with N single MuJoCo Goal envs (dict observations, goal-conditioned reward and ends),
 Gymnasium's vector conventions and the fallbacks."""
 
@@ -13,7 +13,7 @@ pytest.importorskip("smartcar_gym.sim.mujoco", reason="engine='mujoco' needs the
 
 import smartcar_gym  # noqa: E402, F401
 from smartcar_gym.envs.vector import (  # noqa: E402
-    SmartCarGoalMujocoVectorEnv,
+    SmartCarBatchVectorEnv,
     SmartCarLoopVectorEnv,
 )
 
@@ -58,7 +58,8 @@ def test_goal_batch_equals_n_single_envs_bit_for_bit(mode):
     single = gym.make_vec("SmartCarGoal-v0", num_envs=N, vectorization_mode="sync",
                           engine="mujoco", max_episode_steps=EPISODE, **SHORT,
                           vector_kwargs={"autoreset_mode": AutoresetMode(mode)})
-    assert isinstance(batched, SmartCarGoalMujocoVectorEnv)
+    assert isinstance(batched, SmartCarBatchVectorEnv)
+    assert (batched.env_id, batched.engine) == ("SmartCarGoal-v0", "mujoco")
     try:
         got, want = rollout(batched, 60, 2), rollout(single, 60, 2)
         for key in want[0][0]:

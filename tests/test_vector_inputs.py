@@ -12,17 +12,16 @@ pytest.importorskip("smartcar_gym.sim.mujoco", reason="engine='mujoco' needs the
 
 import smartcar_gym  # noqa: E402, F401
 from smartcar_gym.envs.vector import (  # noqa: E402
-    SmartCarGoalMujocoVectorEnv,
+    SmartCarBatchVectorEnv,
     SmartCarLoopVectorEnv,
-    SmartCarMujocoVectorEnv,
     SmartCarSimVectorEnv,
 )
 
 #: each kind of vector env: the numpy batch, a MuJoCo batch, and the loop on both engines
 KINDS = {
     "numpy": ("SmartCarSim-v0", {}, SmartCarSimVectorEnv),
-    "mujoco": ("SmartCar-v0", {"engine": "mujoco"}, SmartCarMujocoVectorEnv),
-    "goal-mujoco": ("SmartCarGoal-v0", {"engine": "mujoco"}, SmartCarGoalMujocoVectorEnv),
+    "mujoco": ("SmartCar-v0", {"engine": "mujoco"}, SmartCarBatchVectorEnv),
+    "goal-mujoco": ("SmartCarGoal-v0", {"engine": "mujoco"}, SmartCarBatchVectorEnv),
     "loop-mujoco": ("SmartCar-v0", {"engine": "mujoco", "randomize": "default"},
                     SmartCarLoopVectorEnv),
     "loop-numpy": ("SmartCarSim-v0", {"randomize": "default"}, SmartCarLoopVectorEnv),
@@ -36,6 +35,8 @@ def make(kind: str, num_envs: int = 2, **kwargs) -> gym.vector.VectorEnv:
     envs = gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point",
                         **extra, **kwargs)
     assert type(envs) is cls
+    if cls is SmartCarBatchVectorEnv:
+        assert (envs.env_id, envs.engine) == (env_id, extra["engine"])
     return envs
 
 

@@ -1,4 +1,4 @@
-"""SmartCar-v0 on MuJoCo batched in C (``SmartCarMujocoVectorEnv``): per-car equality with N
+"""SmartCar-v0 on MuJoCo batched in C (``SmartCarBatchVectorEnv``): per-car equality with N
 single MuJoCo envs, Gymnasium's vector conventions, the fallbacks and bad input."""
 
 from __future__ import annotations
@@ -14,6 +14,7 @@ pytest.importorskip("smartcar_gym.sim.mujoco", reason="engine='mujoco' needs the
 
 import smartcar_gym  # noqa: E402, F401
 from smartcar_gym.envs.vector import (  # noqa: E402
+    SmartCarBatchVectorEnv,
     SmartCarLoopVectorEnv,
     SmartCarMujocoVectorEnv,
 )
@@ -40,7 +41,8 @@ def test_mujoco_batch_equals_n_single_envs_bit_for_bit(mode):
     single = gym.make_vec("SmartCar-v0", num_envs=N, vectorization_mode="sync",
                           engine="mujoco", max_episode_steps=EPISODE, **SHORT,
                           vector_kwargs={"autoreset_mode": AutoresetMode(mode)})
-    assert isinstance(batched, SmartCarMujocoVectorEnv)
+    assert isinstance(batched, SmartCarBatchVectorEnv)
+    assert (batched.env_id, batched.engine) == ("SmartCar-v0", "mujoco")
     try:
         got, want = rollout(batched, 45, 7), rollout(single, 45, 7)
         assert np.array_equal(got[0][0], want[0][0])
@@ -159,7 +161,8 @@ def test_sb3_adapter_on_the_mujoco_batch():
 
     venv = make_batched_vec_env("SmartCar-v0", 4, seed=0, env_kwargs={"engine": "mujoco"})
     try:
-        assert isinstance(venv.unwrapped.venv, SmartCarMujocoVectorEnv)
+        assert isinstance(venv.unwrapped.venv, SmartCarBatchVectorEnv)
+        assert venv.unwrapped.venv.engine == "mujoco"
         obs = venv.reset()
         assert obs.shape == (4, 21)
         obs, rewards, dones, infos = venv.step(np.zeros((4, 2), dtype=np.float32))

@@ -1,4 +1,4 @@
-"""SmartCarNav-v0 on MuJoCo batched in C (``SmartCarNavMujocoVectorEnv``): per-car equality
+"""SmartCarNav-v0 on MuJoCo batched in C (``SmartCarBatchVectorEnv``): per-car equality
 with N single MuJoCo Nav envs (scan, collisions, autoresets), no single env stepped, reset
 options, Gymnasium's vector conventions and the fallbacks."""
 
@@ -14,6 +14,7 @@ pytest.importorskip("smartcar_gym.sim.mujoco", reason="engine='mujoco' needs the
 import smartcar_gym  # noqa: E402, F401
 from smartcar_gym.envs.nav_env import SmartCarNavEnv  # noqa: E402
 from smartcar_gym.envs.vector import (  # noqa: E402
+    SmartCarBatchVectorEnv,
     SmartCarLoopVectorEnv,
     SmartCarNavMujocoVectorEnv,
 )
@@ -52,7 +53,8 @@ def test_nav_batch_equals_n_single_envs_bit_for_bit(mode, laser):
     kwargs = {**SHORT, "max_episode_steps": EPISODE, "laser": laser}
     batched = make(autoreset_mode=mode, num_threads=2, **kwargs)
     single = single_envs(mode=mode, **kwargs)
-    assert isinstance(batched, SmartCarNavMujocoVectorEnv)
+    assert isinstance(batched, SmartCarBatchVectorEnv)
+    assert (batched.env_id, batched.engine) == ("SmartCarNav-v0", "mujoco")
     try:
         got, want = rollout(batched, 50, 1), rollout(single, 50, 1)
         assert np.array_equal(got[0][0], want[0][0])

@@ -134,3 +134,23 @@ def test_parked_cars_stand_still_and_the_others_step_as_before(env_id, kwargs):
     with pytest.raises(ValueError, match="park: expected a bool mask of shape"):
         envs.unwrapped.park(np.ones(N + 1, dtype=bool))
     envs.close()
+
+
+@pytest.mark.parametrize("mask", [np.array([0.0, 1.0, 0.0]), np.array([0, 1, 0]),
+                                  [False, True, False], np.array([[False, True, False]])])
+def test_park_takes_only_a_bool_array_of_one_flag_per_car(mask):
+    """Only a numpy bool array of shape (N,) parks cars: a float or int array (which a cast
+    would read as "nonzero", 0.5 parking its car), a list or another shape is one line, and no
+    car is parked."""
+    envs = gym.make_vec("SmartCar-v0", num_envs=N, vectorization_mode="vector_entry_point",
+                        engine="planar")
+    try:
+        envs.reset(seed=0)
+        with pytest.raises(ValueError, match=r"^park: expected a bool mask of shape \(3,\) \(a "
+                                             r"numpy array of dtype bool\), got a "):
+            envs.unwrapped.park(mask)
+        assert not envs.unwrapped._parked.any()
+        envs.unwrapped.park(np.array([False, True, False]))
+        assert envs.unwrapped._parked.tolist() == [False, True, False]
+    finally:
+        envs.close()

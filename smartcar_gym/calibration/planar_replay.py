@@ -1,8 +1,9 @@
 """Many replays at once: recordings x candidate parameters, as one batch of planar cars.
 
 A fit evaluates many candidate ``PlanarParams`` on every recording. ``FleetReplay`` puts each
-(candidate, recording) pair in a column of the planar vector env's batch (``envs.vector.planar``:
-the same cars, boards, controllers and clocks as the single env, bit for bit), gives each car
+(candidate, recording) pair in a column of the planar batched vector env's cars
+(``SmartCarBatchVectorEnv`` on ``engine="planar"``: the same cars, boards, controllers and
+clocks as the single env, bit for bit), gives each car
 its candidate's parameters (``PlanarBody.model_with``) and its recording's start pose, and sends
 each car its recording's ``cmd_vel`` once per controller period, as ``recording.replay`` does one
 at a time. A differential evolution generation of 40 candidates on the fit's 11 drives is one
@@ -49,14 +50,14 @@ class FleetReplay:
             self._venv = None
 
     def _batch(self, n: int):
-        from smartcar_gym.envs.vector.planar import SmartCarPlanarVectorEnv
+        from smartcar_gym.envs.vector import SmartCarBatchVectorEnv
 
         if self._venv is None or self._venv.num_envs != n:
             if self._venv is not None:
                 self._venv.close()
-            self._venv = SmartCarPlanarVectorEnv(num_envs=n, model=self.model,
-                                                 controller_config=self.config,
-                                                 engine=FITTED_ENGINE)
+            self._venv = SmartCarBatchVectorEnv("SmartCar-v0", num_envs=n, model=self.model,
+                                                controller_config=self.config,
+                                                engine=FITTED_ENGINE)
         return self._venv
 
     def run(self, candidates: Sequence[PlanarParams]
@@ -67,12 +68,12 @@ class FleetReplay:
         n = len(candidates) * nr
         venv = self._batch(n)
         venv.reset(seed=0)
-        cars = venv.cars
+        cars = venv.cars.batch  # the PlanarBatch
         for c, params in enumerate(candidates):
             cars.set_model(np.arange(c * nr, (c + 1) * nr), self.body.model_with(params))
         starts = np.array([self.body.spawn_state(*r.truth[0]) for r in recs]).T
         cars.reset(np.arange(n), np.tile(starts, (1, len(candidates))))
-        venv.base.reset(0.0, venv._angles())
+        venv.base.reset(0.0, venv.cars.encoder_angles())
         venv._motors_to_wheels(np.ones(n, dtype=bool))
         commands = np.full((self.length, n, 2), np.nan)
         for k, r in enumerate(recs):
@@ -97,7 +98,7 @@ class FleetReplay:
 
     @staticmethod
     def _record(venv, truth: np.ndarray, odom: np.ndarray, t: int, yaw: np.ndarray) -> None:
-        px, py, now = venv.cars.pose()
+        px, py, now = venv.cars.batch.pose()
         yaw += np.remainder(now - yaw + math.pi, 2 * math.pi) - math.pi  # unwrapped
         truth[t, :, 0], truth[t, :, 1], truth[t, :, 2] = px, py, yaw
         b = venv.base

@@ -151,8 +151,8 @@ def vector_info(values: dict[str, np.ndarray], mask: np.ndarray) -> dict[str, An
 
 
 def batch_limits(kwargs: dict[str, Any]) -> str | None:
-    """What no physics batch runs of these single-env kwargs (None: nothing): the physics
-    batches (MuJoCo's, the planar engine's) fall back to the loop for them."""
+    """What no physics batch runs of these single-env kwargs (None: nothing): the batched env
+    (``SmartCarBatchVectorEnv``, whatever its engine) falls back to the loop for them."""
     if kwargs.get("randomize") is not None:
         return "randomize (domain randomisation) builds a different car per episode"
     if kwargs.get("render_mode") == "human":
@@ -162,13 +162,3 @@ def batch_limits(kwargs: dict[str, Any]) -> str | None:
     if kwargs.get("controller_mode") not in (None, "hardware"):
         return "controller_mode='sim' steps no physics (SmartCarSim-v0 is batched in numpy)"
     return None
-
-
-def nav_limits(kwargs: dict[str, Any]) -> str | None:
-    """``batch_limits``, and any ``render_mode``: a batch's top-down tiles would leave out a
-    Nav episode's obstacles and scans (the single env's picture has them)."""
-    why = batch_limits(kwargs)
-    if why is None and kwargs.get("render_mode") is not None:
-        return ("render_mode: the batch's top-down tiles draw no obstacles or scans (the "
-                "single env's picture does)")
-    return why

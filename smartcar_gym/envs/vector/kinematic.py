@@ -2,34 +2,26 @@
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
-import gymnasium as gym
 import numpy as np
-from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode
-from gymnasium.vector.utils import batch_space
 
 from smartcar_gym.controller import KINEMATIC
 from smartcar_gym.controller.batched import BatchedArbotix
-from smartcar_gym.envs.observation import Observation
 from smartcar_gym.envs.smartcar_env import SmartCarEnv
+from smartcar_gym.envs.vector.base import CarsVectorEnv
 from smartcar_gym.envs.vector.common import (
-    check_actions,
     check_autoreset_mode,
     check_max_episode_steps,
     check_num_envs,
-    check_seeds,
-    vector_info,
 )
 from smartcar_gym.envs.vector.exact import planar_norms, wrap_angles
-from smartcar_gym.envs.vector.render import top_down_tiles
-from smartcar_gym.sim.simulator import NS_PER_S, seconds_to_ns
+from smartcar_gym.envs.vector.parts import reach_columns, reach_score
+from smartcar_gym.sim.clock import NS_PER_S, seconds_to_ns
 
 #: measured: 4096 cars hold about 9 MiB of arrays; the margin covers the per-car generators
 BYTES_PER_CAR = 16 * 1024
-TWO_PI = 2 * math.pi
 
 
 class _Settings(SmartCarEnv):
@@ -51,7 +43,7 @@ def supports(kwargs: dict[str, Any]) -> str | None:
     return None
 
 
-class SmartCarSimVectorEnv(gym.vector.VectorEnv):
+class SmartCarSimVectorEnv(CarsVectorEnv):
     """## Description
 
     ``SmartCarSim-v0`` (the driver's ``sim: true``: the car follows the commanded twist) for
@@ -66,6 +58,15 @@ class SmartCarSimVectorEnv(gym.vector.VectorEnv):
     Made by ``gym.make_vec("SmartCarSim-v0", num_envs=N, vectorization_mode="vector_entry_point",
     **kwargs)`` with SmartCarEnv's kwargs (``max_substep_s``, ``physics_hz`` and
     ``wheel_contact`` have no effect: nothing is simulated), plus ``autoreset_mode``.
+
+    It is not ``SmartCarBatchVectorEnv`` with a kinematic car batch, because it is not the same
+    thing: there are no events and no clock to step between them (the car follows the
+    commanded twist over the whole period, then the controller fires once, as
+    ``SmartCarRobot._move_kinematically``), no engine (no world to copy, reset or step), the
+    controller is the kinematic mode's (no boards, no motors), and the pose is pybullet's
+    float32 body's, not an engine's. What both share, the vector conventions below, is their
+    common base ``CarsVectorEnv``; reaching the goal is the same arithmetic
+    (``parts.reach_score``, ``parts.reach_columns``).
 
     ## Conventions (Gymnasium 1.x)
 
@@ -97,8 +98,6 @@ class SmartCarSimVectorEnv(gym.vector.VectorEnv):
     """
 
     metadata = {"render_modes": ["rgb_array"], "autoreset_mode": AutoresetMode.NEXT_STEP}
-    #: attributes taken from ``settings`` (lambdas inside): a copy takes them again
-    from_settings: tuple[str, ...] = ("observation",)
 
     def __init__(self, num_envs: int = 1, max_episode_steps: int | None = None,
                  autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
@@ -131,168 +130,21 @@ class SmartCarSimVectorEnv(gym.vector.VectorEnv):
         self.period_ns = seconds_to_ns(1.0 / config.rate_hz)
         self._duration = self.period_ns / NS_PER_S
         self.base = BatchedArbotix(config, KINEMATIC, model.wheel_radius_m, num_cars=n)
-        self._rngs: list[np.random.Generator | None] = [None] * n
-        self._steps = np.zeros(n, dtype=np.int64)
-        self._pose = np.zeros((n, 3))  # the body's x, y, yaw in doubles
-        self._wheels = np.zeros((n, len(groups)))
-        self._wheel_speed = np.zeros((n, len(groups)))
-        self.goal = np.zeros((n, 2))
-        self._distance = np.zeros(n)
-        self._prev_action = np.zeros((n, 2), dtype=np.float32)
-        self._autoreset = np.zeros(n, dtype=bool)
-        self._needs_reset = True
+        self.label = type(self).__name__
+        self._allocate(len(groups))
 
-    def _take_settings(self, s: Any) -> None:
-        """The task, observation, spaces and metadata of the single env (or its settings)
-        ``s`` that every car shares."""
-        self.settings = s
-        self.task, self.observation = s.task, s.observation
-        self.observation_names = s.observation_names
-        self.render_mode = s.render_mode
-        self.metadata = {**self.metadata, "render_fps": s.controller_config.rate_hz,
-                         "autoreset_mode": self.autoreset_mode}
-        self.single_observation_space = s.observation_space
-        self.single_action_space = s.action_space
-        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
-        self.action_space = batch_space(self.single_action_space, self.num_envs)
-
-    # -- copies --------------------------------------------------------------------------------
-    def __getstate__(self) -> dict[str, Any]:
-        """Everything but what is taken from ``settings`` (the single env's own copy keeps
-        its settings and declares its observation again)."""
-        state = self.__dict__.copy()
-        for key in self.from_settings:
-            state.pop(key, None)
-        return state
-
-    def __setstate__(self, state: dict[str, Any]) -> None:
-        self.__dict__.update(state)
-        for key in self.from_settings:
-            setattr(self, key, getattr(self.settings, key))
-
-    # -- gymnasium API -------------------------------------------------------------------------
-    @property
-    def np_random(self) -> tuple[np.random.Generator, ...]:
-        """Each car's generator (created from entropy if it had none)."""
-        return tuple(self._rng(i) for i in range(self.num_envs))
-
-    def _rng(self, i: int) -> np.random.Generator:
-        if self._rngs[i] is None:
-            self._rngs[i], _ = seeding.np_random(None)
-        return self._rngs[i]
-
-    def reset(self, *, seed: int | list[int | None] | None = None,
-              options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+    def _allocate(self, groups: int) -> None:
         n = self.num_envs
-        seeds = check_seeds(seed, n)
-        if self.closed:  # as the single envs: reset() reopens
-            self._reopen()
-            self.closed = False
-        options, mask = self._reset_mask(options)
-        for i, s in enumerate(seeds):
-            if mask[i] and (s is not None or self._rngs[i] is None):
-                self._rngs[i], _ = seeding.np_random(s)
-        goals = self._check_options(options)
-        self._reset_cars(mask, goals)
-        self._autoreset[mask] = False
-        self._needs_reset = False
-        return self._observe(), self._info(mask, np.zeros(n, dtype=bool))
-
-    def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
-                                          dict[str, Any]]:
-        if self.closed:
-            raise RuntimeError(f"{type(self).__name__} is closed: call reset() to reopen it "
-                               "before step()")
-        if self._needs_reset:
-            raise gym.error.ResetNeeded(f"{type(self).__name__}: call reset() before step()")
-        a = check_actions(actions, self.num_envs)
-        restart = self._autoreset.copy() if self.autoreset_mode == AutoresetMode.NEXT_STEP \
-            else np.zeros(self.num_envs, dtype=bool)
-        reward, success, failure = self._advance(a)
-        terminated = success | failure
-        truncated = self._cut_short() | (
-            self._steps >= self.max_episode_steps if self.max_episode_steps is not None
-            else np.zeros(self.num_envs, dtype=bool))
-        if self.autoreset_mode == AutoresetMode.NEXT_STEP:
-            if restart.any():
-                self._reset_cars(restart, None)
-                reward[restart] = 0.0
-                terminated[restart] = truncated[restart] = success[restart] = False
-            obs = self._observe()
-            info = self._info(np.ones(self.num_envs, dtype=bool), success)
-        else:
-            done = terminated | truncated
-            obs = self._observe()
-            info = self._info(np.ones(self.num_envs, dtype=bool), success)
-            if done.any():
-                final_obs = np.full(self.num_envs, None, dtype=object)
-                for i in np.flatnonzero(done):
-                    final_obs[i] = self._car_obs(obs, i)
-                final_info = self._info(done, success)
-                self._reset_cars(done, None)
-                obs = self._observe()
-                info = self._info(np.ones(self.num_envs, dtype=bool), success & ~done)
-                info["final_obs"], info["_final_obs"] = final_obs, done.copy()
-                info["final_info"], info["_final_info"] = final_info, done.copy()
-        self._autoreset = terminated | truncated
-        return obs, reward, terminated, truncated, info
-
-    def render(self) -> np.ndarray | None:
-        if self.render_mode is None:
-            gym.logger.warn("render() called without render_mode='rgb_array'")
-            return None
-        s = self.settings
-        return top_down_tiles(self._pose[:16, :2], self._pose[:16, 2], self.goal[:16],
-                              s.task.goal_tolerance_m, s.task.arena_half_size_m,
-                              s.render_width, s.render_height)
-
-    def close_extras(self, **kwargs: Any) -> None:
-        """Nothing to release: no engine, no files."""
-
-    def _reopen(self) -> None:
-        """What ``close_extras`` released, back before ``reset`` starts the cars again (nothing
-        here)."""
+        self._allocate_episodes(n)
+        self._pose = np.zeros((n, 3))  # the body's x, y, yaw in doubles
+        self._wheels = np.zeros((n, groups))
+        self._wheel_speed = np.zeros((n, groups))
 
     # -- the model -----------------------------------------------------------------------------
-    def _reset_mask(self, options: Any) -> tuple[Any, np.ndarray]:
-        """``options`` without ``"reset_mask"``, and the cars to reset (all without one)."""
-        everyone = np.ones(self.num_envs, dtype=bool)
-        if not isinstance(options, dict) or "reset_mask" not in options:
-            return options, everyone
-        options = dict(options)
-        mask = options.pop("reset_mask")
-        if not (isinstance(mask, np.ndarray) and mask.dtype == np.bool_
-                and mask.shape == (self.num_envs,) and mask.any()):
-            raise ValueError(f"options['reset_mask'] must be a bool array of shape "
-                             f"({self.num_envs},) with a car to reset, got {mask!r}")
-        if self._needs_reset and not mask.all():
-            raise gym.error.ResetNeeded(f"{type(self).__name__}: the first reset() resets every "
-                                        "car (no reset_mask)")
-        return options or None, mask.copy()
-
-    def _check_options(self, options: Any) -> np.ndarray | None:
-        if options is None:
-            return None
-        if not isinstance(options, dict) or set(options) - {"goal"}:
-            raise ValueError(f"reset options must be {{'goal': (x, y) or an ({self.num_envs}, 2) "
-                             f"array}}, got {options!r}")
-        if "goal" not in options:
-            return None
-        goal = np.asarray(options["goal"], dtype=float)
-        rows = goal.reshape(-1, 2) if goal.shape in ((2,), (self.num_envs, 2)) else None
-        if rows is None:
-            raise ValueError(f"options['goal'] must be (x, y) or an ({self.num_envs}, 2) array, "
-                             f"got shape {goal.shape}")
-        checked = np.array([self.task.check_goal(g) for g in rows])
-        return np.broadcast_to(checked, (self.num_envs, 2))
-
     def _reset_cars(self, mask: np.ndarray, goals: np.ndarray | None) -> None:
         """Spawn the masked cars afresh at the origin, each with a goal from its generator."""
         idx = np.flatnonzero(mask)
-        origin = np.zeros(2)
-        for i in idx:
-            self.goal[i] = (goals[i] if goals is not None
-                            else self.task.sample_goal(self._rng(i), origin))
+        self._draw_goals(idx, goals)
         self._steps[idx] = 0
         self._pose[idx] = 0.0
         self._wheels[idx] = 0.0
@@ -326,75 +178,17 @@ class SmartCarSimVectorEnv(gym.vector.VectorEnv):
         # the task, on the position as pybullet stores it (float32)
         px = x.astype(np.float32).astype(np.float64)
         py = y.astype(np.float32).astype(np.float64)
-        return self._score(px, py, a)
-
-    def _score(self, px: np.ndarray, py: np.ndarray, a: np.ndarray,
-               flipped: np.ndarray | bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Reward, success and failure of every car from its true position: the arithmetic
-        of ``GoalReachingTask.evaluate``, in its order, on arrays."""
-        task = self.task
-        dx, dy = px - self.goal[:, 0], py - self.goal[:, 1]
-        distance = np.sqrt(dx * dx + dy * dy)
-        success = distance < task.goal_tolerance_m
-        half = task.arena_half_size_m
-        failure = flipped | (np.abs(px) > half) | (np.abs(py) > half)
-        reward = (task.progress_weight * (self._distance - distance) - task.time_cost
-                  - task.action_cost * (a[:, 0] * a[:, 0] + a[:, 1] * a[:, 1])
-                  + task.success_bonus * success.astype(np.float64)
-                  - task.failure_penalty * failure.astype(np.float64))
-        self._distance = distance
-        self._prev_action = a.astype(np.float32)
-        return reward, success, failure
-
-    def _cut_short(self) -> np.ndarray:
-        """Which cars the env itself truncates this step (none here: only the time limit)."""
-        return np.zeros(self.num_envs, dtype=bool)
-
-    @staticmethod
-    def _car_obs(obs: np.ndarray, i: int) -> np.ndarray:
-        """Car ``i``'s observation, copied out of the batch (``final_obs``)."""
-        return obs[i].copy()
-
-    def _observe(self) -> np.ndarray:
-        """Every car's observation: ``Observation.build``'s values, in its order and rounding."""
-        return self._build(self.observation, self._columns())
-
-    def _build(self, observation: Observation, columns: dict[str, Any]) -> np.ndarray:
-        """``observation.build`` for every car from the entries' ``columns``."""
-        obs = np.empty((self.num_envs, len(observation.names)), dtype=np.float32)
-        k = 0
-        for entry in observation.entries:
-            for col in columns[entry.key]:
-                obs[:, k] = col  # each float64 value rounded once to float32
-                k += 1
-        return np.minimum(np.maximum(obs, observation.low, out=obs), observation.high, out=obs)
+        return reach_score(self, px, py, a)
 
     def _columns(self) -> dict[str, Any]:
-        """Each observation entry's values as columns over cars (by the entry's key)."""
-        b = self.base
-        c, s = np.cos(b.theta), np.sin(b.theta)
-        gx, gy = self.goal[:, 0] - b.x, self.goal[:, 1] - b.y
-        wrapped = (self._wheels + math.pi) % TWO_PI - math.pi
-        group = self._wheel_group
-        columns = {
-            "odom_position": (b.x, b.y),
-            "odom_heading": (c, s),
-            "odom_linear": (b.odom_v,),
-            "odom_angular": (b.odom_w,),
-            "wheel_positions": [wrapped[:, k] for k in group],
-            "wheel_velocities": [self._wheel_speed[:, k] for k in group],
-            "goal_base": (c * gx + s * gy, -s * gx + c * gy),
-            "goal_distance": (np.hypot(gx, gy),),
-            "previous_action": (self._prev_action[:, 0], self._prev_action[:, 1]),
-            "goal_odom": (self.goal[:, 0], self.goal[:, 1]),
-        }
-        return columns
+        """SmartCar-v0's entries as columns over cars (``parts.reach_columns``)."""
+        return reach_columns(self)
 
-    def _info(self, mask: np.ndarray, success: np.ndarray) -> dict[str, Any]:
+    def _info_values(self, success: np.ndarray) -> dict[str, np.ndarray]:
         b, pose = self.base, self._pose
         px = pose[:, 0].astype(np.float32).astype(np.float64)
         py = pose[:, 1].astype(np.float32).astype(np.float64)
-        values = {
+        return {
             "is_success": success.copy(),
             "distance": self._distance.copy(),
             # the body's exact heading, wrapped; the single env's is pybullet's float32
@@ -403,7 +197,3 @@ class SmartCarSimVectorEnv(gym.vector.VectorEnv):
             "odom_pose": np.stack([b.x, b.y, wrap_angles(b.theta)], axis=1),
             "odom_error": planar_norms(b.x - px, b.y - py),
         }
-        if not mask.all():
-            values = {k: np.where(mask.reshape(-1, *([1] * (v.ndim - 1))), v,
-                                  np.zeros_like(v)) for k, v in values.items()}
-        return vector_info(values, mask)

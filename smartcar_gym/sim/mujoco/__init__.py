@@ -2,7 +2,8 @@
 
 ``model`` builds the ``MjSpec`` of one robot from its URDF (reusable for batched worlds),
 ``simulator`` is ``MujocoSimulator`` (the clock, stepping, the world's spec, model and data),
-``body`` the ``Body`` handles and the visual-only markers, ``render`` the offscreen camera.
+``body`` the ``Body`` handles and the visual-only markers, ``render`` the offscreen camera,
+``batch`` N copies of one world stepped in C and ``cars`` the batched vector env's car batch.
 ``ENGINE`` describes the engine to ``sim.engines``; importing this package does not import
 ``mujoco`` (making a world does, and says which extra is missing).
 
@@ -18,6 +19,7 @@ import os
 import sys
 from typing import Any
 
+from smartcar_gym.sim.batch import LazyCarBatch
 from smartcar_gym.sim.clock import DEFAULT_MAX_SUBSTEP_S, MAX_SUBSTEP_RANGE_S
 from smartcar_gym.sim.engines import Engine
 
@@ -60,6 +62,9 @@ ENGINE = Engine(
     max_substep_s=DEFAULT_MAX_SUBSTEP_S,
     substep_range_s=MAX_SUBSTEP_RANGE_S,
     window_unavailable=_window_unavailable,
+    # measured with 4.0.0 (256 cars): 0.74 MiB resident per car, mostly its MjData arena
+    car_batch=LazyCarBatch("smartcar_gym.sim.mujoco.cars:MujocoCars", 800 * 1024),
+    batches_differential=False,  # a differential-drive model starts its encoders mid-tick
     module="mujoco",
     extra=EXTRA,
     summary=f"needs the extra: {EXTRA}",

@@ -2,13 +2,15 @@
 
 ``ENGINE`` describes it to ``sim.engines``: its own keyword ``planar_params`` (the fitted
 parameters, ``params.resolve``), 20 ms substeps by default and up to 50 ms (its implicit step is
-stable at any length), no window (it draws top-down pictures).
+stable at any length), no window (it draws top-down pictures), and its car batch (``cars``:
+N cars in arrays, differential-drive models included).
 """
 
 from __future__ import annotations
 
 from typing import Any
 
+from smartcar_gym.sim.batch import LazyCarBatch
 from smartcar_gym.sim.engines import Engine
 
 #: the planar engine's longest substep by default and at most (s): its implicit step is stable
@@ -39,5 +41,9 @@ ENGINE = Engine(
     window_unavailable=lambda: "the planar engine draws top-down pictures only (no window)",
     kwargs={"planar_params": _resolve_params},
     spawn_check=True,
+    # measured (4096 cars, SmartCar-v0): about 6 KiB of arrays per car; the margin covers the
+    # per-car generators
+    car_batch=LazyCarBatch("smartcar_gym.sim.planar.cars:PlanarCars", 16 * 1024),
+    batches_differential=True,  # BatchedArbotix starts the encoders mid-tick, as the single env
     summary="a rigid car on identified tyres, in arrays (docs/planar.md)",
 )

@@ -40,9 +40,6 @@ class PlanarBatch:
                                  self.n)
         self.drive = _columns(np.zeros(2 * self.ng), self.n)
         self._rows: tuple[np.ndarray, np.ndarray] | None = None
-        #: worlds the engine found unstable (MuJoCo's batch reports them): the planar
-        #: engine's implicit step has none, so this stays empty
-        self.unstable: list = []
 
     # -- cars ----------------------------------------------------------------------------------
     def reset(self, idx: np.ndarray, state: np.ndarray | None = None) -> None:

@@ -1,0 +1,144 @@
+"""The planar engine's ``CarBatch`` (``sim.batch``): N planar cars in arrays, read and written
+as the single ``PlanarBody`` reads and writes its car.
+
+``PlanarCars`` wraps ``batch.PlanarBatch`` (every car a column, stepped by numba's loop or
+numpy) with what the single ``SmartCarRobot`` knows of its ``PlanarBody``: which wheel group
+each joint turns with (and its sign), and the order the body sums joint torques and damping
+into its groups. For SmartCarNav-v0 it keeps each car's obstacle outlines and casts the laser
+and measures the clearance against them with ``geometry``'s exact 2D functions (the single
+env's ``ray_hits`` and ``clearance``, over cars). Every car is its single env bit for bit.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from smartcar_gym.model.kinematics import quaternion_matrix
+from smartcar_gym.sim.planar.batch import PlanarBatch, yaw_quaternion_arrays
+from smartcar_gym.sim.planar.geometry import OBSTACLE_HEIGHT_M, Shapes2D, cast, clearance
+from smartcar_gym.sim.planar.world import footprint_of, obstacle_shapes
+
+
+class PlanarCars:
+    """``num_cars`` copies of ``env``'s planar car at its spawn (a ``PlanarBatch``).
+
+    ``batch`` is the ``PlanarBatch`` itself (the fit's replays give its cars other
+    parameters and start states). The planar engine's implicit step is stable at any length:
+    it meets no instabilities, and its cars hold nothing to close.
+    """
+
+    def __init__(self, env: Any, num_cars: int, threads: int) -> None:
+        robot = env.robot
+        body = robot.body
+        #: the cars' columns
+        self.batch = PlanarBatch(body, num_cars)
+        of = body.groups.of
+        self._wheel_joints = [of[j] for j in robot.wheel_joint_indices]
+        self._encoder_joints = [of[j] for j in robot._encoder_idx]
+        self._encoder_sign = np.array(robot._encoder_signs, dtype=np.float64)
+        self._side = [0 if left else 1 for left in robot._left]
+        self._share = list(robot._share)
+        self._sign = list(robot._signs)
+        # the order PlanarBody sums joint torques and damping into its groups
+        self._held_joints = [(of[j], k) for k, j in enumerate(robot.wheel_joint_indices)
+                             if j in of]
+        self._damped_joints = [(of[j], robot.wheel_joint_indices.index(j))
+                               for j in body._damping if j in of]
+        self._upright = np.ones(self.batch.n)  # a planar car never tips over
+        self._body = body
+        #: per car, its obstacles' outlines (SmartCarNav-v0; ``load``)
+        self._shapes: list[Any] = [None] * self.batch.n
+
+    def reset(self, idx: np.ndarray) -> None:
+        self.batch.reset(idx)
+
+    def encoder_angles(self) -> np.ndarray:
+        return self.batch.joint_angles(self._encoder_joints) * self._encoder_sign
+
+    def read_pose(self, pose: np.ndarray) -> np.ndarray:
+        pose[:, 0], pose[:, 1], pose[:, 2] = self.batch.pose()
+        return self._upright
+
+    def read_wheels(self) -> tuple[np.ndarray, np.ndarray]:
+        return (self.batch.joint_angles(self._wheel_joints),
+                self.batch.joint_speeds(self._wheel_joints))
+
+    def set_drive(self, mask: np.ndarray, torque: np.ndarray, damping: np.ndarray) -> None:
+        """Each side's motor output into its wheel groups, with ``set_motor_output``'s and
+        ``PlanarBody._drive``'s arithmetic in their order."""
+        cars, ng = self.batch, self.batch.ng
+        mask = slice(None) if mask.all() else mask  # every car: views, not copies
+        drive, damp_side = torque[mask], damping[mask]
+        tau = [np.zeros(len(drive)) for _ in range(ng)]
+        for (g, sign), k in self._held_joints:
+            tau[g] = tau[g] + sign * (drive[:, self._side[k]] * self._share[k] * self._sign[k])
+        damp = [np.zeros(len(drive)) for _ in range(ng)]
+        for (g, sign), k in self._damped_joints:
+            damp[g] = damp[g] + sign * sign * (damp_side[:, self._side[k]] * self._share[k])
+        for g in range(ng):
+            cars.drive[g, mask] = tau[g]
+            cars.drive[ng + g, mask] = damp[g]
+
+    def step(self, idx: np.ndarray, nstep: np.ndarray, timestep: np.ndarray) -> None:
+        self.batch.step(idx, nstep, timestep)
+
+    def take_unstable(self) -> tuple[Warning, ...]:
+        """None: the implicit step is stable at any length."""
+        return ()
+
+    def close(self) -> None:
+        """Nothing to release: arrays only."""
+
+    def reopen(self) -> None:
+        """Nothing to rebuild: the env's ``reset`` respawns every car."""
+
+    # -- SmartCarNav-v0 ------------------------------------------------------------------------
+    def load(self, car: int, env: Any) -> None:
+        """Car ``car``'s obstacles (``env``'s statics), its car back at the spawn."""
+        self._shapes[car] = obstacle_shapes(env.sim.statics())
+        self.batch.reset(np.array([car]))
+
+    def _world_shapes(self, idx: np.ndarray) -> Shapes2D:
+        """The listed cars' obstacles as one ``Shapes2D`` (padded to the most obstacles)."""
+        parts = [self._shapes[i] for i in idx.tolist()]
+        m = max(p.num_shapes for p in parts)
+        k = len(parts)
+        kind = np.zeros((k, m), dtype=np.int8)
+        centre, rotation = np.zeros((k, m, 2)), np.tile([1.0, 0.0], (k, m, 1))
+        half, valid = np.ones((k, m, 2)), np.zeros((k, m), dtype=bool)
+        for row, p in enumerate(parts):
+            j = p.num_shapes
+            kind[row, :j], centre[row, :j] = p.kind[0], p.centre[0]
+            rotation[row, :j], half[row, :j], valid[row, :j] = p.rotation[0], p.half[0], True
+        return Shapes2D(kind, centre, rotation, half, valid)
+
+    def cast(self, idx: np.ndarray, laser: Any) -> tuple[np.ndarray, np.ndarray]:
+        """``geometry.ray_hits``' arithmetic over cars, every car against its own obstacles."""
+        cars = self.batch
+        px, py, _ = cars.pose()
+        cos_yaw, sin_yaw = cars.state[2], cars.state[3]  # the state's heading, as cos and sin
+        qz, qw = yaw_quaternion_arrays(cos_yaw[idx], sin_yaw[idx])
+        position = np.stack([px[idx], py[idx], np.full(len(idx), cars.height)], axis=1)
+        zero = np.zeros(len(idx))
+        rotation = quaternion_matrix(np.stack([zero, zero, qz, qw], axis=1))
+        origin, directions = laser.beams(position, rotation)
+        starts = np.broadcast_to(origin[:, None, :], directions.shape)
+        ends = origin[:, None, :] + directions * laser.config.range_max
+        vec = ends - starts
+        length = np.hypot(vec[..., 0], vec[..., 1])
+        moving = length > 0
+        units = np.where(moving[..., None],
+                         vec[..., :2] / np.where(moving, length, 1.0)[..., None], [1.0, 0.0])
+        found = cast(origin[:, :2], units, length, self._world_shapes(idx))
+        within = moving & (starts[..., 2] >= 0.0) & (starts[..., 2] <= OBSTACLE_HEIGHT_M)
+        hit = within & (found.shape >= 0)
+        fraction = np.where(hit, found.distance / np.where(moving, length, 1.0), 1.0)
+        return hit, fraction
+
+    def clearances(self, pose: np.ndarray, max_distance_m: float) -> np.ndarray:
+        """Every car's footprint against its obstacles: ``geometry.clearance``."""
+        return clearance(footprint_of(self._body), pose,
+                         self._world_shapes(np.arange(self.batch.n)), max_distance_m,
+                         height=OBSTACLE_HEIGHT_M)

@@ -118,9 +118,9 @@ class SmartCarGoalEnv(GoalRewards, SmartCarEnv):
     ## Vector envs
 
     ``gym.make_vec("SmartCarGoal-v0", num_envs=N, vectorization_mode="vector_entry_point")``:
-    with ``engine="mujoco"``, N cars in C (``SmartCarGoalMujocoVectorEnv``, bit for bit N of
-    this env, ``Dict`` observations of ``(N, ...)`` arrays, ``compute_reward`` for HER); with
-    ``engine="planar"`` in arrays (``SmartCarGoalPlanarVectorEnv``, bit for bit too); on
+    with ``engine="mujoco"`` or ``"planar"``, N cars in one ``SmartCarBatchVectorEnv`` with the
+    goal-conditioned part (bit for bit N of this env, ``Dict`` observations of ``(N, ...)``
+    arrays, ``compute_reward`` for HER); on
     pybullet, or with ``randomize`` or ``controller_mode="sim"``, N single envs stepped in a
     loop (``SmartCarLoopVectorEnv``); both with the smartcar vector conventions
     (docs/vector.md).

@@ -138,11 +138,11 @@ class SmartCarNavEnv(SmartCarEnv):
     ## Vector envs
 
     ``gym.make_vec("SmartCarNav-v0", num_envs=N, vectorization_mode="vector_entry_point")``:
-    with ``engine="mujoco"``, N cars in C (``SmartCarNavMujocoVectorEnv``: each car's world
-    built at its reset as here, then its physics, laser and clearance stepped in C; bit for
-    bit N of this env); with ``engine="planar"``, N cars in arrays
-    (``SmartCarNavPlanarVectorEnv``: the same resets, then the laser and clearance against
-    each car's obstacle outlines; bit for bit too); on pybullet, or with ``randomize``, a
+    with ``engine="mujoco"`` or ``"planar"``, N cars in one ``SmartCarBatchVectorEnv`` with the
+    Nav part (each car's world built at its reset as here, then its physics, laser and
+    clearance stepped by the engine's car batch: in C on MuJoCo, against each car's obstacle
+    outlines in arrays on planar; bit for bit N of this env); on pybullet, or with
+    ``randomize``, a
     ``render_mode`` or
     ``controller_mode="sim"``, N single envs stepped in a loop (``SmartCarLoopVectorEnv``);
     both with the smartcar vector conventions (docs/vector.md).

@@ -212,12 +212,10 @@ class SmartCarEnv(gym.Env):
     ``gym.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point", **kwargs)`` makes N
     cars in one process (docs/vector.md): SmartCarSim-v0 in numpy arrays
     (``SmartCarSimVectorEnv``, bit for bit N single envs but for ``info["pose"]``'s yaw,
-    within 1e-6 rad), SmartCar-v0, SmartCarNav-v0 and SmartCarGoal-v0 with
-    ``engine="mujoco"`` in C (``SmartCarMujocoVectorEnv``, ``SmartCarNavMujocoVectorEnv``,
-    ``SmartCarGoalMujocoVectorEnv``, bit for bit, infos included) and
-    with ``engine="planar"`` in arrays (``SmartCarPlanarVectorEnv``,
-    ``SmartCarNavPlanarVectorEnv``, ``SmartCarGoalPlanarVectorEnv``, bit for bit too,
-    differential-drive robots included), on pybullet or with what the batches lack
+    within 1e-6 rad), SmartCar-v0, SmartCarNav-v0 and SmartCarGoal-v0 on an engine with a car
+    batch (``SmartCarBatchVectorEnv``, bit for bit N single envs, infos included: MuJoCo's
+    worlds in C, the planar engine's cars in arrays, differential-drive robots too on
+    planar), on pybullet or with what the batches lack
     (``randomize``, ``stop_speed``, the GUI, a differential-drive ``model`` on MuJoCo) as N
     single envs in a loop (``SmartCarLoopVectorEnv``). Gymnasium 1.x autoreset
     (``"NextStep"``, or ``autoreset_mode="SameStep"``), car i seeded ``s + i``,

@@ -34,6 +34,7 @@ from smartcar_gym.model.kinematics import link_frames, rpy_matrix
 from smartcar_gym.model.urdf import UrdfRobot, parse_urdf
 from smartcar_gym.sim.body import BASE
 from smartcar_gym.sim.planar.dynamics import load_transfer, static_loads
+from smartcar_gym.sim.planar.layout import car_values, contact_values
 from smartcar_gym.sim.planar.params import PlanarParams
 
 GROUND_TOLERANCE_M = 1e-3  # a shape whose lowest point is this close to the ground touches it
@@ -267,9 +268,11 @@ def build_car(tables: RobotTables, ground_z: float, actuation: Actuation,
         raise ValueError(f"{exc} (planar.load_shift_x {params.load_shift_x:g} m from "
                          f"{params.source})") from None
     transfer = load_transfer(np.array(points))
-    contacts = [[float(p[0] - com[0]), float(p[1] - com[1]), float(wx), float(wy), float(load),
-                 float(mu), float(mu * (params.lateral_friction_ratio if g >= 0 else 1.0)),
-                 float(lx), float(ly)]
+    contacts = [contact_values(x=float(p[0] - com[0]), y=float(p[1] - com[1]), roll_x=float(wx),
+                               roll_y=float(wy), load=float(load), friction_x=float(mu),
+                               friction_y=float(mu * (params.lateral_friction_ratio if g >= 0
+                                                      else 1.0)),
+                               load_per_pitch=float(lx), load_per_roll=float(ly))
                 for p, (g, wx, wy), mu, load, (lx, ly)
                 in zip(points, rolling, bounds, loads, transfer, strict=True)]
     group_inertia, coulomb, momentum = [], [], []
@@ -295,7 +298,9 @@ def build_car(tables: RobotTables, ground_z: float, actuation: Actuation,
             joints = [tables.joint_names[j] for j, _ in groups.members[g]]
             raise ValueError(f"{tables.robot.name}: wheel joints {joints} have no inertia about "
                              "their axles")
-    car = [mass, yaw_inertia, params.slip_speed ** 2, params.stiction_speed ** 2,
-           float(com[2] - ground_z), *group_inertia, *coulomb,
-           *(float(h[0]) for h in momentum), *(float(h[1]) for h in momentum)]
+    car = car_values(mass=mass, yaw_inertia=yaw_inertia, eps2=params.slip_speed ** 2,
+                     eps_w2=params.stiction_speed ** 2, height=float(com[2] - ground_z),
+                     inertia=group_inertia, coulomb=coulomb,
+                     spin_x=[float(h[0]) for h in momentum],
+                     spin_y=[float(h[1]) for h in momentum])
     return PlanarCar(car, contacts, tuple(g for g, _, _ in rolling), groups, com)

@@ -36,6 +36,7 @@ from smartcar_gym.sim.body import BASE
 from smartcar_gym.sim.planar.dynamics import load_transfer, static_loads
 from smartcar_gym.sim.planar.layout import car_values, contact_values
 from smartcar_gym.sim.planar.params import PlanarParams
+from smartcar_gym.sim.planar.projection import link_shapes, support_points
 
 GROUND_TOLERANCE_M = 1e-3  # a shape whose lowest point is this close to the ground touches it
 _UNSET = object()
@@ -145,17 +146,14 @@ def _round_contact(tables: RobotTables, joint: int, ground_z: float
                    ) -> tuple[np.ndarray, float] | None:
     """The wheel shape of a joint's child touching the ground: (centre (3,), radius) of its
     first sphere, or cylinder lying with its axis along the joint's, or None."""
-    name = tables.link_name(joint)
-    frame = tables.frames[name]
     axis = tables.axis(joint)
-    for shape in tables.robot.links[name].collisions:
+    for shape in link_shapes(tables.robot, tables.frames, tables.link_name(joint)):
         g = shape.geometry
         if g.type not in ("sphere", "cylinder"):
             continue
-        rotation = frame[:3, :3] @ rpy_matrix(shape.origin.rpy)
-        if g.type == "cylinder" and abs(float(rotation[:, 2] @ axis)) < 0.99:
+        if g.type == "cylinder" and abs(float(shape.rotation[:, 2] @ axis)) < 0.99:
             continue
-        centre = frame[:3, :3] @ np.asarray(shape.origin.xyz, float) + frame[:3, 3]
+        centre = shape.centre
         radius = float(g.size[0])
         if abs(centre[2] - radius - ground_z) <= GROUND_TOLERANCE_M:
             return centre, centre[2] - ground_z
@@ -164,34 +162,8 @@ def _round_contact(tables: RobotTables, joint: int, ground_z: float
 
 def _sliding_points(tables: RobotTables, index: int, ground_z: float) -> list[np.ndarray]:
     """The points (3,) where a link's collision shapes rest on the ground."""
-    name = tables.link_name(index)
-    frame = tables.frames[name]
-    points: list[np.ndarray] = []
-    for shape in tables.robot.links[name].collisions:
-        g = shape.geometry
-        rotation = frame[:3, :3] @ rpy_matrix(shape.origin.rpy)
-        centre = frame[:3, :3] @ np.asarray(shape.origin.xyz, float) + frame[:3, 3]
-        if g.type == "sphere":
-            candidates = [centre - np.array([0.0, 0.0, g.size[0]])]
-        elif g.type == "box":
-            half = np.asarray(g.size, float) / 2.0
-            corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1)
-                                for sz in (-1, 1)]) * half
-            candidates = list(centre + corners @ rotation.T)
-        elif g.type == "cylinder":
-            radius, length = g.size
-            axis = rotation[:, 2]
-            ends = [centre + axis * length / 2.0, centre - axis * length / 2.0]
-            if abs(axis[2]) > 0.99:  # upright: its bottom disc (by its centre)
-                candidates = [min(ends, key=lambda p: p[2])]
-            else:  # lying: the bottom line, by its two ends
-                down = np.array([0.0, 0.0, -1.0]) - axis * axis[2]
-                down /= np.linalg.norm(down)
-                candidates = [e + down * radius for e in ends]
-        else:  # meshes: the planar engine does not read them
-            continue
-        points += [p for p in candidates if abs(p[2] - ground_z) <= GROUND_TOLERANCE_M]
-    return points
+    return [p for shape in link_shapes(tables.robot, tables.frames, tables.link_name(index))
+            for p in support_points(shape) if abs(p[2] - ground_z) <= GROUND_TOLERANCE_M]
 
 
 @dataclass(frozen=True)

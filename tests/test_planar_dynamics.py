@@ -29,10 +29,8 @@ from smartcar_gym.sim.planar.layout import (
     Y,
     car_values,
     contact_values,
-    pitch_row,
     rest_state,
-    roll_row,
-    speed_row,
+    state_rows,
     state_size,
 )
 from smartcar_gym.sim.planar.layout import LOAD as STATIC_LOAD
@@ -63,7 +61,7 @@ CONTACTS = [contact_values(x=x, y=y, roll_x=-RADIUS, roll_y=0.0, load=LOAD, fric
             for (x, y), (lx, ly) in zip(((0.08, 0.08), (-0.08, 0.08), (0.08, -0.08),
                                          (-0.08, -0.08)), TRANSFER, strict=True)]
 GROUPS = (0, 0, 1, 1)  # left, right
-SPEED, PITCH, ROLL = speed_row(2), pitch_row(2), roll_row(2)  # group 0's speed, the moments
+SPEED, PITCH, ROLL = state_rows(2)  # group 0's speed, the moments the loads carry
 
 
 def moving(c: float, s: float, vx: float, vy: float, w: float = 0.0,

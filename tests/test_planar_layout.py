@@ -16,20 +16,17 @@ from smartcar_gym.sim.planar.layout import (
     MASS,
     NC,
     TORQUE,
+    car_rows,
     car_size,
     car_values,
     contact_values,
-    coulomb_row,
     damping_row,
     drive_size,
     drive_values,
     group_count,
-    pitch_row,
     rest_state,
-    roll_row,
     speed_row,
-    spin_x_row,
-    spin_y_row,
+    state_rows,
     state_size,
 )
 
@@ -37,8 +34,10 @@ from smartcar_gym.sim.planar.layout import (
 @pytest.mark.parametrize("groups", [0, 1, 2, 3])
 def test_every_state_value_has_one_index(groups: int) -> None:
     body = [layout.X, layout.Y, layout.COS, layout.SIN, layout.VX, layout.VY, layout.YAW_RATE]
-    rows = body + [ANGLE + g for g in range(groups)] \
-        + [speed_row(groups) + g for g in range(groups)] + [pitch_row(groups), roll_row(groups)]
+    speed, pitch, roll = state_rows(groups)
+    assert speed == speed_row(groups)
+    rows = body + [ANGLE + g for g in range(groups)] + [speed + g for g in range(groups)] \
+        + [pitch, roll]
     assert sorted(rows) == list(range(state_size(groups)))
     assert list(range(layout.POSE.start, layout.POSE.stop)) == body[:4]
     state = rest_state(0.5, -0.25, 0.0, 1.0, groups)
@@ -55,8 +54,7 @@ def test_the_cars_parameters_sit_where_their_names_say(groups: int) -> None:
     assert len(car) == car_size(groups) and group_count(len(car)) == groups
     assert [car[getattr(layout, name.upper())] for name in layout.CAR] == [1.0, 2.0, 3.0, 4.0,
                                                                            5.0]
-    starts = {"inertia": INERTIA, "coulomb": coulomb_row(groups),
-              "spin_x": spin_x_row(groups), "spin_y": spin_y_row(groups)}
+    starts = dict(zip(layout.GROUP, (INERTIA, *car_rows(groups)), strict=True))
     for name, start in starts.items():
         assert car[start:start + groups] == blocks[name], name
     with pytest.raises(ValueError, match="one value per wheel group"):

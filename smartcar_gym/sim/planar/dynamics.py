@@ -101,14 +101,10 @@ from smartcar_gym.sim.planar.layout import (
     YAW_RATE,
     X,
     Y,
-    coulomb_row,
+    car_rows,
     damping_row,
     group_count,
-    pitch_row,
-    roll_row,
-    speed_row,
-    spin_x_row,
-    spin_y_row,
+    state_rows,
 )
 
 Value = Any  # a float, or an (N,) float64 array of cars
@@ -138,9 +134,9 @@ def make_solve(sqrt: Callable[[Value], Value],
         """
         eps2 = car[EPS2]
         ng = group_count(len(car))
-        speed = speed_row(ng)
-        pitch = state[pitch_row(ng)]  # the moments the loads carried at the last substep
-        roll = state[roll_row(ng)]
+        speed, pitch_at, roll_at = state_rows(ng)
+        pitch = state[pitch_at]  # the moments the loads carried at the last substep
+        roll = state[roll_at]
         f1 = f2 = f3 = 0.0
         a11 = a12 = a13 = a22 = a23 = a33 = 0.0
         fg, c1, c2, c3, dg, diag, rhs = (scratch[FORCE], scratch[COUPLE_X], scratch[COUPLE_Y],
@@ -221,7 +217,7 @@ def make_solve(sqrt: Callable[[Value], Value],
         r2 = dt * f2
         r3 = dt * f3
         eps_w2 = car[EPS_W2]
-        coulomb_at, damping_at = coulomb_row(ng), damping_row(ng)
+        coulomb_at, damping_at = car_rows(ng)[0], damping_row(ng)
         for g in range(ng):
             o = state[speed + g]
             coulomb = car[coulomb_at + g]
@@ -290,7 +286,7 @@ def make_substep(sqrt: Callable[[Value], Value], solve: Callable[..., tuple],
         vx = c * vxw + s * vyw  # body-frame velocity of the centre of mass
         vy = c * vyw - s * vxw
         ng = group_count(len(car))
-        speed = speed_row(ng)
+        speed, pitch_at, roll_at = state_rows(ng)
         zero = 0.0 * vx
         du, dv, dw = solve(state, car, contacts, groups, drive, dt, scratch,
                            vx, vy, w, False, zero, zero, zero)
@@ -332,7 +328,7 @@ def make_substep(sqrt: Callable[[Value], Value], solve: Callable[..., tuple],
         # that moment, as they do the moment of the ground's force about the centre of mass
         tx = zero
         ty = zero
-        spin_x, spin_y = spin_x_row(ng), spin_y_row(ng)
+        _, spin_x, spin_y = car_rows(ng)
         for g in range(ng):
             o = state[speed + g] + out[g]
             state[speed + g] = o
@@ -348,8 +344,8 @@ def make_substep(sqrt: Callable[[Value], Value], solve: Callable[..., tuple],
         h2 = half * half
         scale = 1.0 / (1.0 + h2)
         lever = car[HEIGHT] * car[MASS] / dt  # the ground's force over the substep: m du / dt
-        state[pitch_row(ng)] = -lever * du - ty  # the pitch moment the loads carry
-        state[roll_row(ng)] = -lever * dv + tx  # and the roll moment
+        state[pitch_at] = -lever * du - ty  # the pitch moment the loads carry
+        state[roll_at] = -lever * dv + tx  # and the roll moment
         turned_c = (c * (1.0 - h2) - 2.0 * half * s) * scale  # c, s may be views of state
         turned_s = (s * (1.0 - h2) + 2.0 * half * c) * scale
         state[X] = state[X] + dt * vxw
@@ -414,14 +410,14 @@ if COMPILED:
             _compiled_substep(state, car, contacts, groups, drive, dt, scratch)
 
     @numba.njit(cache=True)
-    def run_cars(state: np.ndarray, car_rows: np.ndarray, contact_rows: np.ndarray,
+    def run_cars(state: np.ndarray, cars: np.ndarray, contacts: np.ndarray,
                  groups: np.ndarray, drive: np.ndarray, dt: np.ndarray, n: np.ndarray) -> None:
         """Car i: ``n[i]`` substeps of ``dt[i]`` s, in place. ``state`` ``(S, N)`` and ``drive``
         ``(2G, N)`` in the batch's layout (by quantity, for numpy); the parameters by car,
-        ``car_rows`` ``(N, P)`` and ``contact_rows`` ``(N, K, NC)`` (``PlanarBatch.rows``):
+        ``cars`` ``(N, P)`` and ``contacts`` ``(N, K, NC)`` (``PlanarBatch.rows``):
         a car's 60-odd parameters then lie together (measured: the loop 9 % faster than
         gathering them from ``(P, N)`` and ``(K, NC, N)`` at 4,096 cars)."""
-        scratch = np.zeros((SCRATCH_ROWS, group_count(car_rows.shape[1])))
+        scratch = np.zeros((SCRATCH_ROWS, group_count(cars.shape[1])))
         # each car's state gathered into a contiguous buffer (a car's values are N apart),
         # stepped, and put back
         column, motors = np.empty(state.shape[0]), np.empty(drive.shape[0])
@@ -430,7 +426,7 @@ if COMPILED:
                 continue
             column[:] = state[:, i]
             motors[:] = drive[:, i]
-            params, touches = car_rows[i], contact_rows[i]
+            params, touches = cars[i], contacts[i]
             for _ in range(n[i]):
                 _compiled_substep(column, params, touches, groups, motors, dt[i], scratch)
             state[:, i] = column

@@ -4,9 +4,10 @@ A car is four flat sequences (``dynamics``), indexed the same way whether they h
 floats (a list: one car), ``(N,)`` rows of ``(rows, N)`` arrays (N cars in numpy) or float64
 scalars (one car's row in numba's loop). The body's and the contacts' fields sit at fixed
 indices (module constants); each wheel group's fields follow in blocks of G values, one block
-per field, at offsets that depend on G (the ``*_row(G)`` functions: group g's value is at the
-block's offset + g). The functions are plain integer arithmetic that numba compiles inline
-(``register_jitable``) when the ``fast`` extra is installed, and plain Python otherwise.
+per field, at offsets that depend on G: ``speed, pitch, roll = state_rows(G)`` and
+``coulomb, spin_x, spin_y = car_rows(G)`` (group g's speed is ``state[speed + g]``). These
+functions are plain integer arithmetic that numba compiles inline (``register_jitable``) when
+the ``fast`` extra is installed, and plain Python otherwise.
 
 **state** (``state_size(G)`` = 7 + 2 G + 2 values)
 
@@ -17,9 +18,9 @@ block's offset + g). The functions are plain integer arithmetic that numba compi
 | ``VX``, ``VY``   | the centre of mass's velocity, world frame                    | m/s   |
 | ``YAW_RATE``     | the yaw rate                                                  | rad/s |
 | ``ANGLE`` + g    | group g's angle                                               | rad   |
-| ``speed_row(G)`` + g | group g's speed                                           | rad/s |
-| ``pitch_row(G)`` | the pitch moment the loads carried at the last substep (body) | N m   |
-| ``roll_row(G)``  | the roll moment the loads carried at the last substep (body)  | N m   |
+| ``speed`` + g    | group g's speed (``speed_row(G)``: ``speed``)                 | rad/s |
+| ``pitch``        | the pitch moment the loads carried at the last substep (body) | N m   |
+| ``roll``         | the roll moment the loads carried at the last substep (body)  | N m   |
 
 **car**, the parameters (``car_size(G)`` = 5 + 4 G values)
 
@@ -31,9 +32,9 @@ block's offset + g). The functions are plain integer arithmetic that numba compi
 | ``EPS_W2``           | the gearboxes' stiction speed squared                        | rad^2/s^2|
 | ``HEIGHT``           | the centre of mass above the ground                          | m        |
 | ``INERTIA`` + g      | group g's spin inertia                                       | kg m^2   |
-| ``coulomb_row(G)`` + g | group g's Coulomb torque (gearbox and rolling resistance)  | N m      |
-| ``spin_x_row(G)`` + g | group g's angular momentum per rad/s along the body's x     | kg m^2   |
-| ``spin_y_row(G)`` + g | ... along the body's y                                      | kg m^2   |
+| ``coulomb`` + g      | group g's Coulomb torque (gearbox and rolling resistance)    | N m      |
+| ``spin_x`` + g       | group g's angular momentum per rad/s along the body's x      | kg m^2   |
+| ``spin_y`` + g       | ... along the body's y                                       | kg m^2   |
 
 ``group_count(car_size)`` gives G back from the parameters' length.
 
@@ -91,20 +92,16 @@ def speed_row(groups: int) -> int:
 
 
 @_jitable
-def pitch_row(groups: int) -> int:
-    """The state's row of the pitch moment the loads carry."""
-    return ANGLE + 2 * groups
-
-
-@_jitable
-def roll_row(groups: int) -> int:
-    """The state's row of the roll moment the loads carry."""
-    return ANGLE + 2 * groups + 1
+def state_rows(groups: int) -> tuple[int, int, int]:
+    """``speed, pitch, roll = state_rows(G)``: where the groups' speeds start, and the rows of
+    the pitch and roll moments the loads carry."""
+    speed = speed_row(groups)
+    return speed, speed + groups, speed + groups + 1
 
 
 def state_size(groups: int) -> int:
     """Length of a car's state with ``groups`` wheel groups."""
-    return roll_row(groups) + 1
+    return state_rows(groups)[2] + 1
 
 
 def rest_state(x: float, y: float, c: float, s: float, groups: int) -> list[float]:
@@ -131,21 +128,12 @@ def group_count(car_size: int) -> int:
 
 
 @_jitable
-def coulomb_row(groups: int) -> int:
-    """Where the groups' Coulomb torques start in the parameters."""
-    return INERTIA + groups
-
-
-@_jitable
-def spin_x_row(groups: int) -> int:
-    """Where the groups' angular momenta per rad/s along the body's x start."""
-    return INERTIA + 2 * groups
-
-
-@_jitable
-def spin_y_row(groups: int) -> int:
-    """Where the groups' angular momenta per rad/s along the body's y start."""
-    return INERTIA + 3 * groups
+def car_rows(groups: int) -> tuple[int, int, int]:
+    """``coulomb, spin_x, spin_y = car_rows(G)``: where the groups' Coulomb torques, and their
+    angular momenta per rad/s along the body's x and y, start in the parameters (group g's
+    spin inertia is at ``INERTIA + g``)."""
+    coulomb = INERTIA + groups
+    return coulomb, coulomb + groups, coulomb + 2 * groups
 
 
 def car_size(groups: int) -> int:

@@ -121,20 +121,20 @@ def make_solve(sqrt: Callable[[Value], Value],
     """One linearly implicit solve with this ``sqrt`` and ``where`` (see ``make_substep``)."""
 
     def solve(state: Any, car: Any, contacts: Any, groups: Sequence[int], drive: Any,
-              dt: Value, scratch: Any, vx: Value, vy: Value, w: Value, again: bool,
-              du: Value, dv: Value, dw: Value) -> tuple:
+              dt: Value, scratch: Any, rows: tuple, vx: Value, vy: Value, w: Value,
+              again: bool, du: Value, dv: Value, dw: Value) -> tuple:
         """The velocity change ``(du, dv, dw)`` of the body (body frame) over ``dt`` from
         ``(vx, vy, w)`` and the groups' speeds in ``state``; each group's goes to scratch row
-        ``OUT``.
+        ``OUT``. ``rows``: the number of groups and their blocks' offsets, ``(G, speed, pitch,
+        roll, coulomb, damping)`` (``layout``; ``substep`` finds them once).
 
         Each force enters by its tangent (its Jacobian at the start) or, ``again`` after a
-        first solve whose changes were ``(du, dv, dw)`` and scratch row ``FIRST``, where that solve
-        carried its slip through zero: by its secant stiffness ``A`` at the point of that
+        first solve whose changes were ``(du, dv, dw)`` and scratch row ``FIRST``, where that
+        solve carried its slip through zero: by its secant stiffness ``A`` at the point of that
         solve's slip path nearest zero, the force ``-A s`` linear in the new slip.
         """
         eps2 = car[EPS2]
-        ng = group_count(len(car))
-        speed, pitch_at, roll_at = state_rows(ng)
+        ng, speed, pitch_at, roll_at, coulomb_at, damping_at = rows
         pitch = state[pitch_at]  # the moments the loads carried at the last substep
         roll = state[roll_at]
         f1 = f2 = f3 = 0.0
@@ -217,7 +217,6 @@ def make_solve(sqrt: Callable[[Value], Value],
         r2 = dt * f2
         r3 = dt * f3
         eps_w2 = car[EPS_W2]
-        coulomb_at, damping_at = car_rows(ng)[0], damping_row(ng)
         for g in range(ng):
             o = state[speed + g]
             coulomb = car[coulomb_at + g]
@@ -287,8 +286,10 @@ def make_substep(sqrt: Callable[[Value], Value], solve: Callable[..., tuple],
         vy = c * vyw - s * vxw
         ng = group_count(len(car))
         speed, pitch_at, roll_at = state_rows(ng)
+        coulomb_at, spin_x, spin_y = car_rows(ng)
+        rows = (ng, speed, pitch_at, roll_at, coulomb_at, damping_row(ng))
         zero = 0.0 * vx
-        du, dv, dw = solve(state, car, contacts, groups, drive, dt, scratch,
+        du, dv, dw = solve(state, car, contacts, groups, drive, dt, scratch, rows,
                            vx, vy, w, False, zero, zero, zero)
         # did the tangent step carry a slip through zero (a tyre's, or a gearbox's speed)?
         out, first = scratch[OUT], scratch[FIRST]
@@ -315,7 +316,7 @@ def make_substep(sqrt: Callable[[Value], Value], solve: Callable[..., tuple],
         if anywhere(crossed):
             # there the tangent overshoots the stop: solve again from the start, those forces
             # by their secants where their slips pass nearest zero (a slip cannot cross zero)
-            bu, bv, bw = solve(state, car, contacts, groups, drive, dt, scratch,
+            bu, bv, bw = solve(state, car, contacts, groups, drive, dt, scratch, rows,
                                vx, vy, w, True, du, dv, dw)
             du = where(crossed, bu, du)
             dv = where(crossed, bv, dv)
@@ -328,7 +329,6 @@ def make_substep(sqrt: Callable[[Value], Value], solve: Callable[..., tuple],
         # that moment, as they do the moment of the ground's force about the centre of mass
         tx = zero
         ty = zero
-        _, spin_x, spin_y = car_rows(ng)
         for g in range(ng):
             o = state[speed + g] + out[g]
             state[speed + g] = o

@@ -1,5 +1,5 @@
-"""The planar engine's 2D geometry (sim/planar/geometry.py): rays, footprints, clearances, by hand
-and against pybullet (and MuJoCo's analytic ray casts)."""
+"""The planar engine's 2D geometry (sim/planar/geometry.py and its modules): rays, footprints,
+clearances, by hand and against pybullet (and MuJoCo's analytic ray casts)."""
 
 from __future__ import annotations
 

@@ -12,11 +12,28 @@ from smartcar_gym.sim.planar import jit
 from smartcar_gym.sim.planar.dynamics import (
     load_transfer,
     new_scratch,
-    state_size,
     static_loads,
     substep,
     substep_arrays,
 )
+from smartcar_gym.sim.planar.layout import (
+    ANGLE,
+    COS,
+    LOAD_PER_PITCH,
+    LOAD_PER_ROLL,
+    SIN,
+    VX,
+    VY,
+    YAW_RATE,
+    X,
+    Y,
+    car_values,
+    contact_values,
+    rest_state,
+    state_rows,
+    state_size,
+)
+from smartcar_gym.sim.planar.layout import LOAD as STATIC_LOAD
 
 # a symmetric four-wheel car: 1.5 kg, wheels 25 mm at (+-0.08, +-0.08) m, friction 0.5
 MASS, IZ, RADIUS, MU = 1.5, 0.012, 0.025, 0.5
@@ -31,22 +48,42 @@ def car(slip: float = 0.01, stiction: float = 0.05, inertia: float = 2e-3,
     """The car's parameters; each side's axle along +y (the contacts roll at -r along x per
     rad/s), ``reaction`` of its spin inertia reacting on the loads."""
     spin = reaction * inertia
-    return [MASS, IZ, slip ** 2, stiction ** 2, HEIGHT, inertia, inertia, coulomb, coulomb,
-            0.0, 0.0, spin, spin]
+    return car_values(mass=MASS, yaw_inertia=IZ, eps2=slip ** 2, eps_w2=stiction ** 2,
+                      height=HEIGHT, inertia=[inertia, inertia], coulomb=[coulomb, coulomb],
+                      spin_x=[0.0, 0.0], spin_y=[spin, spin])
 
 
 TRANSFER = load_transfer(np.array([(0.08, 0.08), (-0.08, 0.08), (0.08, -0.08),
                                    (-0.08, -0.08)]))
-CONTACTS = [[x, y, -RADIUS, 0.0, LOAD, MU, MU * 1.03, float(lx), float(ly)]
+CONTACTS = [contact_values(x=x, y=y, roll_x=-RADIUS, roll_y=0.0, load=LOAD, friction_x=MU,
+                           friction_y=MU * 1.03, load_per_pitch=float(lx),
+                           load_per_roll=float(ly))
             for (x, y), (lx, ly) in zip(((0.08, 0.08), (-0.08, 0.08), (0.08, -0.08),
                                          (-0.08, -0.08)), TRANSFER, strict=True)]
 GROUPS = (0, 0, 1, 1)  # left, right
+SPEED, PITCH, ROLL = state_rows(2)  # group 0's speed, the moments the loads carry
+
+
+def moving(c: float, s: float, vx: float, vy: float, w: float = 0.0,
+           wheels: float = 0.0) -> list[float]:
+    """A state at the origin heading (c, s), moving at (vx, vy, w), each group at ``wheels``
+    rad/s."""
+    state = rest_state(0.0, 0.0, c, s, 2)
+    state[VX], state[VY], state[YAW_RATE] = vx, vy, w
+    state[SPEED] = state[SPEED + 1] = wheels
+    return state
+
+
+def loads(state: list[float]) -> list[float]:
+    """Each contact's load under the moments ``state`` carries."""
+    return [row[STATIC_LOAD] + row[LOAD_PER_PITCH] * state[PITCH]
+            + row[LOAD_PER_ROLL] * state[ROLL] for row in CONTACTS]
 
 
 def random_states(rng: np.random.Generator, n: int) -> np.ndarray:
     states = rng.normal(size=(state_size(2), n))
-    yaw = states[2].copy()
-    states[2], states[3] = np.cos(yaw), np.sin(yaw)
+    yaw = states[COS].copy()
+    states[COS], states[SIN] = np.cos(yaw), np.sin(yaw)
     return states
 
 
@@ -91,7 +128,8 @@ def test_numbas_loop_is_the_same_function_bit_for_bit() -> None:
 
 
 def test_a_car_at_rest_without_torque_stays_exactly_at_rest() -> None:
-    state = [0.3, -0.2, 1.0, 0.0, 0.0, 0.0, 0.0, 0.1, -0.4, 0.0, 0.0, 0.0, 0.0]
+    state = rest_state(0.3, -0.2, 1.0, 0.0, 2)
+    state[ANGLE], state[ANGLE + 1] = 0.1, -0.4
     before = list(state)
     for _ in range(50):
         substep(state, car(), CONTACTS, GROUPS, [0.0, 0.0, 0.0, 0.0], 0.02, new_scratch(2))
@@ -102,14 +140,14 @@ def test_rolling_without_slip_or_friction_keeps_its_speed() -> None:
     """Body at 0.4 m/s along its heading, wheels at 0.4 / r: no slip, no force, no change."""
     yaw = 0.7
     v = 0.4
-    state = [0.0, 0.0, math.cos(yaw), math.sin(yaw), v * math.cos(yaw), v * math.sin(yaw), 0.0,
-             0.0, 0.0, v / RADIUS, v / RADIUS, 0.0, 0.0]
+    state = moving(math.cos(yaw), math.sin(yaw), v * math.cos(yaw), v * math.sin(yaw),
+                   wheels=v / RADIUS)
     for _ in range(100):
         substep(state, car(coulomb=0.0), CONTACTS, GROUPS, [0.0] * 4, 0.01, new_scratch(2))
-    assert math.hypot(state[4], state[5]) == pytest.approx(v, abs=1e-9)
-    assert state[9] == pytest.approx(v / RADIUS, abs=1e-6)
-    assert math.atan2(state[3], state[2]) == pytest.approx(yaw, abs=1e-9)
-    assert math.hypot(state[0], state[1]) == pytest.approx(v * 1.0, rel=1e-6)  # 1 s
+    assert math.hypot(state[VX], state[VY]) == pytest.approx(v, abs=1e-9)
+    assert state[SPEED] == pytest.approx(v / RADIUS, abs=1e-6)
+    assert math.atan2(state[SIN], state[COS]) == pytest.approx(yaw, abs=1e-9)
+    assert math.hypot(state[X], state[Y]) == pytest.approx(v * 1.0, rel=1e-6)  # 1 s
 
 
 def test_coast_down_decelerates_as_coulomb_friction_through_rolling_wheels() -> None:
@@ -117,14 +155,14 @@ def test_coast_down_decelerates_as_coulomb_friction_through_rolling_wheels() -> 
     a car of mass m with spin inertia J per group at ``(2 T / r) / (m + 2 J / r^2)``."""
     coulomb, inertia, v0 = 0.03, 2e-3, 0.3
     expected = (2 * coulomb / RADIUS) / (MASS + 2 * inertia / RADIUS ** 2)
-    state = [0.0, 0.0, 1.0, 0.0, v0, 0.0, 0.0, 0.0, 0.0, v0 / RADIUS, v0 / RADIUS, 0.0, 0.0]
+    state = moving(1.0, 0.0, v0, 0.0, wheels=v0 / RADIUS)
     t = 0.0
     for _ in range(20):  # 0.2 s: the car still rolls
         substep(state, car(slip=0.002, inertia=inertia, coulomb=coulomb), CONTACTS, GROUPS,
                 [0.0] * 4, 0.01, new_scratch(2))
         t += 0.01
-    assert (v0 - state[4]) / t == pytest.approx(expected, rel=0.02)
-    assert abs(state[5]) < 1e-12 and abs(state[6]) < 1e-12  # straight on
+    assert (v0 - state[VX]) / t == pytest.approx(expected, rel=0.02)
+    assert abs(state[VY]) < 1e-12 and abs(state[YAW_RATE]) < 1e-12  # straight on
 
 
 def test_a_motor_torque_spins_a_free_wheel_group_as_newton_says() -> None:
@@ -132,12 +170,11 @@ def test_a_motor_torque_spins_a_free_wheel_group_as_newton_says() -> None:
     tau / J, minus the back-EMF damping's share (integrated implicitly: exact for a
     linear system in one step of the linearised Euler)."""
     tau, damping, inertia, dt = 0.1, 0.01, 2e-3, 0.01
-    state = [0.0] * 7 + [0.0, 0.0, 0.0, 0.0] + [0.0, 0.0]
-    state[2] = 1.0
+    state = rest_state(0.0, 0.0, 1.0, 0.0, 2)
     params = car(inertia=inertia, coulomb=0.0)
     substep(state, params, [], (), [tau, 0.0, damping, 0.0], dt, new_scratch(2))
-    assert state[9] == pytest.approx(dt * tau / (inertia + dt * damping), rel=1e-12)
-    assert state[10] == 0.0 and state[4] == 0.0
+    assert state[SPEED] == pytest.approx(dt * tau / (inertia + dt * damping), rel=1e-12)
+    assert state[SPEED + 1] == 0.0 and state[VX] == 0.0
 
 
 @pytest.mark.parametrize("reaction", [1.0, 0.5, 0.0])
@@ -148,15 +185,15 @@ def test_wheels_spinning_up_load_the_rear_as_their_torque_says(reaction: float) 
     sum(x dN) is ``-reaction * 2 tau`` (the load moves to the rear wheels, as a wheelie's
     does)."""
     tau, inertia, dt = 0.05, 2e-3, 0.01
-    state = [0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0] + [0.0] * 4 + [0.0, 0.0]
+    state = rest_state(0.0, 0.0, 1.0, 0.0, 2)
     substep(state, car(inertia=inertia, coulomb=0.0, reaction=reaction), [], (),
             [tau, tau, 0.0, 0.0], dt, new_scratch(2))
-    assert state[9] == pytest.approx(dt * tau / inertia, rel=1e-12)
-    assert state[4] == 0.0 and state[5] == 0.0
-    assert state[11] == pytest.approx(-reaction * 2 * tau, rel=1e-12)
-    assert state[12] == pytest.approx(0.0, abs=1e-15)
-    loads = [row[4] + row[7] * state[11] + row[8] * state[12] for row in CONTACTS]
-    front, rear = loads[0] + loads[2], loads[1] + loads[3]
+    assert state[SPEED] == pytest.approx(dt * tau / inertia, rel=1e-12)
+    assert state[VX] == 0.0 and state[VY] == 0.0
+    assert state[PITCH] == pytest.approx(-reaction * 2 * tau, rel=1e-12)
+    assert state[ROLL] == pytest.approx(0.0, abs=1e-15)
+    load = loads(state)
+    front, rear = load[0] + load[2], load[1] + load[3]
     assert rear - front == pytest.approx(reaction * 2 * tau / 0.08, rel=1e-12)
 
 
@@ -166,13 +203,13 @@ def test_spinning_wheels_turned_with_the_body_load_the_outer_side() -> None:
     w x L = -w J om along x: the loads carry the roll moment sum(y dN) = -2 w J om, more load
     on the right (outer) wheels."""
     inertia, om, w = 2e-3, 20.0, 1.5
-    state = [0.0, 0.0, 1.0, 0.0, 0.0, 0.0, w] + [0.0, 0.0, om, om] + [0.0, 0.0]
+    state = moving(1.0, 0.0, 0.0, 0.0, w, wheels=om)
     substep(state, car(inertia=inertia, coulomb=0.0), [], (), [0.0] * 4, 0.01,
             new_scratch(2))
-    assert state[6] == w and state[9] == om
-    assert state[12] == pytest.approx(-2 * w * inertia * om, rel=1e-12)
-    loads = [row[4] + row[7] * state[11] + row[8] * state[12] for row in CONTACTS]
-    assert loads[2] + loads[3] - loads[0] - loads[1] == pytest.approx(
+    assert state[YAW_RATE] == w and state[SPEED] == om
+    assert state[ROLL] == pytest.approx(-2 * w * inertia * om, rel=1e-12)
+    load = loads(state)
+    assert load[2] + load[3] - load[0] - load[1] == pytest.approx(
         2 * w * inertia * om / 0.08, rel=1e-12)
 
 
@@ -180,7 +217,7 @@ SLIDING = tuple(-1 for _ in CONTACTS)  # every contact slides: a block on the gr
 
 
 def sliding_block(v0: float) -> list[float]:
-    return [0.0, 0.0, 1.0, 0.0, v0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
+    return moving(1.0, 0.0, v0, 0.0)
 
 
 def test_a_stop_within_the_substep_lands_at_rest_not_past_it() -> None:
@@ -195,11 +232,12 @@ def test_a_stop_within_the_substep_lands_at_rest_not_past_it() -> None:
     for _ in range(5):
         substep(state, car(slip=eps, coulomb=0.0), CONTACTS, SLIDING, [0.0] * 4, dt,
                 new_scratch(2))
-        speeds.append(state[4])
+        speeds.append(state[VX])
     assert all(0.0 <= v < eps for v in speeds), speeds
-    assert state[5] == pytest.approx(0.0, abs=1e-12) and state[6] == pytest.approx(0.0, abs=1e-12)
+    assert state[VY] == pytest.approx(0.0, abs=1e-12)
+    assert state[YAW_RATE] == pytest.approx(0.0, abs=1e-12)
     # the distance slid: at most the 0.25 mm of the exact stop plus one substep's creep
-    assert 0.0 < state[0] < v0 ** 2 / (2 * MU * 9.81) + eps * dt
+    assert 0.0 < state[X] < v0 ** 2 / (2 * MU * 9.81) + eps * dt
 
 
 def test_the_second_solve_changes_only_cars_that_reverse_a_slip() -> None:
@@ -212,7 +250,7 @@ def test_the_second_solve_changes_only_cars_that_reverse_a_slip() -> None:
     tangent_only = make_substep(math.sqrt, make_solve(math.sqrt, _where), _where,
                                 lambda crossed: False)
     v = 0.2
-    rolling = [0.0, 0.0, 1.0, 0.0, v, 0.0, 0.0, 0.0, 0.0, v / RADIUS, v / RADIUS, 0.0, 0.0]
+    rolling = moving(1.0, 0.0, v, 0.0, wheels=v / RADIUS)
     for state0, groups, drive in ((rolling, GROUPS, [0.01, 0.012, 0.001, 0.001]),
                                   (sliding_block(0.05), SLIDING, [0.0] * 4)):
         full, alone = list(state0), list(state0)
@@ -220,7 +258,7 @@ def test_the_second_solve_changes_only_cars_that_reverse_a_slip() -> None:
         for _ in range(10):
             substep(full, car(slip=3e-4), CONTACTS, groups, drive, 0.02, new_scratch(2))
             tangent_only(alone, car(slip=3e-4), CONTACTS, groups, drive, 0.02, new_scratch(2))
-            speeds.append((full[4], alone[4]))
+            speeds.append((full[VX], alone[VX]))
         if groups is GROUPS:
             assert full == alone
         else:
@@ -237,11 +275,11 @@ def test_a_stop_converges_with_the_substep() -> None:
     def slide(dt: float) -> float:
         state = sliding_block(v0)
         for _ in range(round(0.2 / dt)):
-            x = state[0]
+            x = state[X]
             substep(state, car(slip=eps, coulomb=0.0), CONTACTS, SLIDING, [0.0] * 4, dt,
                     new_scratch(2))
-            assert state[0] >= x
-        return state[0]
+            assert state[X] >= x
+        return state[X]
 
     exact = v0 ** 2 / (2 * MU * 9.81)
     assert slide(0.001) == pytest.approx(exact, abs=3e-4)

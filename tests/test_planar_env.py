@@ -16,6 +16,7 @@ from gymnasium.utils.env_checker import check_env
 import smartcar_gym  # noqa: F401
 from smartcar_gym.controller import compiled
 from smartcar_gym.sim.planar import jit
+from smartcar_gym.sim.planar.layout import CX, CY, LOAD, MASS
 from smartcar_gym.sim.planar.params import PlanarParams, PlanarParamsError, dump, load, resolve
 
 PHYSICS_IDS = ("SmartCar-v0", "SmartCarGoal-v0", "SmartCarArrive-v0", "SmartCarNav-v0")
@@ -250,15 +251,15 @@ def test_the_load_shift_moves_the_static_loads_as_a_centre_of_mass_would(tmp_pat
     env = gym.make("SmartCar-v0", engine="planar")
     env.reset(seed=0)
     body = env.unwrapped.robot.body
-    weight = body.model.car[0] * 9.81
+    weight = body.model.car[MASS] * 9.81
     for shift in (0.0, 0.006, -0.01):
         contacts = np.array(body.model_with(PlanarParams(load_shift_x=shift)).contacts)
-        x, load = contacts[:, 0], contacts[:, 4]
+        x, load = contacts[:, CX], contacts[:, LOAD]
         assert load.sum() == pytest.approx(weight, rel=1e-9)
         assert (load * x).sum() == pytest.approx(weight * shift, abs=1e-9)
-        assert (load * contacts[:, 1]).sum() == pytest.approx(0.0, abs=1e-9)
-    front = np.array(body.model_with(PlanarParams(load_shift_x=0.006)).contacts)[:, 4]
-    nominal = np.array(body.model_with(PlanarParams()).contacts)[:, 4]
+        assert (load * contacts[:, CY]).sum() == pytest.approx(0.0, abs=1e-9)
+    front = np.array(body.model_with(PlanarParams(load_shift_x=0.006)).contacts)[:, LOAD]
+    nominal = np.array(body.model_with(PlanarParams()).contacts)[:, LOAD]
     assert front[0] > nominal[0] and front[2] < nominal[2]  # front wheels first in the URDF
     env.close()
     far = tmp_path / "far.yaml"

@@ -1,5 +1,5 @@
-"""The planar engine's 2D geometry (sim/planar/geometry.py): rays, footprints, clearances, by hand
-and against pybullet (and MuJoCo's analytic ray casts)."""
+"""The planar engine's 2D geometry (sim/planar/geometry.py and its modules): rays, footprints,
+clearances, by hand and against pybullet (and MuJoCo's analytic ray casts)."""
 
 from __future__ import annotations
 
@@ -262,6 +262,42 @@ def test_fixture_footprints_upright_cylinders_meshes_and_tilted_wheels():
     wheel = seedlike.links.index("left_front_wheel")
     assert not seedlike.exact[wheel]
     np.testing.assert_allclose(seedlike.shapes.half[0, wheel], [0.01, 0.025], atol=2e-6)
+
+
+def test_the_model_the_footprint_and_the_picture_share_one_projection():
+    """The shipped car on the planar engine: each shape its picture draws is its footprint's
+    (``projection.outline``) at its pose, and each wheel's ground contact is the centre of its
+    footprint's circle, from the centre of mass."""
+    import gymnasium as gym
+
+    import smartcar_gym  # noqa: F401
+    from smartcar_gym.sim.planar.layout import CX, CY
+    from smartcar_gym.sim.planar.render import NOSE, robot_shapes
+    from smartcar_gym.sim.planar.world import footprint_of
+
+    env = gym.make("SmartCar-v0", engine="planar")
+    env.reset(seed=2)
+    for _ in range(5):
+        env.step(np.array([0.5, -0.3], dtype=np.float32))
+    body = env.unwrapped.robot.body
+    (x, y, _), q = body.link_pose()
+    yaw = 2.0 * math.atan2(q[2], q[3])
+    placed = footprint_of(body).place([[x, y, yaw]])
+    drawn = [shape for shape, colour in robot_shapes(body) if colour is not NOSE]
+    assert len(drawn) == placed.num_shapes == 6  # the base, four wheels, the head
+    for k, shape in enumerate(drawn):
+        assert shape[0] == ("disc" if placed.kind[0, k] == CIRCLE else "rect")
+        np.testing.assert_allclose(shape[1:3], placed.centre[0, k], atol=1e-12)
+        np.testing.assert_allclose(shape[-2 if shape[0] == "rect" else -1:],
+                                   placed.half[0, k][:2 if shape[0] == "rect" else 1], atol=0)
+        if shape[0] == "rect":
+            turn = math.atan2(placed.rotation[0, k, 1], placed.rotation[0, k, 0])
+            assert math.cos(shape[3] - turn) == pytest.approx(1.0, abs=1e-12)
+    local = footprint_of(body).shapes
+    wheels = [k for k, link in enumerate(footprint_of(body).links) if link.endswith("_wheel")]
+    contacts = np.array(body.model.contacts)[:, [CX, CY]]
+    np.testing.assert_array_equal(contacts, local.centre[0, wheels] - body.com[:2])
+    env.close()
 
 
 def test_mesh_bounds_of_stl_files_and_unread_formats(tmp_path):

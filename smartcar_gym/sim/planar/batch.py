@@ -17,7 +17,21 @@ from collections.abc import Sequence
 import numpy as np
 
 from smartcar_gym.sim.planar import jit
-from smartcar_gym.sim.planar.dynamics import NC, new_scratch, substep_arrays
+from smartcar_gym.sim.planar.dynamics import new_scratch, substep_arrays
+from smartcar_gym.sim.planar.layout import (
+    ANGLE,
+    COS,
+    NC,
+    SIN,
+    TORQUE,
+    VX,
+    VY,
+    X,
+    Y,
+    damping_row,
+    drive_size,
+    speed_row,
+)
 from smartcar_gym.sim.planar.model import PlanarCar
 from smartcar_gym.sim.planar.simulator import PlanarBody
 
@@ -38,7 +52,7 @@ class PlanarBatch:
         self.car = _columns(np.array(model.car, dtype=np.float64), self.n)
         self.contacts = _columns(np.array(model.contacts, dtype=np.float64).reshape(-1, NC),
                                  self.n)
-        self.drive = _columns(np.zeros(2 * self.ng), self.n)
+        self.drive = _columns(np.zeros(drive_size(self.ng)), self.n)
         self._rows: tuple[np.ndarray, np.ndarray] | None = None
 
     # -- cars ----------------------------------------------------------------------------------
@@ -96,16 +110,31 @@ class PlanarBatch:
     # -- what the robot reads and writes -------------------------------------------------------
     def joint_angles(self, joints: Sequence[tuple[int, float]]) -> np.ndarray:
         """(N, J): each joint's angle (``sign * angle`` of its group), as ``PlanarBody``."""
-        return np.stack([sign * self.state[7 + g] for g, sign in joints], axis=1)
+        return np.stack([sign * self.state[ANGLE + g] for g, sign in joints], axis=1)
 
     def joint_speeds(self, joints: Sequence[tuple[int, float]]) -> np.ndarray:
         """(N, J): each joint's speed."""
-        return np.stack([sign * self.state[7 + self.ng + g] for g, sign in joints], axis=1)
+        speed = speed_row(self.ng)
+        return np.stack([sign * self.state[speed + g] for g, sign in joints], axis=1)
+
+    @property
+    def torque(self) -> np.ndarray:
+        """(G, N): each wheel group's motor drive torque (N m), a view of ``drive``."""
+        return self.drive[TORQUE:damping_row(self.ng)]
+
+    @property
+    def damping(self) -> np.ndarray:
+        """(G, N): each wheel group's back-EMF damping (N m s/rad), a view of ``drive``."""
+        return self.drive[damping_row(self.ng):]
+
+    def heading(self) -> tuple[np.ndarray, np.ndarray]:
+        """Every car's cos and sin of its yaw, (N,) views of ``state``."""
+        return self.state[COS], self.state[SIN]
 
     def pose(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Every car's base link x, y and yaw, with ``PlanarBody.link_pose`` and
         ``pose_from``'s arithmetic (the yaw through the quaternion, by ``math.atan2``)."""
-        x, y, c, s = self.state[0], self.state[1], self.state[2], self.state[3]
+        x, y, c, s = self.state[X], self.state[Y], self.state[COS], self.state[SIN]
         cx, cy = self.com[0], self.com[1]
         px = x - (c * cx - s * cy)
         py = y - (s * cx + c * cy)
@@ -116,7 +145,7 @@ class PlanarBatch:
 
     def speed(self) -> np.ndarray:
         """Every car's planar speed of the centre of mass (m/s)."""
-        return np.hypot(self.state[4], self.state[5])
+        return np.hypot(self.state[VX], self.state[VY])
 
 
 def _columns(values: np.ndarray, n: int) -> np.ndarray:

@@ -60,19 +60,11 @@ axle's direction times the spin inertia that reacts on the body), spun up or dow
 axles and turned with the body. A load that would pull is zero. Braking moves load forward,
 turning moves it outward, and so do wheels braking and spinning forward in a turn.
 
-**Layout.** A car is three flat sequences, indexed the same way whether they hold floats (a
-Python list: one car), ``(N,)`` arrays (rows of an ``(S, N)`` array: N cars at once in numpy)
-or float64 scalars (one car's row in the compiled loop, ``jit.py``):
-
-* ``state`` (``state_size(G)``): x, y, c, s, vx, vy, w, then each group's angle, then speed,
-  then the pitch and roll moments (N m, body frame) the loads carry from the last substep;
-* ``car`` (``car_size(G)``): mass, yaw inertia, eps^2, eps_w^2, the centre of mass's height,
-  then each group's spin inertia, then its Coulomb torque, then its angular momentum per
-  rad/s along x, then along y;
-* ``contacts``: K rows of ``CONTACT_FIELDS``; ``groups``: each contact's wheel group (-1:
-  sliding), shared by all cars;
-* ``drive`` (2G): each group's motor drive torque (N m), then its back-EMF damping
-  (N m s/rad), from the board's PWM.
+**Layout.** A car is three flat sequences (``state``, ``car``, ``contacts``) and its motors'
+``drive``, indexed by the names ``layout`` defines (a table of each, with units), the same
+whether they hold floats (a Python list: one car), ``(N,)`` arrays (rows of an ``(S, N)``
+array: N cars at once in numpy) or float64 scalars (one car's row in the compiled loop,
+``jit.py``); ``groups``: each contact's wheel group (-1: sliding), shared by all cars.
 """
 
 from __future__ import annotations
@@ -84,29 +76,44 @@ from typing import Any
 
 import numpy as np
 
+from smartcar_gym.sim.planar.layout import (
+    ANGLE,
+    COS,
+    CX,
+    CY,
+    EPS2,
+    EPS_W2,
+    FRICTION_X,
+    FRICTION_Y,
+    HEIGHT,
+    INERTIA,
+    LOAD,
+    LOAD_PER_PITCH,
+    LOAD_PER_ROLL,
+    MASS,
+    ROLL_X,
+    ROLL_Y,
+    SIN,
+    TORQUE,
+    VX,
+    VY,
+    YAW_INERTIA,
+    YAW_RATE,
+    X,
+    Y,
+    car_rows,
+    damping_row,
+    group_count,
+    state_rows,
+)
+
 Value = Any  # a float, or an (N,) float64 array of cars
-#: one contact's row: position from the centre of mass (body frame, m), rolling velocity per
-#: rad/s of its group (m/rad), static normal load (N), friction coefficients along and across
-#: x, and how its load changes per newton-metre of the pitch and roll moments the loads carry
-#: (N/(N m): load transfer)
-CONTACT_FIELDS = ("x", "y", "roll_x", "roll_y", "load", "friction_x", "friction_y",
-                  "load_per_pitch", "load_per_roll")
-NC = len(CONTACT_FIELDS)
-BODY = ("x", "y", "c", "s", "vx", "vy", "w")
-CAR = ("mass", "yaw_inertia", "eps2", "eps_w2", "height")
-#: per wheel group, after ``CAR``: spin inertia, Coulomb torque, angular momentum per rad/s
-#: along the body's x and y (the axle's direction times the spin inertia)
-GROUP = ("inertia", "coulomb", "spin_x", "spin_y")
-
-
-def state_size(groups: int) -> int:
-    """Length of a car's state with ``groups`` wheel groups."""
-    return len(BODY) + 2 * groups + 2
-
-
-def car_size(groups: int) -> int:
-    """Length of a car's parameters with ``groups`` wheel groups."""
-    return len(CAR) + len(GROUP) * groups
+#: the scratch rows ``substep`` works in (``SCRATCH_ROWS`` rows of G values): solve's sums per
+#: group (force, its coupling to the body's three velocities, its own stiffness), the
+#: eliminated groups' inverse diagonal and right-hand side, the groups' speed changes (``OUT``)
+#: and, while solving again, the first solve's (``FIRST``)
+FORCE, COUPLE_X, COUPLE_Y, COUPLE_W, STIFF, DIAG, RHS, OUT, FIRST = range(9)
+SCRATCH_ROWS = FIRST + 1
 
 
 def make_solve(sqrt: Callable[[Value], Value],
@@ -114,42 +121,44 @@ def make_solve(sqrt: Callable[[Value], Value],
     """One linearly implicit solve with this ``sqrt`` and ``where`` (see ``make_substep``)."""
 
     def solve(state: Any, car: Any, contacts: Any, groups: Sequence[int], drive: Any,
-              dt: Value, scratch: Any, vx: Value, vy: Value, w: Value, again: bool,
-              du: Value, dv: Value, dw: Value) -> tuple:
+              dt: Value, scratch: Any, rows: tuple, vx: Value, vy: Value, w: Value,
+              again: bool, du: Value, dv: Value, dw: Value) -> tuple:
         """The velocity change ``(du, dv, dw)`` of the body (body frame) over ``dt`` from
         ``(vx, vy, w)`` and the groups' speeds in ``state``; each group's goes to scratch row
-        7.
+        ``OUT``. ``rows``: the number of groups and their blocks' offsets, ``(G, speed, pitch,
+        roll, coulomb, damping)`` (``layout``; ``substep`` finds them once).
 
         Each force enters by its tangent (its Jacobian at the start) or, ``again`` after a
-        first solve whose changes were ``(du, dv, dw)`` and scratch row 8, where that solve
-        carried its slip through zero: by its secant stiffness ``A`` at the point of that
+        first solve whose changes were ``(du, dv, dw)`` and scratch row ``FIRST``, where that
+        solve carried its slip through zero: by its secant stiffness ``A`` at the point of that
         solve's slip path nearest zero, the force ``-A s`` linear in the new slip.
         """
-        eps2 = car[2]
-        ng = (len(car) - 5) // 4
-        pitch = state[7 + 2 * ng]  # the moments the loads carried at the last substep
-        roll = state[8 + 2 * ng]
+        eps2 = car[EPS2]
+        ng, speed, pitch_at, roll_at, coulomb_at, damping_at = rows
+        pitch = state[pitch_at]  # the moments the loads carried at the last substep
+        roll = state[roll_at]
         f1 = f2 = f3 = 0.0
         a11 = a12 = a13 = a22 = a23 = a33 = 0.0
-        fg, c1, c2, c3, dg, diag, rhs = (scratch[0], scratch[1], scratch[2], scratch[3],
-                                         scratch[4], scratch[5], scratch[6])
-        first = scratch[8]
+        fg, c1, c2, c3, dg, diag, rhs = (scratch[FORCE], scratch[COUPLE_X], scratch[COUPLE_Y],
+                                         scratch[COUPLE_W], scratch[STIFF], scratch[DIAG],
+                                         scratch[RHS])
+        first = scratch[FIRST]
         for g in range(ng):
             fg[g] = c1[g] = c2[g] = c3[g] = dg[g] = 0.0 * vx
         for k in range(len(groups)):
             row = contacts[k]
             g = groups[k]
-            rx, ry, kx, ky = row[0], row[1], row[5], row[6]
+            rx, ry, kx, ky = row[CX], row[CY], row[FRICTION_X], row[FRICTION_Y]
             sx = vx - w * ry
             sy = vy + w * rx
             if g >= 0:
-                sx = sx + row[2] * state[7 + ng + g]
-                sy = sy + row[3] * state[7 + ng + g]
+                sx = sx + row[ROLL_X] * state[speed + g]
+                sy = sy + row[ROLL_Y] * state[speed + g]
             ux = kx * sx
             uy = ky * sy
             e2 = kx * kx * eps2
             q2 = ux * ux + uy * uy + e2
-            load = row[4] + row[7] * pitch + row[8] * roll
+            load = row[LOAD] + row[LOAD_PER_PITCH] * pitch + row[LOAD_PER_ROLL] * roll
             load = 0.5 * (load + abs(load))  # a wheel lifted off carries nothing
             a = load / sqrt(q2)
             h = a / q2
@@ -162,8 +171,8 @@ def make_solve(sqrt: Callable[[Value], Value],
                 px = du - dw * ry  # the first solve's change of this slip (scaled)
                 py = dv + dw * rx
                 if g >= 0:
-                    px = px + row[2] * first[g]
-                    py = py + row[3] * first[g]
+                    px = px + row[ROLL_X] * first[g]
+                    py = py + row[ROLL_Y] * first[g]
                 px = kx * px
                 py = ky * py
                 along = ux * px + uy * py
@@ -189,7 +198,7 @@ def make_solve(sqrt: Callable[[Value], Value],
             a23 = a23 + e2
             a33 = a33 + (rx * e2 - ry * e1)
             if g >= 0:
-                wx, wy = row[2], row[3]
+                wx, wy = row[ROLL_X], row[ROLL_Y]
                 k1 = d11 * wx + d12 * wy
                 k2 = d12 * wx + d22 * wy
                 fg[g] = fg[g] + (wx * fx + wy * fy)
@@ -198,20 +207,20 @@ def make_solve(sqrt: Callable[[Value], Value],
                 c3[g] = c3[g] + (rx * k2 - ry * k1)
                 dg[g] = dg[g] + (wx * k1 + wy * k2)
         # the body's 3x3 block with the wheel groups eliminated (a Schur complement)
-        s11 = car[0] + dt * a11
+        s11 = car[MASS] + dt * a11
         s12 = dt * a12
         s13 = dt * a13
-        s22 = car[0] + dt * a22
+        s22 = car[MASS] + dt * a22
         s23 = dt * a23
-        s33 = car[1] + dt * a33
+        s33 = car[YAW_INERTIA] + dt * a33
         r1 = dt * f1
         r2 = dt * f2
         r3 = dt * f3
-        eps_w2 = car[3]
+        eps_w2 = car[EPS_W2]
         for g in range(ng):
-            o = state[7 + ng + g]
-            coulomb = car[5 + ng + g]
-            b = drive[ng + g]
+            o = state[speed + g]
+            coulomb = car[coulomb_at + g]
+            b = drive[damping_at + g]
             q2 = o * o + eps_w2
             root = sqrt(q2)
             friction = coulomb * o / root
@@ -221,8 +230,8 @@ def make_solve(sqrt: Callable[[Value], Value],
                 sec = coulomb / sqrt(eps_w2)
                 friction = where(crossed, sec * o, friction)
                 stiff = where(crossed, sec, stiff)
-            rg = dt * (fg[g] + drive[g] - b * o - friction)
-            dgg = car[5 + g] + dt * (dg[g] + b + stiff)
+            rg = dt * (fg[g] + drive[TORQUE + g] - b * o - friction)
+            dgg = car[INERTIA + g] + dt * (dg[g] + b + stiff)
             inv = 1.0 / dgg
             x1 = dt * c1[g]
             x2 = dt * c2[g]
@@ -251,7 +260,7 @@ def make_solve(sqrt: Callable[[Value], Value],
         du = (k11 * r1 + k12 * r2 + k13 * r3) * inv_det
         dv = (k12 * r1 + k22 * r2 + k23 * r3) * inv_det
         dw = (k13 * r1 + k23 * r2 + k33 * r3) * inv_det
-        out = scratch[7]
+        out = scratch[OUT]
         for g in range(ng):
             out[g] = (rhs[g] - dt * (c1[g] * du + c2[g] * dv + c3[g] * dw)) * diag[g]
         return du, dv, dw
@@ -272,39 +281,42 @@ def make_substep(sqrt: Callable[[Value], Value], solve: Callable[..., tuple],
                 dt: Value, scratch: Any) -> None:
         """Advance ``state`` (in place) by ``dt`` s with ``drive``'s motor torques;
         ``scratch``: ``SCRATCH_ROWS`` rows of G values to work in (``new_scratch``)."""
-        c, s, vxw, vyw, w = state[2], state[3], state[4], state[5], state[6]
+        c, s, vxw, vyw, w = state[COS], state[SIN], state[VX], state[VY], state[YAW_RATE]
         vx = c * vxw + s * vyw  # body-frame velocity of the centre of mass
         vy = c * vyw - s * vxw
-        ng = (len(car) - 5) // 4
+        ng = group_count(len(car))
+        speed, pitch_at, roll_at = state_rows(ng)
+        coulomb_at, spin_x, spin_y = car_rows(ng)
+        rows = (ng, speed, pitch_at, roll_at, coulomb_at, damping_row(ng))
         zero = 0.0 * vx
-        du, dv, dw = solve(state, car, contacts, groups, drive, dt, scratch,
+        du, dv, dw = solve(state, car, contacts, groups, drive, dt, scratch, rows,
                            vx, vy, w, False, zero, zero, zero)
         # did the tangent step carry a slip through zero (a tyre's, or a gearbox's speed)?
-        out, first = scratch[7], scratch[8]
+        out, first = scratch[OUT], scratch[FIRST]
         crossed = zero > zero  # False: no car yet
         for g in range(ng):
-            o = state[7 + ng + g]
+            o = state[speed + g]
             first[g] = out[g]
             crossed = crossed | (o * (o + out[g]) < 0.0)
         for k in range(len(groups)):
             row = contacts[k]
             g = groups[k]
-            sx = vx - w * row[1]
-            sy = vy + w * row[0]
-            px = du - dw * row[1]
-            py = dv + dw * row[0]
+            sx = vx - w * row[CY]
+            sy = vy + w * row[CX]
+            px = du - dw * row[CY]
+            py = dv + dw * row[CX]
             if g >= 0:
-                sx = sx + row[2] * state[7 + ng + g]
-                sy = sy + row[3] * state[7 + ng + g]
-                px = px + row[2] * out[g]
-                py = py + row[3] * out[g]
-            kx2 = row[5] * row[5]
-            ky2 = row[6] * row[6]
+                sx = sx + row[ROLL_X] * state[speed + g]
+                sy = sy + row[ROLL_Y] * state[speed + g]
+                px = px + row[ROLL_X] * out[g]
+                py = py + row[ROLL_Y] * out[g]
+            kx2 = row[FRICTION_X] * row[FRICTION_X]
+            ky2 = row[FRICTION_Y] * row[FRICTION_Y]
             crossed = crossed | (kx2 * sx * (sx + px) + ky2 * sy * (sy + py) < 0.0)
         if anywhere(crossed):
             # there the tangent overshoots the stop: solve again from the start, those forces
             # by their secants where their slips pass nearest zero (a slip cannot cross zero)
-            bu, bv, bw = solve(state, car, contacts, groups, drive, dt, scratch,
+            bu, bv, bw = solve(state, car, contacts, groups, drive, dt, scratch, rows,
                                vx, vy, w, True, du, dv, dw)
             du = where(crossed, bu, du)
             dv = where(crossed, bv, dv)
@@ -318,11 +330,11 @@ def make_substep(sqrt: Callable[[Value], Value], solve: Callable[..., tuple],
         tx = zero
         ty = zero
         for g in range(ng):
-            o = state[7 + ng + g] + out[g]
-            state[7 + ng + g] = o
-            state[7 + g] = state[7 + g] + dt * o
-            hx = car[5 + 2 * ng + g]
-            hy = car[5 + 3 * ng + g]
+            o = state[speed + g] + out[g]
+            state[speed + g] = o
+            state[ANGLE + g] = state[ANGLE + g] + dt * o
+            hx = car[spin_x + g]
+            hy = car[spin_y + g]
             rate = out[g] / dt
             tx = tx + (hx * rate - w * hy * o)
             ty = ty + (hy * rate + w * hx * o)
@@ -331,18 +343,18 @@ def make_substep(sqrt: Callable[[Value], Value], solve: Callable[..., tuple],
         half = 0.5 * dt * w
         h2 = half * half
         scale = 1.0 / (1.0 + h2)
-        lever = car[4] * car[0] / dt  # the ground's force over the substep: m du / dt
-        state[7 + 2 * ng] = -lever * du - ty  # the pitch moment the loads carry
-        state[8 + 2 * ng] = -lever * dv + tx  # and the roll moment
+        lever = car[HEIGHT] * car[MASS] / dt  # the ground's force over the substep: m du / dt
+        state[pitch_at] = -lever * du - ty  # the pitch moment the loads carry
+        state[roll_at] = -lever * dv + tx  # and the roll moment
         turned_c = (c * (1.0 - h2) - 2.0 * half * s) * scale  # c, s may be views of state
         turned_s = (s * (1.0 - h2) + 2.0 * half * c) * scale
-        state[0] = state[0] + dt * vxw
-        state[1] = state[1] + dt * vyw
-        state[2] = turned_c
-        state[3] = turned_s
-        state[4] = vxw
-        state[5] = vyw
-        state[6] = w
+        state[X] = state[X] + dt * vxw
+        state[Y] = state[Y] + dt * vyw
+        state[COS] = turned_c
+        state[SIN] = turned_s
+        state[VX] = vxw
+        state[VY] = vyw
+        state[YAW_RATE] = w
 
     return substep
 
@@ -363,7 +375,6 @@ def _anywhere_arrays(choose: np.ndarray) -> bool:
 substep = make_substep(math.sqrt, make_solve(math.sqrt, _where), _where, _anywhere)
 substep_arrays = make_substep(np.sqrt, make_solve(np.sqrt, np.where), np.where,
                               _anywhere_arrays)
-SCRATCH_ROWS = 9  # solve's rows 0-7; 8: the first solve's changes of the groups' speeds
 
 
 def new_scratch(groups: int) -> list[list[Any]]:
@@ -394,19 +405,19 @@ if COMPILED:
                 drive: np.ndarray, dt: float, n: int) -> None:
         """``n`` substeps of ``dt`` s of one car (1D ``state``, ``car``, ``drive``; ``(K, NC)``
         ``contacts``), in place."""
-        scratch = np.zeros((SCRATCH_ROWS, (car.shape[0] - 5) // 4))
+        scratch = np.zeros((SCRATCH_ROWS, group_count(car.shape[0])))
         for _ in range(n):
             _compiled_substep(state, car, contacts, groups, drive, dt, scratch)
 
     @numba.njit(cache=True)
-    def run_cars(state: np.ndarray, car_rows: np.ndarray, contact_rows: np.ndarray,
+    def run_cars(state: np.ndarray, cars: np.ndarray, contacts: np.ndarray,
                  groups: np.ndarray, drive: np.ndarray, dt: np.ndarray, n: np.ndarray) -> None:
         """Car i: ``n[i]`` substeps of ``dt[i]`` s, in place. ``state`` ``(S, N)`` and ``drive``
         ``(2G, N)`` in the batch's layout (by quantity, for numpy); the parameters by car,
-        ``car_rows`` ``(N, P)`` and ``contact_rows`` ``(N, K, NC)`` (``PlanarBatch.rows``):
+        ``cars`` ``(N, P)`` and ``contacts`` ``(N, K, NC)`` (``PlanarBatch.rows``):
         a car's 60-odd parameters then lie together (measured: the loop 9 % faster than
         gathering them from ``(P, N)`` and ``(K, NC, N)`` at 4,096 cars)."""
-        scratch = np.zeros((SCRATCH_ROWS, (car_rows.shape[1] - 5) // 4))
+        scratch = np.zeros((SCRATCH_ROWS, group_count(cars.shape[1])))
         # each car's state gathered into a contiguous buffer (a car's values are N apart),
         # stepped, and put back
         column, motors = np.empty(state.shape[0]), np.empty(drive.shape[0])
@@ -415,7 +426,7 @@ if COMPILED:
                 continue
             column[:] = state[:, i]
             motors[:] = drive[:, i]
-            params, touches = car_rows[i], contact_rows[i]
+            params, touches = cars[i], contacts[i]
             for _ in range(n[i]):
                 _compiled_substep(column, params, touches, groups, motors, dt[i], scratch)
             state[:, i] = column

@@ -34,7 +34,9 @@ from smartcar_gym.model.kinematics import link_frames, rpy_matrix
 from smartcar_gym.model.urdf import UrdfRobot, parse_urdf
 from smartcar_gym.sim.body import BASE
 from smartcar_gym.sim.planar.dynamics import load_transfer, static_loads
+from smartcar_gym.sim.planar.layout import car_values, contact_values
 from smartcar_gym.sim.planar.params import PlanarParams
+from smartcar_gym.sim.planar.projection import link_shapes, support_points
 
 GROUND_TOLERANCE_M = 1e-3  # a shape whose lowest point is this close to the ground touches it
 _UNSET = object()
@@ -144,17 +146,14 @@ def _round_contact(tables: RobotTables, joint: int, ground_z: float
                    ) -> tuple[np.ndarray, float] | None:
     """The wheel shape of a joint's child touching the ground: (centre (3,), radius) of its
     first sphere, or cylinder lying with its axis along the joint's, or None."""
-    name = tables.link_name(joint)
-    frame = tables.frames[name]
     axis = tables.axis(joint)
-    for shape in tables.robot.links[name].collisions:
+    for shape in link_shapes(tables.robot, tables.frames, tables.link_name(joint)):
         g = shape.geometry
         if g.type not in ("sphere", "cylinder"):
             continue
-        rotation = frame[:3, :3] @ rpy_matrix(shape.origin.rpy)
-        if g.type == "cylinder" and abs(float(rotation[:, 2] @ axis)) < 0.99:
+        if g.type == "cylinder" and abs(float(shape.rotation[:, 2] @ axis)) < 0.99:
             continue
-        centre = frame[:3, :3] @ np.asarray(shape.origin.xyz, float) + frame[:3, 3]
+        centre = shape.centre
         radius = float(g.size[0])
         if abs(centre[2] - radius - ground_z) <= GROUND_TOLERANCE_M:
             return centre, centre[2] - ground_z
@@ -163,34 +162,8 @@ def _round_contact(tables: RobotTables, joint: int, ground_z: float
 
 def _sliding_points(tables: RobotTables, index: int, ground_z: float) -> list[np.ndarray]:
     """The points (3,) where a link's collision shapes rest on the ground."""
-    name = tables.link_name(index)
-    frame = tables.frames[name]
-    points: list[np.ndarray] = []
-    for shape in tables.robot.links[name].collisions:
-        g = shape.geometry
-        rotation = frame[:3, :3] @ rpy_matrix(shape.origin.rpy)
-        centre = frame[:3, :3] @ np.asarray(shape.origin.xyz, float) + frame[:3, 3]
-        if g.type == "sphere":
-            candidates = [centre - np.array([0.0, 0.0, g.size[0]])]
-        elif g.type == "box":
-            half = np.asarray(g.size, float) / 2.0
-            corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1)
-                                for sz in (-1, 1)]) * half
-            candidates = list(centre + corners @ rotation.T)
-        elif g.type == "cylinder":
-            radius, length = g.size
-            axis = rotation[:, 2]
-            ends = [centre + axis * length / 2.0, centre - axis * length / 2.0]
-            if abs(axis[2]) > 0.99:  # upright: its bottom disc (by its centre)
-                candidates = [min(ends, key=lambda p: p[2])]
-            else:  # lying: the bottom line, by its two ends
-                down = np.array([0.0, 0.0, -1.0]) - axis * axis[2]
-                down /= np.linalg.norm(down)
-                candidates = [e + down * radius for e in ends]
-        else:  # meshes: the planar engine does not read them
-            continue
-        points += [p for p in candidates if abs(p[2] - ground_z) <= GROUND_TOLERANCE_M]
-    return points
+    return [p for shape in link_shapes(tables.robot, tables.frames, tables.link_name(index))
+            for p in support_points(shape) if abs(p[2] - ground_z) <= GROUND_TOLERANCE_M]
 
 
 @dataclass(frozen=True)
@@ -269,9 +242,11 @@ def build_car(tables: RobotTables, ground_z: float, actuation: Actuation,
                          f"{params.source}); this robot's contacts allow "
                          f"[{low:.6g}, {high:.6g}] m") from None
     transfer = load_transfer(np.array(points))
-    contacts = [[float(p[0] - com[0]), float(p[1] - com[1]), float(wx), float(wy), float(load),
-                 float(mu), float(mu * (params.lateral_friction_ratio if g >= 0 else 1.0)),
-                 float(lx), float(ly)]
+    contacts = [contact_values(x=float(p[0] - com[0]), y=float(p[1] - com[1]), roll_x=float(wx),
+                               roll_y=float(wy), load=float(load), friction_x=float(mu),
+                               friction_y=float(mu * (params.lateral_friction_ratio if g >= 0
+                                                      else 1.0)),
+                               load_per_pitch=float(lx), load_per_roll=float(ly))
                 for p, (g, wx, wy), mu, load, (lx, ly)
                 in zip(points, rolling, bounds, loads, transfer, strict=True)]
     group_inertia, coulomb, momentum = [], [], []
@@ -297,9 +272,11 @@ def build_car(tables: RobotTables, ground_z: float, actuation: Actuation,
             joints = [tables.joint_names[j] for j, _ in groups.members[g]]
             raise ValueError(f"{tables.robot.name}: wheel joints {joints} have no inertia about "
                              "their axles")
-    car = [mass, yaw_inertia, params.slip_speed ** 2, params.stiction_speed ** 2,
-           float(com[2] - ground_z), *group_inertia, *coulomb,
-           *(float(h[0]) for h in momentum), *(float(h[1]) for h in momentum)]
+    car = car_values(mass=mass, yaw_inertia=yaw_inertia, eps2=params.slip_speed ** 2,
+                     eps_w2=params.stiction_speed ** 2, height=float(com[2] - ground_z),
+                     inertia=group_inertia, coulomb=coulomb,
+                     spin_x=[float(h[0]) for h in momentum],
+                     spin_y=[float(h[1]) for h in momentum])
     return PlanarCar(car, contacts, tuple(g for g, _, _ in rolling), groups, com)
 
 

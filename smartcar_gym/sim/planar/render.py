@@ -15,7 +15,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from smartcar_gym.model.kinematics import quaternion_matrix, rpy_matrix
+from smartcar_gym.model.kinematics import quaternion_matrix
+from smartcar_gym.sim.planar.projection import outline, placed_shapes
+from smartcar_gym.sim.planar.shapes import CIRCLE
 
 if TYPE_CHECKING:
     from smartcar_gym.sim.planar.simulator import PlanarBody, PlanarSimulator
@@ -37,36 +39,29 @@ def _colour(rgba: Sequence[float]) -> np.ndarray:
 
 
 def robot_shapes(body: PlanarBody) -> Iterator[tuple[Shape, np.ndarray]]:
-    """Every collision shape of a robot, projected onto the ground at its pose, with a colour
-    (the base link's in blue, the others dark)."""
+    """Every collision shape of a robot but its meshes, projected onto the ground at its pose
+    (``projection.outline``, as its footprint), with a colour: the base link's in blue, the
+    front half of its boxes marked, the others dark."""
     (x, y, _), q = body.link_pose()
     yaw = 2.0 * math.atan2(q[2], q[3])
     c, s = math.cos(yaw), math.sin(yaw)
     tables = body.tables
-    for name, link in tables.robot.links.items():
-        frame = tables.frames[name]
-        colour = BASE_COLOUR if name == tables.robot.base_link else PART
-        for shape in link.collisions:
-            g = shape.geometry
-            rotation = frame[:3, :3] @ rpy_matrix(shape.origin.rpy)
-            centre = frame[:3, :3] @ np.asarray(shape.origin.xyz, float) + frame[:3, 3]
-            wx, wy = x + c * centre[0] - s * centre[1], y + s * centre[0] + c * centre[1]
-            if g.type == "sphere" or (g.type == "cylinder" and abs(rotation[2, 2]) > 0.99):
-                yield ("disc", wx, wy, g.size[0]), colour
-                continue
-            if g.type == "box":
-                half = np.abs(rotation) @ (np.asarray(g.size, float) / 2.0)
-            elif g.type == "cylinder":  # lying: its side view
-                radius, length = g.size
-                axis = rotation[:, 2]
-                half = np.abs(axis) * length / 2.0 + radius * np.sqrt(
-                    np.clip(1.0 - axis * axis, 0.0, 1.0))
-            else:
-                continue
-            yield ("rect", wx, wy, yaw, half[0], half[1]), colour
-            if name == tables.robot.base_link and g.type == "box":
-                hx, hy = half[0] / 2.0, half[1]
-                yield ("rect", wx + c * hx, wy + s * hx, yaw, hx, hy), NOSE
+    for shape in placed_shapes(tables.robot, tables.frames):
+        if shape.geometry.type == "mesh":  # a picture reads no mesh files
+            continue
+        kind, (cx, cy), turn, (hx, hy), _, _ = outline(shape)
+        base = shape.link == tables.robot.base_link
+        colour = BASE_COLOUR if base else PART
+        wx, wy = x + c * cx - s * cy, y + s * cx + c * cy
+        if kind == CIRCLE:
+            yield ("disc", wx, wy, hx), colour
+            continue
+        turn += yaw
+        yield ("rect", wx, wy, turn, hx, hy), colour
+        if base and shape.geometry.type == "box":
+            half = hx / 2.0
+            yield (("rect", wx + math.cos(turn) * half, wy + math.sin(turn) * half, turn, half,
+                    hy), NOSE)
 
 
 def marker_shapes(marker) -> Iterator[tuple[Shape, np.ndarray]]:

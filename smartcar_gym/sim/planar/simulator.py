@@ -26,7 +26,25 @@ from smartcar_gym.model.errors import ModelError
 from smartcar_gym.sim.body import BASE, LinkDynamics
 from smartcar_gym.sim.clock import EventClock, check_max_substep
 from smartcar_gym.sim.planar import PLANAR_MAX_SUBSTEP_S, PLANAR_SUBSTEP_RANGE_S, jit
-from smartcar_gym.sim.planar.dynamics import NC, new_scratch, state_size, substep
+from smartcar_gym.sim.planar.dynamics import new_scratch, substep
+from smartcar_gym.sim.planar.layout import (
+    ANGLE,
+    COS,
+    CX,
+    CY,
+    NC,
+    POSE,
+    SIN,
+    VX,
+    VY,
+    YAW_RATE,
+    X,
+    Y,
+    drive_values,
+    rest_state,
+    speed_row,
+    state_size,
+)
 from smartcar_gym.sim.planar.model import Actuation, Groups, PlanarCar, RobotTables, build_car
 from smartcar_gym.sim.planar.params import PlanarParams, resolve
 
@@ -49,6 +67,12 @@ def quaternion_yaw(q: Sequence[float]) -> tuple[float, float]:
     c, s = 1.0 - 2.0 * (y * y + z * z), 2.0 * (w * z + x * y)
     n = math.hypot(c, s)
     return (1.0, 0.0) if n == 0 else (c / n, s / n)
+
+
+def _at_rest(x: float, y: float, c: float, s: float, model: PlanarCar) -> list[float]:
+    """The state of ``model`` at rest with its base link at (``x``, ``y``) heading (c, s)."""
+    cx, cy = model.com[0], model.com[1]
+    return rest_state(x + c * cx - s * cy, y + s * cx + c * cy, c, s, len(model.groups.members))
 
 
 class PlanarStatic:
@@ -140,10 +164,7 @@ class PlanarBody:
         ng = len(model.groups.members)
         state = self.state
         if state is None:
-            x, y, c, s = self._spawn
-            cx, cy = model.com[0], model.com[1]
-            state = [x + c * cx - s * cy, y + s * cx + c * cy, c, s, 0.0, 0.0, 0.0]
-            state += [0.0] * (2 * ng + 2)
+            state = _at_rest(*self._spawn, model)
         elif len(state) != state_size(ng):
             raise RuntimeError("the wheel groups changed after the body started moving")
         if jit.COMPILED:  # numba's loop takes arrays (the same numbers, bit for bit)
@@ -168,11 +189,7 @@ class PlanarBody:
 
     def spawn_state(self, x: float, y: float, yaw: float) -> list[float]:
         """The state of this car at rest with its base link at (x, y) heading ``yaw``."""
-        model = self.compiled()
-        c, s = math.cos(yaw), math.sin(yaw)
-        cx, cy = model.com[0], model.com[1]
-        return [x + c * cx - s * cy, y + s * cx + c * cy, c, s, 0.0, 0.0, 0.0] \
-            + [0.0] * (2 * len(model.groups.members) + 2)
+        return _at_rest(x, y, math.cos(yaw), math.sin(yaw), self.compiled())
 
     def _drive(self) -> None:
         """Each group's motor torque and damping from the joints' held torques and damping."""
@@ -189,7 +206,7 @@ class PlanarBody:
             if j in self.groups.of:
                 g, sign = self.groups.of[j]
                 damping[g] += sign * sign * b
-        self.drive = tau + damping
+        self.drive = drive_values(torque=tau, damping=damping)
         if jit.COMPILED:
             self._drive_array = np.array(self.drive)
 
@@ -221,8 +238,8 @@ class PlanarBody:
         if found is None:
             return self._fixed_q.get(j, (0.0, 0.0))
         g, sign = found
-        ng = len(self.groups.members)
-        return sign * self.state[7 + g], sign * self.state[7 + ng + g]
+        speed = speed_row(len(self.groups.members))
+        return sign * self.state[ANGLE + g], sign * self.state[speed + g]
 
     def joint_states(self, joints: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
         """Positions (rad) and velocities (rad/s) of joints given by index."""
@@ -245,14 +262,14 @@ class PlanarBody:
             self._fixed_q[joint] = (float(angle), float(speed))
             return
         g, sign = found
-        self.state[7 + g] = angle / sign
-        self.state[7 + len(self.groups.members) + g] = speed / sign
+        self.state[ANGLE + g] = angle / sign
+        self.state[speed_row(len(self.groups.members)) + g] = speed / sign
 
     # -- pose ----------------------------------------------------------------------------------
     def link_pose(self) -> tuple[Vec3, Quat]:
         """Position and (x, y, z, w) orientation of the base link's frame in the world."""
         self.compiled()
-        x, y, c, s = self.state[:4]
+        x, y, c, s = self.state[POSE]
         cx, cy = self.com[0], self.com[1]
         return (x - (c * cx - s * cy), y - (s * cx + c * cy), self.height), yaw_quaternion(c, s)
 
@@ -263,21 +280,21 @@ class PlanarBody:
         c, s = quaternion_yaw(orientation)
         cx, cy = self.com[0], self.com[1]
         body = self.state
-        body[0] = float(position[0]) + c * cx - s * cy
-        body[1] = float(position[1]) + s * cx + c * cy
-        body[2], body[3] = c, s
+        body[X] = float(position[0]) + c * cx - s * cy
+        body[Y] = float(position[1]) + s * cx + c * cy
+        body[COS], body[SIN] = c, s
 
     def velocity(self) -> tuple[Vec3, Vec3]:
         """Linear (m/s, of the centre of mass) and angular (rad/s) velocity, world frame."""
         self.compiled()
         body = self.state
-        return (body[4], body[5], 0.0), (0.0, 0.0, body[6])
+        return (body[VX], body[VY], 0.0), (0.0, 0.0, body[YAW_RATE])
 
     def contact_points(self, other: Any = None) -> list[tuple[int, Vec3]]:
         """The ground contacts as (link index, world position): every contact of the car."""
         model = self.compiled()
-        x, y, c, s = self.state[:4]
-        return [(BASE, (x + c * k[0] - s * k[1], y + s * k[0] + c * k[1], 0.0))
+        x, y, c, s = self.state[POSE]
+        return [(BASE, (x + c * k[CX] - s * k[CY], y + s * k[CX] + c * k[CY], 0.0))
                 for k in model.contacts]
 
     # -- dynamics ------------------------------------------------------------------------------

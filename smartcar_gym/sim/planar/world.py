@@ -2,10 +2,10 @@
 
 The obstacles (``PlanarSimulator.add_static``: boxes and upright cylinders standing on the
 ground) and each robot's footprint (its collision shapes projected onto the ground,
-``geometry.footprint``, its parts' heights above the ground kept) go through
-``geometry``'s exact 2D functions: a horizontal ray below the obstacles' tops meets their
-outlines, and a car on the ground is as near an obstacle as their outlines are (or, for a part
-above the obstacles, by the height between).
+``projection.footprint``, its parts' heights above the ground kept) go through the exact 2D
+functions of ``raycast`` and ``distance``: a horizontal ray below the obstacles' tops meets
+their outlines, and a car on the ground is as near an obstacle as their outlines are (or, for
+a part above the obstacles, by the height between).
 """
 
 from __future__ import annotations
@@ -16,28 +16,31 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from smartcar_gym.sim.planar import geometry
+from smartcar_gym.sim.planar.distance import clearance
+from smartcar_gym.sim.planar.projection import Footprint, footprint
+from smartcar_gym.sim.planar.raycast import ray_hits
+from smartcar_gym.sim.planar.shapes import BOX, CIRCLE, OBSTACLE_HEIGHT_M, Shapes2D
 from smartcar_gym.sim.rays import RayHits
 
 if TYPE_CHECKING:
     from smartcar_gym.sim.planar.simulator import PlanarBody, PlanarSimulator, PlanarStatic
 
 
-def obstacle_shapes(statics: list[PlanarStatic]) -> geometry.Shapes2D:
-    """One world's obstacles (N = 1) as ``geometry.Shapes2D``, in the order given."""
-    kind = [geometry.BOX if s.kind == "box" else geometry.CIRCLE for s in statics]
+def obstacle_shapes(statics: list[PlanarStatic]) -> Shapes2D:
+    """One world's obstacles (N = 1) as ``Shapes2D``, in the order given."""
+    kind = [BOX if s.kind == "box" else CIRCLE for s in statics]
     centre = [s.position[:2] for s in statics]
     yaw = [s.yaw for s in statics]
     half = [s.size[:2] if s.kind == "box" else (s.size[0], s.size[0]) for s in statics]
     if not statics:
-        return geometry.Shapes2D.from_arrays(np.zeros((1, 0)), np.zeros((1, 0, 2)),
+        return Shapes2D.from_arrays(np.zeros((1, 0)), np.zeros((1, 0, 2)),
                                              np.zeros((1, 0)), np.zeros((1, 0, 2)))
-    return geometry.Shapes2D.from_arrays([kind], [centre], [yaw], [half])
+    return Shapes2D.from_arrays([kind], [centre], [yaw], [half])
 
 
 def _height(statics: list[PlanarStatic]) -> float:
     """The obstacles' common top (m): their tallest."""
-    return max((2.0 * s.size[2] for s in statics), default=geometry.OBSTACLE_HEIGHT_M)
+    return max((2.0 * s.size[2] for s in statics), default=OBSTACLE_HEIGHT_M)
 
 
 def cast_world(sim: PlanarSimulator, starts: np.ndarray, ends: np.ndarray) -> RayHits:
@@ -46,15 +49,15 @@ def cast_world(sim: PlanarSimulator, starts: np.ndarray, ends: np.ndarray) -> Ra
     statics = [s for s in sim.statics() if not s.hidden_from_rays]
     names = list(sim._bodies)
     ids = np.array([names.index(s.name) for s in statics], dtype=int)
-    return geometry.ray_hits(starts, ends, obstacle_shapes(statics), ids,
+    return ray_hits(starts, ends, obstacle_shapes(statics), ids,
                              height=_height(statics))
 
 
-def footprint_of(body: PlanarBody) -> geometry.Footprint:
+def footprint_of(body: PlanarBody) -> Footprint:
     """A robot's footprint with its parts' heights above the ground (kept on the body)."""
     found = getattr(body, "_footprint", None)
     if found is None:
-        local = geometry.footprint(body.tables.robot)
+        local = footprint(body.tables.robot)
         found = dataclasses.replace(local, z_range=local.z_range + body.height)
         body._footprint = found
     return found
@@ -70,5 +73,5 @@ def body_distance(sim: PlanarSimulator, body: PlanarBody, other: Any,
     qx, qy, qz, qw = q  # pose_from's yaw, as the batch computes it
     pose = np.array([[x, y, math.atan2(2.0 * (qw * qz + qx * qy),
                                        1.0 - 2.0 * (qy * qy + qz * qz))]])
-    return float(geometry.clearance(footprint_of(body), pose, obstacle_shapes([other]),
+    return float(clearance(footprint_of(body), pose, obstacle_shapes([other]),
                                     max_distance_m, height=_height([other]))[0])

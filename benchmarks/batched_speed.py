@@ -17,7 +17,8 @@ set from before the env was made to after the last step. Envs:
   steps per measurement (``--mujoco-car-steps``) since each car-step is a dozen physics steps.
 - ``SmartCar-v0 MuJoCo single``: one ``gym.make("SmartCar-v0", engine="mujoco")``.
 - ``SmartCarNav-v0 MuJoCo batched``: ``engine="mujoco"`` through the vector_entry_point
-  (``SmartCarBatchVectorEnv`` with the Nav part: physics, laser and clearance in C, two worker threads), and
+  (``SmartCarBatchVectorEnv`` with the Nav part: physics, laser and clearance in C, two
+  worker threads), and
   ``SmartCarNav-v0 MuJoCo loop``: the same cars as the loop of single MuJoCo envs that the
   entry point falls back to (``SmartCarLoopVectorEnv``), at N = 16 and 64.
 

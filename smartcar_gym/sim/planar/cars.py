@@ -78,8 +78,8 @@ class PlanarCars:
         for (g, sign), k in self._damped_joints:
             damp[g] = damp[g] + sign * sign * (damp_side[:, self._side[k]] * self._share[k])
         for g in range(ng):
-            cars.drive[g, mask] = tau[g]
-            cars.drive[ng + g, mask] = damp[g]
+            cars.torque[g, mask] = tau[g]
+            cars.damping[g, mask] = damp[g]
 
     def step(self, idx: np.ndarray, nstep: np.ndarray, timestep: np.ndarray) -> None:
         self.batch.step(idx, nstep, timestep)
@@ -118,7 +118,7 @@ class PlanarCars:
         """``geometry.ray_hits``' arithmetic over cars, every car against its own obstacles."""
         cars = self.batch
         px, py, _ = cars.pose()
-        cos_yaw, sin_yaw = cars.state[2], cars.state[3]  # the state's heading, as cos and sin
+        cos_yaw, sin_yaw = cars.heading()
         qz, qw = yaw_quaternion_arrays(cos_yaw[idx], sin_yaw[idx])
         position = np.stack([px[idx], py[idx], np.full(len(idx), cars.height)], axis=1)
         zero = np.zeros(len(idx))

@@ -32,7 +32,7 @@ import numpy as np
 from smartcar_gym.model.contact import link_frictions
 from smartcar_gym.model.kinematics import link_frames, rpy_matrix
 from smartcar_gym.model.urdf import UrdfRobot, parse_urdf
-from smartcar_gym.sim.body import BASE
+from smartcar_gym.sim.contracts import BASE
 from smartcar_gym.sim.planar.dynamics import load_transfer, static_loads
 from smartcar_gym.sim.planar.layout import car_values, contact_values
 from smartcar_gym.sim.planar.params import PlanarParams

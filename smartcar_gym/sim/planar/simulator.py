@@ -23,8 +23,8 @@ from typing import Any
 import numpy as np
 
 from smartcar_gym.model.errors import ModelError
-from smartcar_gym.sim.body import BASE, LinkDynamics
 from smartcar_gym.sim.clock import EventClock, check_max_substep
+from smartcar_gym.sim.contracts import BASE, LinkDynamics
 from smartcar_gym.sim.planar import PLANAR_MAX_SUBSTEP_S, PLANAR_SUBSTEP_RANGE_S, jit
 from smartcar_gym.sim.planar.dynamics import new_scratch, substep
 from smartcar_gym.sim.planar.layout import (

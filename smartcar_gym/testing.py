@@ -23,7 +23,7 @@ observation, batched or not). Episode ``i`` is seeded ``seed + i``, as ``smartca
 ``n_envs`` cars (default 64) of the id's ``vector_entry_point`` in this process, so no test needs
 ``if __name__ == "__main__"``; ``batched=False`` steps one single env in this process. Both give
 the same records for a callable; an SB3 model's batched actions round differently from a batch
-of one (``agents.batched_rollouts``: the records agree within ``RECORD_TOLERANCE``).
+of one (``agents.episodes``: the records agree within ``RECORD_TOLERANCE``).
 
 ``assert_success`` raises ``AssertionError`` with one line: the env, the success rate against
 the mark, the failed seeds. ``RandomPolicy`` (uniform random actions) is a failing baseline.
@@ -39,10 +39,11 @@ from typing import Any
 
 import numpy as np
 
-from smartcar_gym.agents.batched_rollouts import DEFAULT_BATCH, evaluate_batched_episodes
-from smartcar_gym.agents.rollouts import (
+from smartcar_gym.agents.episodes import (
+    DEFAULT_BATCH,
     EpisodeRecord,
     RandomPolicy,
+    evaluate_batched_episodes,
     evaluate_policy_episodes,
     summarize,
 )

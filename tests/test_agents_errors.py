@@ -7,7 +7,7 @@ import zipfile
 import pytest
 import yaml
 
-from smartcar_gym.agents import evaluate, train
+from smartcar_gym.agents import cli_eval, evaluate, train
 
 # One env in this process and a tiny network: model construction is the only cost.
 TINY = ["--n-envs", "1", "--timesteps", "64", "--eval-freq", "0", "--no-progress"]
@@ -163,7 +163,7 @@ def no_evaluation(monkeypatch):
     def evaluate_policy_episodes(*args, **kwargs):
         raise AssertionError("the evaluation ran before the error")
 
-    monkeypatch.setattr(evaluate, "evaluate_policy_episodes", evaluate_policy_episodes)
+    monkeypatch.setattr(cli_eval, "evaluate_policy_episodes", evaluate_policy_episodes)
 
 
 @pytest.mark.parametrize(("argv", "message"), [

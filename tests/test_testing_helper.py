@@ -95,3 +95,28 @@ def test_a_dict_observation_reaches_the_callable_one_car_at_a_time():
     actions, _ = model.predict({"a": np.arange(6.0).reshape(3, 2), "b": np.ones((3, 1))})
     assert actions.shape == (3, 2) and actions.dtype == np.float32
     assert [o["a"].tolist() for o in seen] == [[0.0, 1.0], [2.0, 3.0], [4.0, 5.0]]
+
+
+class _BoxModel:
+    """An SB3-like model trained on SmartCar-v0's Box observations."""
+
+    import gymnasium as _gym
+
+    observation_space = _gym.spaces.Box(-1.0, 1.0, (12,), dtype=np.float32)
+
+    def predict(self, obs, deterministic=True):
+        raise AssertionError("the episodes ran before the error")
+
+
+@pytest.mark.parametrize("batched", [True, False], ids=["batched", "sequential"])
+def test_a_box_model_on_a_dict_env_is_one_line_naming_both_spaces(batched):
+    from smartcar_gym.agents.episodes import ObservationShapeError
+
+    with pytest.raises(ObservationShapeError) as raised:
+        evaluate(_BoxModel(), "SmartCarGoal-v0", episodes=1, batched=batched)
+    line = str(raised.value)
+    assert "\n" not in line
+    assert line.startswith("the model expects observations of shape (12,) but SmartCarGoal-v0 "
+                           "gives a Dict of ")
+    assert "desired_goal (2,)" in line and line.endswith("retrain it (see the README, "
+                                                         "'Training')")

@@ -145,14 +145,35 @@ class ObservationShapeError(ValueError):
 
 
 def _check_spaces(policy: Policy, space: gym.spaces.Space, env_id: str) -> None:
-    """A clear error when the model was trained on observations of another shape."""
-    expected = getattr(policy.observation_space, "shape", None)
-    if expected is not None and tuple(expected) != tuple(space.shape):
-        raise ObservationShapeError(
-            f"the model expects observations of shape {tuple(expected)} but {env_id} gives "
-            f"{tuple(space.shape)}: the env changed since the model was trained; retrain it "
-            "(see the README, 'Training')"
-        )
+    """A clear error when the model was trained on observations of another shape (or kind: a
+    Box against a Dict)."""
+    expected = policy.observation_space
+    if expected is None or _same_shapes(expected, space):
+        return
+    shape = "shape " if getattr(expected, "shape", None) is not None else ""
+    raise ObservationShapeError(
+        f"the model expects observations of {shape}{_shapes(expected)} but {env_id} gives "
+        f"{_shapes(space)}: the env changed since the model was trained; retrain it "
+        "(see the README, 'Training')"
+    )
+
+
+def _same_shapes(a: gym.spaces.Space, b: gym.spaces.Space) -> bool:
+    """Whether two spaces have the same shape: Boxes (arrays), or Dicts with the same keys."""
+    if isinstance(a, gym.spaces.Dict) or isinstance(b, gym.spaces.Dict):
+        return (isinstance(a, gym.spaces.Dict) and isinstance(b, gym.spaces.Dict)
+                and list(a.spaces) == list(b.spaces)
+                and all(_same_shapes(a[k], b[k]) for k in a.spaces))
+    shape_a, shape_b = getattr(a, "shape", None), getattr(b, "shape", None)
+    return shape_a is None or shape_b is None or tuple(shape_a) == tuple(shape_b)
+
+
+def _shapes(space: gym.spaces.Space) -> str:
+    """``(12,)``, or ``a Dict of observation (10,), achieved_goal (2,), desired_goal (2,)``."""
+    if isinstance(space, gym.spaces.Dict):
+        return "a Dict of " + ", ".join(f"{k} {_shapes(v)}" for k, v in space.spaces.items())
+    shape = getattr(space, "shape", None)
+    return str(tuple(shape)) if shape is not None else type(space).__name__
 
 
 # -- the episodes -------------------------------------------------------------------------------

@@ -120,3 +120,19 @@ def test_a_box_model_on_a_dict_env_is_one_line_naming_both_spaces(batched):
                            "gives a Dict of ")
     assert "desired_goal (2,)" in line and line.endswith("retrain it (see the README, "
                                                          "'Training')")
+
+
+def test_random_episodes_do_not_depend_on_the_cars_or_batching():
+    """Each episode's random actions are seeded by its episode, as its reset is: 1 car, 4 cars
+    and the single env give the same returns (docs/ci.md: episodes do not depend on
+    --n-envs)."""
+    kwargs = {"engine": "planar", "max_episode_steps": 30}
+
+    def returns(**how):
+        metrics = evaluate(RandomPolicy(0), "SmartCar-v0", episodes=4, env_kwargs=kwargs, **how)
+        return [r.episode_return for r in metrics.records]
+
+    single = returns(batched=False)
+    assert returns(n_envs=1) == single
+    assert returns(n_envs=4) == single
+    assert len(set(single)) == 4  # four episodes, four different action sequences

@@ -125,19 +125,43 @@ def _nanmean(values: list[float]) -> float:
 
 
 class RandomPolicy:
-    """Uniform random actions in [-1, 1]^2, seeded: a baseline (and the README's GIF)."""
+    """Uniform random actions in [-1, 1]^2, seeded: a baseline (and the README's GIF).
+
+    In the episodes run here each episode's actions are drawn from a generator seeded with
+    ``(seed, episode)`` (``act_episodes``), as its reset is seeded with ``seed + episode``: the
+    records do not depend on ``n_envs``, on batching or on which car ran an episode.
+    ``predict`` (SB3's interface, for other callers) draws from one generator seeded with
+    ``seed``."""
 
     observation_space = None
 
     def __init__(self, seed: int = 0) -> None:
+        self.seed = seed
         self.action_space = gym.spaces.Box(-1.0, 1.0, (2,), dtype=np.float32)
         self.action_space.seed(seed)
+        self._episodes: dict[int, np.random.Generator] = {}
 
     def predict(self, obs: np.ndarray, deterministic: bool = True) -> tuple[np.ndarray, None]:
         """One sampled action per observation in the batch (a dict of batches for a Dict)."""
         first = np.asarray(next(iter(obs.values())) if isinstance(obs, dict) else obs)
         batch = first.reshape(-1, first.shape[-1])
         return np.stack([self.action_space.sample() for _ in batch]), None
+
+    def act_episodes(self, episodes: np.ndarray, steps: np.ndarray) -> np.ndarray:
+        """Each car's action (float32, ``(N, 2)``) at step ``steps[car]`` of the episode
+        ``episodes[car]`` it runs (-1: none, a zero action); step 0 seeds the episode's
+        generator anew."""
+        actions = np.zeros((len(episodes), 2), dtype=np.float32)
+        for car, (episode, step) in enumerate(zip(episodes.tolist(), steps.tolist(),
+                                                  strict=True)):
+            if episode < 0:
+                continue
+            if step == 0 or episode not in self._episodes:
+                self._episodes[episode] = np.random.default_rng([self.seed, episode])
+            actions[car] = self._episodes[episode].uniform(-1.0, 1.0, 2)
+        running = set(episodes.tolist())
+        self._episodes = {e: g for e, g in self._episodes.items() if e in running}
+        return actions
 
 
 class ObservationShapeError(ValueError):
@@ -211,9 +235,11 @@ def evaluate_policy_episodes(
 
         collector = EpisodeCollector(list(recorders))
 
-    def act(obs: Any, active: np.ndarray) -> np.ndarray:
-        actions = np.zeros((len(active), *envs.single_action_space.shape), dtype=np.float32)
-        for car in np.flatnonzero(active):
+    def act(obs: Any, episode_of: np.ndarray, steps: np.ndarray) -> np.ndarray:
+        if hasattr(policy.model, "act_episodes"):
+            return policy.model.act_episodes(episode_of, steps)
+        actions = np.zeros((len(episode_of), *envs.single_action_space.shape), dtype=np.float32)
+        for car in np.flatnonzero(episode_of >= 0):
             actions[car] = policy.act(_car(obs, car), deterministic)
         return actions
 
@@ -241,9 +267,11 @@ def evaluate_batched_episodes(
     policy = _policy(model, vecnormalize_path, n_episodes, n_envs, deterministic, seed)
     envs = make_batched_env(env_id, min(n_envs, n_episodes), env_kwargs)
 
-    def act(obs: Any, active: np.ndarray) -> np.ndarray:
+    def act(obs: Any, episode_of: np.ndarray, steps: np.ndarray) -> np.ndarray:
+        if hasattr(policy.model, "act_episodes"):
+            return policy.model.act_episodes(episode_of, steps)
         actions = act_batch(policy, obs, deterministic)
-        actions[~active] = 0.0  # a car with no episode left stands still (or is parked)
+        actions[episode_of < 0] = 0.0  # a car with no episode left stands still (or is parked)
         return actions
 
     with _one_torch_thread():
@@ -310,7 +338,7 @@ def _policy(model: Any, vecnormalize_path: str | os.PathLike | None, n_episodes:
 
 
 def _episodes(envs: gym.vector.VectorEnv, policy: Policy, env_id: str, n_episodes: int,
-              seed: int, act: Callable[[Any, np.ndarray], np.ndarray], progress: bool,
+              seed: int, act: Callable[..., np.ndarray], progress: bool,
               desc: str, collector: Any, check_resets: bool = False) -> list[EpisodeRecord]:
     """``_play`` the episodes on ``envs`` (closed at the end) after checking the spaces."""
     bar = None
@@ -328,11 +356,13 @@ def _episodes(envs: gym.vector.VectorEnv, policy: Policy, env_id: str, n_episode
 
 
 def _play(envs: gym.vector.VectorEnv, env_id: str, n_episodes: int, seed: int,
-          act: Callable[[Any, np.ndarray], np.ndarray], bar: Any, collector: Any,
+          act: Callable[..., np.ndarray], bar: Any, collector: Any,
           check_resets: bool) -> list[EpisodeRecord]:
     """Episodes 0..n_episodes-1 on the cars of ``envs``: each car runs the next episode not
     started yet when its own ends; a car with none left is parked where the vector env can
-    (``park``), else stepped with zero actions, unread."""
+    (``park``), else stepped with zero actions, unread. ``act(obs, episode_of, steps)``: the
+    cars' actions (``episode_of``: each car's episode, -1 for none; ``steps``: the steps each
+    car's episode has run)."""
     if collector is not None:
         from smartcar_gym.viewers.capture import CAPTURE_KEY
     n = envs.num_envs
@@ -349,7 +379,7 @@ def _play(envs: gym.vector.VectorEnv, env_id: str, n_episodes: int, seed: int,
     park = getattr(envs.unwrapped, "park", None)
     while (episode_of >= 0).any():
         active = episode_of >= 0
-        actions = act(obs, active)
+        actions = act(obs, episode_of, tracks.length)
         if park is not None:  # where the batch can, a car with no episode is not simulated
             park(~active)
         obs, reward, terminated, truncated, info = envs.step(actions)
@@ -530,9 +560,13 @@ def record_video(
         for i in range(n_episodes):
             obs, _ = env.reset(seed=seed + i)
             frames.append(env.render())
-            done = False
+            done, step = False, 0
             while not done:
-                action = policy.act(obs, deterministic)
+                if hasattr(policy.model, "act_episodes"):  # the episode's own random actions
+                    action = policy.model.act_episodes(np.array([i]), np.array([step]))[0]
+                    step += 1
+                else:
+                    action = policy.act(obs, deterministic)
                 obs, _, terminated, truncated, _ = env.step(action)
                 frames.append(env.render())
                 done = terminated or truncated

@@ -54,12 +54,15 @@ __all__ = ["FunctionModel", "Metrics", "RandomPolicy", "assert_success", "evalua
 
 class FunctionModel:
     """A plain function of one observation seen as an SB3-like model: ``predict`` calls it
-    once per observation of a batch (a dict of batches gives it one dict per car)."""
+    once per observation of a batch (a dict of batches gives it one dict per car). Each
+    action must hold ``action_shape``'s numbers (the smartcar envs': ``(2,)``, linear and
+    angular); another shape is a ``ValueError`` in one line, batched or not."""
 
     observation_space = None
 
-    def __init__(self, fn: Callable[[Any], Any]) -> None:
+    def __init__(self, fn: Callable[[Any], Any], action_shape: tuple[int, ...] = (2,)) -> None:
         self.fn = fn
+        self.action_shape = tuple(action_shape)
 
     def predict(self, obs: np.ndarray | Mapping[str, np.ndarray],
                 deterministic: bool = True) -> tuple[np.ndarray, None]:
@@ -68,8 +71,15 @@ class FunctionModel:
             rows: Sequence[Any] = [{k: v[i] for k, v in obs.items()} for i in range(n)]
         else:
             rows = obs
-        actions = [np.asarray(self.fn(row), dtype=np.float32).reshape(-1) for row in rows]
-        return np.stack(actions), None
+        return np.stack([self._action(row) for row in rows]), None
+
+    def _action(self, row: Any) -> np.ndarray:
+        """The callable's action for one observation, checked and shaped ``action_shape``."""
+        action = np.asarray(self.fn(row), dtype=np.float32)
+        if action.size != math.prod(self.action_shape):
+            raise ValueError(f"policy: the callable returned an action of shape {action.shape}; "
+                             f"expected shape {self.action_shape} (linear, angular in [-1, 1])")
+        return action.reshape(self.action_shape)
 
 
 @dataclass(frozen=True)

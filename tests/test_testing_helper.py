@@ -136,3 +136,13 @@ def test_random_episodes_do_not_depend_on_the_cars_or_batching():
     assert returns(n_envs=1) == single
     assert returns(n_envs=4) == single
     assert len(set(single)) == 4  # four episodes, four different action sequences
+
+
+@pytest.mark.parametrize("action", [[0.5], [0.1, 0.2, 0.3], 0.5], ids=["one", "three", "scalar"])
+@pytest.mark.parametrize("batched", [True, False], ids=["batched", "sequential"])
+def test_a_callable_s_action_of_another_shape_is_one_line_in_both_modes(action, batched):
+    with pytest.raises(ValueError) as raised:
+        evaluate(lambda obs: np.array(action), "SmartCarSim-v0", episodes=2, batched=batched)
+    shape = np.shape(action)
+    assert str(raised.value) == (f"policy: the callable returned an action of shape {shape}; "
+                                 "expected shape (2,) (linear, angular in [-1, 1])")

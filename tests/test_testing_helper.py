@@ -80,6 +80,19 @@ def test_a_policy_and_its_bare_sb3_model_with_the_named_normaliser_give_the_same
                                                                   "95 (for 95% pass 0.95)"),
     (lambda: assert_success(go_to_goal, max_final_distance=-1), ValueError,
      "max_final_distance: expected metres > 0, got -1"),
+    (lambda: evaluate(go_to_goal, seed=None), ValueError, "seed: expected an integer >= 0, "
+                                                          "got None"),
+    (lambda: evaluate(go_to_goal, seed="a"), ValueError, "seed: expected an integer >= 0, "
+                                                         "got 'a'"),
+    (lambda: evaluate(go_to_goal, seed=-1), ValueError, "seed: expected an integer >= 0, "
+                                                        "got -1"),
+    (lambda: evaluate(go_to_goal, env_kwargs=[1]), TypeError, "env_kwargs: expected a mapping "
+                                                              "of gym.make keyword names to "
+                                                              "values, got [1]"),
+    (lambda: assert_success(go_to_goal, max_final_distance=True), ValueError,
+     "max_final_distance: expected metres > 0, got True"),
+    (lambda: assert_success(go_to_goal, at_least=np.float32(95)), ValueError,
+     "at_least: expected a fraction from 0 to 1, got 95.0 (for 95.0% pass 0.95)"),
 ])
 def test_bad_arguments_are_one_line_naming_the_argument(call, error, line):
     with pytest.raises(error) as raised:
@@ -146,3 +159,11 @@ def test_a_callable_s_action_of_another_shape_is_one_line_in_both_modes(action, 
     shape = np.shape(action)
     assert str(raised.value) == (f"policy: the callable returned an action of shape {shape}; "
                                  "expected shape (2,) (linear, angular in [-1, 1])")
+
+
+@pytest.mark.parametrize("at_least", [np.float32(0.5), np.float64(0.5), np.int64(0)])
+def test_numpy_numbers_are_numbers_to_assert_success(at_least):
+    metrics = assert_success(go_to_goal, "SmartCarSim-v0", at_least=at_least,
+                             max_final_distance=np.float32(10.0), episodes=np.int64(2),
+                             seed=np.int64(4), env_kwargs=NEAR)
+    assert metrics.episodes == 2 and metrics.seed == 4

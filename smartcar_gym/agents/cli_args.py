@@ -21,23 +21,26 @@ def key_value_arg(text: str) -> tuple[str, Any]:
         raise argparse.ArgumentTypeError(str(err)) from err
 
 
-def non_negative_int_arg(text: str) -> int:
-    """argparse type for a whole number >= 0 (``2e5`` allowed)."""
+def _integer(text: str, expected: str, low: int) -> int:
+    """``text`` as a whole number (``2e5`` allowed) >= ``low``; ``expected`` names the range
+    in the refusal of a number below it."""
     try:
         value = int(float(text)) if "e" in text.lower() else int(text)
     except ValueError as err:
         raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from err
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {text!r}")
+    if value < low:
+        raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}")
     return value
+
+
+def non_negative_int_arg(text: str) -> int:
+    """argparse type for a whole number >= 0 (``2e5`` allowed)."""
+    return _integer(text, "a non-negative integer", 0)
 
 
 def positive_int_arg(text: str) -> int:
     """argparse type for a whole number >= 1."""
-    value = non_negative_int_arg(text)
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
-    return value
+    return _integer(text, "a positive integer", 1)
 
 
 def _number(text: str) -> float:

@@ -103,8 +103,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--vectorization", choices=("subproc", "batched"), default="subproc",
                         help="subproc (default): single envs, in worker processes when "
                              "--n-envs > 1; batched: --n-envs cars of the id's "
-                             "vector_entry_point in this process (the MuJoCo batches, the numpy "
-                             "SmartCarSim-v0 batch, a loop of single envs elsewhere), all cars' "
+                             "vector_entry_point in this process (the MuJoCo batches in C, the "
+                             "planar batches in numpy arrays, the numpy SmartCarSim-v0 batch, a "
+                             "loop of single envs elsewhere), all cars' "
                              "actions from one predict call per step; the same episodes")
     parser.add_argument("--record-episodes", type=positive_int_arg, metavar="N",
                         help="with --vectorization batched: --bag and --rerun record the first "
@@ -185,6 +186,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     except EnvSetupError as err:
         parser.error(str(err))
     warnings: list[str] = []
+    hint = fail_under_hint(args.fail_under)
+    if hint:
+        warnings.append(hint)
+        print(f"smartcar-eval: warning: {hint}", file=sys.stderr)
     if not args.random:
         print(f"smartcar-eval: normaliser: {source}", file=sys.stderr)
         if policy.warning:
@@ -208,7 +213,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                     PRETRAINED_MODEL if args.pretrained == "default"
                     else f"{args.pretrained}/{PRETRAINED_MODEL}")),
                 "algo": algo, "env": env_id, "env_kwargs": env_kwargs, "seed": args.seed,
-                "n_envs": args.n_envs, "deterministic": not args.stochastic,
+                "n_envs": min(args.n_envs, args.episodes),  # the envs or cars made
+                "deterministic": not args.stochastic,
                 "vectorization": args.vectorization, "recorded_episodes": _recorded(args)
                 if args.bag or args.rerun or args.rerun_serve else None,
                 "marks": marks, "passed": all(mark["held"] for mark in marks),
@@ -298,7 +304,8 @@ def check_marks(summary: dict[str, Any], args: argparse.Namespace) -> list[dict[
         marks.append({
             "option": "--fail-under", "figure": "success_rate_pct", "mark": args.fail_under,
             "value": rate, "held": held,
-            "line": f"pass mark {'held' if held else 'missed'}: success rate {rate:.1f}% is "
+            "line": f"pass mark {'held' if held else 'missed'}: success rate "
+                    f"{_distinct(rate, args.fail_under, 1)}% is "
                     f"{'not ' if held else ''}under --fail-under {args.fail_under:g}% "
                     f"({count(summary['episodes'], 'episode')})"})
     if args.max_final_distance is not None:
@@ -308,9 +315,27 @@ def check_marks(summary: dict[str, Any], args: argparse.Namespace) -> list[dict[
             "option": "--max-final-distance", "figure": "mean_final_distance_m",
             "mark": args.max_final_distance, "value": mean, "held": held,
             "line": f"pass mark {'held' if held else 'missed'}: mean final distance "
-                    f"{mean:.3f} m is {'not ' if held else ''}over --max-final-distance "
+                    f"{_distinct(mean, args.max_final_distance, 3)} m is "
+                    f"{'not ' if held else ''}over --max-final-distance "
                     f"{args.max_final_distance:g} m ({count(summary['episodes'], 'episode')})"})
     return marks
+
+
+def _distinct(value: float, mark: float, decimals: int) -> str:
+    """``value`` with ``decimals`` decimals, or with more until it does not read as ``mark``
+    (96.45 against 96.5 is 96.45, not 96.5)."""
+    while (decimals < 9 and value != mark
+           and float(f"{value:.{decimals}f}") == float(f"{mark:.{decimals}f}")):
+        decimals += 1
+    return f"{value:.{decimals}f}"
+
+
+def fail_under_hint(fail_under: float | None) -> str | None:
+    """A warning for a ``--fail-under`` that reads as a fraction (0.95 is 0.95 %, not 95 %)."""
+    if fail_under is None or not 0.0 < fail_under <= 1.0:
+        return None
+    return (f"--fail-under {fail_under:g} is {fail_under:g} %, a percentage; for "
+            f"{fail_under * 100:g} % pass --fail-under {fail_under * 100:g}")
 
 
 def _recorders(args: argparse.Namespace, stack: contextlib.ExitStack) -> list[Any]:

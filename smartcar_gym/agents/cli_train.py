@@ -56,9 +56,11 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--vectorization", choices=("subproc", "batched"), default=None,
                         help="subproc (default): one process per env (SubprocVecEnv); batched: "
                              "all n-envs cars in this process through the env's "
-                             "vector_entry_point (SmartCarSim-v0: numpy arrays; SmartCar-v0 "
-                             "--engine mujoco: MuJoCo in C), with the hyperparameters' "
-                             "<env>-batched-<engine>, else <env>-batched entry if it has one")
+                             "vector_entry_point (SmartCarSim-v0: numpy arrays; --engine "
+                             "mujoco: MuJoCo in C; --engine planar: the planar model in numpy "
+                             "arrays; pybullet: a loop of single envs), with the "
+                             "hyperparameters' <env>-batched-<engine>, else <env>-batched entry "
+                             "if it has one")
     parser.add_argument("--seed", type=int, default=None, help="default: 0")
     parser.add_argument("--timesteps", type=positive_int_arg, default=None,
                         help="total environment steps (default: the file's n_timesteps); with "

@@ -47,7 +47,7 @@ VARIANTS = {
 SHORT = {"rerun": "--rerun", "bag": "--bag ros2", "both": "both"}  # --variants names
 SPLIT = """
 import json, sys, time
-import smartcar_gym.agents.evaluate as ev
+import smartcar_gym.agents.cli_eval as ev
 stamps = {}
 def timed(name, f):
     def call(*args, **kwargs):

@@ -21,7 +21,7 @@ VecNormalize statistics. ``act(obs)`` turns one observation (an array, or a dict
 
 Trust: model zips and VecNormalize files are pickles (loading one runs the code it holds). A
 normaliser is unpickled only when named (``normalizer=``) or assigned to the model by its
-place (``agents.model_files``: a smartcar-train run, an exported or shipped policy, a zoo run
+place (``agents.models``: a smartcar-train run, an exported or shipped policy, a zoo run
 that says ``normalize``); otherwise none is loaded and ``warning`` says why that matters.
 
 Bad input raises ``PolicyError`` (a ``ValueError``) with one line naming the file and what was
@@ -46,7 +46,7 @@ import numpy as np
 
 from smartcar_gym.agents import TRAIN_EXTRA, missing_modules
 from smartcar_gym.agents.hyperparams import ALGOS
-from smartcar_gym.agents.model_files import (
+from smartcar_gym.agents.models import (
     PRETRAINED_POLICIES,
     ModelFiles,
     ModelFilesError,
@@ -56,7 +56,7 @@ from smartcar_gym.agents.model_files import (
     saved_algo,
     shipped_model,
 )
-from smartcar_gym.agents.zoo_folder import ZooRunError
+from smartcar_gym.agents.zoo_runs import ZooRunError
 
 if TYPE_CHECKING:
     import gymnasium as gym

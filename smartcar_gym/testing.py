@@ -23,7 +23,7 @@ observation, batched or not). Episode ``i`` is seeded ``seed + i``, as ``smartca
 ``n_envs`` cars (default 64) of the id's ``vector_entry_point`` in this process, so no test needs
 ``if __name__ == "__main__"``; ``batched=False`` steps one single env in this process. Both give
 the same records for a callable; an SB3 model's batched actions round differently from a batch
-of one (``agents.batched_rollouts``: the records agree within ``RECORD_TOLERANCE``).
+of one (``agents.episodes``: the records agree within ``RECORD_TOLERANCE``).
 
 ``assert_success`` raises ``AssertionError`` with one line: the env, the success rate against
 the mark, the failed seeds. ``RandomPolicy`` (uniform random actions) is a failing baseline.
@@ -32,6 +32,7 @@ the mark, the failed seeds. ``RandomPolicy`` (uniform random actions) is a faili
 from __future__ import annotations
 
 import math
+import numbers
 import os
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -39,10 +40,11 @@ from typing import Any
 
 import numpy as np
 
-from smartcar_gym.agents.batched_rollouts import DEFAULT_BATCH, evaluate_batched_episodes
-from smartcar_gym.agents.rollouts import (
+from smartcar_gym.agents.episodes import (
+    DEFAULT_BATCH,
     EpisodeRecord,
     RandomPolicy,
+    evaluate_batched_episodes,
     evaluate_policy_episodes,
     summarize,
 )
@@ -53,12 +55,15 @@ __all__ = ["FunctionModel", "Metrics", "RandomPolicy", "assert_success", "evalua
 
 class FunctionModel:
     """A plain function of one observation seen as an SB3-like model: ``predict`` calls it
-    once per observation of a batch (a dict of batches gives it one dict per car)."""
+    once per observation of a batch (a dict of batches gives it one dict per car). Each
+    action must hold ``action_shape``'s numbers (the smartcar envs': ``(2,)``, linear and
+    angular); another shape is a ``ValueError`` in one line, batched or not."""
 
     observation_space = None
 
-    def __init__(self, fn: Callable[[Any], Any]) -> None:
+    def __init__(self, fn: Callable[[Any], Any], action_shape: tuple[int, ...] = (2,)) -> None:
         self.fn = fn
+        self.action_shape = tuple(action_shape)
 
     def predict(self, obs: np.ndarray | Mapping[str, np.ndarray],
                 deterministic: bool = True) -> tuple[np.ndarray, None]:
@@ -67,8 +72,15 @@ class FunctionModel:
             rows: Sequence[Any] = [{k: v[i] for k, v in obs.items()} for i in range(n)]
         else:
             rows = obs
-        actions = [np.asarray(self.fn(row), dtype=np.float32).reshape(-1) for row in rows]
-        return np.stack(actions), None
+        return np.stack([self._action(row) for row in rows]), None
+
+    def _action(self, row: Any) -> np.ndarray:
+        """The callable's action for one observation, checked and shaped ``action_shape``."""
+        action = np.asarray(self.fn(row), dtype=np.float32)
+        if action.size != math.prod(self.action_shape):
+            raise ValueError(f"policy: the callable returned an action of shape {action.shape}; "
+                             f"expected shape {self.action_shape} (linear, angular in [-1, 1])")
+        return action.reshape(self.action_shape)
 
 
 @dataclass(frozen=True)
@@ -118,11 +130,13 @@ def evaluate(policy: Policy | Any, env_id: str | None = None, *, episodes: int =
     or single envs (default 1; worker processes when > 1) with ``batched=False``. Bad
     arguments raise ``ValueError`` or ``TypeError`` with one line naming the argument.
     """
-    if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 1:
-        raise ValueError(f"episodes: expected an integer >= 1, got {episodes!r}")
-    if n_envs is not None and (isinstance(n_envs, bool) or not isinstance(n_envs, int)
-                               or n_envs < 1):
-        raise ValueError(f"n_envs: expected an integer >= 1, got {n_envs!r}")
+    episodes = _whole("episodes", episodes, 1)
+    n_envs = None if n_envs is None else _whole("n_envs", n_envs, 1)
+    seed = _whole("seed", seed, 0)
+    if env_kwargs is not None and (not isinstance(env_kwargs, Mapping)
+                                   or not all(isinstance(k, str) for k in env_kwargs)):
+        raise TypeError(f"env_kwargs: expected a mapping of gym.make keyword names to values, "
+                        f"got {env_kwargs!r}")
     resolved = _as_policy(policy, normalizer)
     env_id = env_id or (resolved.env_id if isinstance(policy, Policy) else DEFAULT_ENV_ID)
     kwargs = {**(resolved.env_kwargs if isinstance(policy, Policy) else {}),
@@ -150,13 +164,14 @@ def assert_success(policy: Policy | Any, env_id: str | None = None, *, at_least:
     """``evaluate(policy, env_id, **kwargs)``, then ``AssertionError`` with one line when the
     success rate is under ``at_least`` (a fraction: 0.95 for 95 %) or the mean final distance
     (m) is over ``max_final_distance``; the ``Metrics`` otherwise."""
-    if isinstance(at_least, bool) or not isinstance(at_least, int | float) \
-            or not 0.0 <= at_least <= 1.0:
-        hint = f" (for {at_least}% pass {at_least / 100:g})" if isinstance(
-            at_least, int | float) and 1.0 < at_least <= 100.0 else ""
+    at_least = _plain(at_least)
+    if not _is_real(at_least) or not 0.0 <= at_least <= 1.0:
+        hint = f" (for {at_least}% pass {at_least / 100:g})" if _is_real(
+            at_least) and 1.0 < at_least <= 100.0 else ""
         raise ValueError(f"at_least: expected a fraction from 0 to 1, got {at_least!r}{hint}")
+    max_final_distance = _plain(max_final_distance)
     if max_final_distance is not None and not (
-            isinstance(max_final_distance, int | float) and 0.0 < max_final_distance < math.inf):
+            _is_real(max_final_distance) and 0.0 < max_final_distance < math.inf):
         raise ValueError(f"max_final_distance: expected metres > 0, got {max_final_distance!r}")
     metrics = evaluate(policy, env_id, **kwargs)
     problems = []
@@ -171,6 +186,24 @@ def assert_success(policy: Policy | Any, env_id: str | None = None, *, at_least:
     if problems:
         raise AssertionError(f"{metrics.summary_line()}: {'; '.join(problems)}")
     return metrics
+
+
+def _plain(value: Any) -> Any:
+    """A numpy scalar as the Python number it holds (anything else as it is)."""
+    return value.item() if isinstance(value, np.generic) else value
+
+
+def _is_real(value: Any) -> bool:
+    """A real number, not a bool."""
+    return isinstance(value, numbers.Real) and not isinstance(value, bool)
+
+
+def _whole(name: str, value: Any, low: int) -> int:
+    """``value`` as an int >= ``low`` (numpy integers too); one line naming ``name`` else."""
+    value = _plain(value)
+    if isinstance(value, bool) or not isinstance(value, int) or value < low:
+        raise ValueError(f"{name}: expected an integer >= {low}, got {value!r}")
+    return value
 
 
 def _as_policy(policy: Any, normalizer: str | os.PathLike | None) -> Policy:

@@ -7,7 +7,7 @@ import zipfile
 import pytest
 import yaml
 
-from smartcar_gym.agents import evaluate, train
+from smartcar_gym.agents import cli_eval, evaluate, train
 
 # One env in this process and a tiny network: model construction is the only cost.
 TINY = ["--n-envs", "1", "--timesteps", "64", "--eval-freq", "0", "--no-progress"]
@@ -163,7 +163,7 @@ def no_evaluation(monkeypatch):
     def evaluate_policy_episodes(*args, **kwargs):
         raise AssertionError("the evaluation ran before the error")
 
-    monkeypatch.setattr(evaluate, "evaluate_policy_episodes", evaluate_policy_episodes)
+    monkeypatch.setattr(cli_eval, "evaluate_policy_episodes", evaluate_policy_episodes)
 
 
 @pytest.mark.parametrize(("argv", "message"), [
@@ -195,3 +195,13 @@ def test_eval_missing_vecnormalize_file(saved_models, capsys, no_evaluation):
             "none.pkl"]
     code, err = _exit_code(evaluate.main, argv, capsys)
     assert code == 2 and "--vecnormalize: no such file: none.pkl" in err
+
+
+@pytest.mark.parametrize("batched", [[], ["--vectorization", "batched"]], ids=["seq", "batched"])
+def test_the_box_policy_on_the_dict_goal_env_is_one_line(batched, capsys):
+    code, err = _exit_code(evaluate.main, ["--pretrained", "--env", "SmartCarGoal-v0",
+                                           "--episodes", "1", "--no-progress", *batched], capsys)
+    lines = [line for line in err.splitlines() if "error:" in line]
+    assert code == 2 and "Traceback" not in err and len(lines) == 1
+    assert "the model expects observations of shape (" in lines[0]
+    assert "but SmartCarGoal-v0 gives a Dict of " in lines[0]

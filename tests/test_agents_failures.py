@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from smartcar_gym.agents import env_factory, train
+from smartcar_gym.agents import train, vec_envs
 from smartcar_gym.agents.callbacks import CheckpointCallback
 from smartcar_gym.agents.run_files import atomic_write_text, file_mode
 
@@ -102,7 +102,7 @@ def no_workers(monkeypatch):
     def make_vec_env(*args, **kwargs):
         raise AssertionError("workers were started before the error")
 
-    monkeypatch.setattr(env_factory, "make_vec_env", make_vec_env)
+    monkeypatch.setattr(vec_envs, "make_vec_env", make_vec_env)
 
 
 def test_resume_with_a_config_of_another_algorithm_is_refused(tmp_path, capsys, no_workers):
@@ -120,12 +120,12 @@ def test_resume_into_a_read_only_folder_is_refused(tmp_path, capsys, no_workers,
                                                   monkeypatch):
     """What ``os.access`` says of the folders decides (root may write anywhere, so the real
     thing is tested below, as a user)."""
-    from smartcar_gym.agents import run_folder
+    from smartcar_gym.agents import runs
 
     run_dir = tmp_path / "run"
     _fake_run(run_dir)
     read_only = {run_dir / "monitor"}
-    monkeypatch.setattr(run_folder.os, "access", lambda path, mode: Path(path) not in read_only)
+    monkeypatch.setattr(runs.os, "access", lambda path, mode: Path(path) not in read_only)
     with pytest.raises(SystemExit) as exc:
         train.main(["--resume", str(run_dir), "--no-progress"])
     err = capsys.readouterr().err

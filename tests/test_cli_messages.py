@@ -138,3 +138,53 @@ def test_the_ros_policy_settings_name_the_closest_kwarg():
     with pytest.raises(ValueError, match=r"^SmartCar-v0 got an unexpected keyword argument "
                                          r"'max_linar' \(did you mean 'max_linear'\?\)$"):
         policy_settings("SmartCar-v0", {"max_linar": 0.2})
+
+
+def test_a_mark_line_never_reads_as_its_own_mark():
+    """1929 of 2000 is 96.45 %: not "96.5% is under --fail-under 96.5%"; 0.1004 m is not
+    "0.100 m is over 0.1 m"."""
+    import argparse
+
+    from smartcar_gym.agents.cli_eval import check_marks
+
+    summary = {"success_rate": 1929 / 2000, "episodes": 2000, "mean_final_distance_m": 0.1004}
+    args = argparse.Namespace(fail_under=96.5, max_final_distance=0.1)
+    rate, distance = (mark["line"] for mark in check_marks(summary, args))
+    assert rate == ("pass mark missed: success rate 96.45% is under --fail-under 96.5% "
+                    "(2000 episodes)")
+    assert distance == ("pass mark missed: mean final distance 0.1004 m is over "
+                        "--max-final-distance 0.1 m (2000 episodes)")
+    held = check_marks({**summary, "success_rate": 0.97, "mean_final_distance_m": 0.05}, args)
+    assert [mark["line"].split(": ")[1] for mark in held] == [
+        "success rate 97.0% is not under --fail-under 96.5% (2000 episodes)",
+        "mean final distance 0.050 m is not over --max-final-distance 0.1 m (2000 episodes)"]
+
+
+def test_a_fail_under_that_reads_as_a_fraction_gets_a_hint(capsys, tmp_path):
+    out = tmp_path / "r.json"
+    argv = ["--random", "--episodes", "2", "--env", "SmartCarSim-v0", "--fail-under", "0.95",
+            "--vectorization", "batched", "--json", str(out), *SHORT]
+    code, _, err = _run(evaluate.main, argv, capsys)
+    hint = "--fail-under 0.95 is 0.95 %, a percentage; for 95 % pass --fail-under 95"
+    assert code == 1 and f"smartcar-eval: warning: {hint}" in err
+    import json
+
+    payload = json.loads(out.read_text())
+    assert hint in payload["warnings"]
+    assert payload["n_envs"] == 2  # the cars built (min of --n-envs' 128 and --episodes)
+
+
+@pytest.mark.parametrize("value", ["-1", "0"])
+def test_n_envs_says_positive_for_every_number_below_1(value, capsys):
+    code, _, err = _run(evaluate.main, ["--random", "--n-envs", value], capsys)
+    assert code == 2 and f"expected a positive integer, got '{value}'" in err
+
+
+def test_train_help_names_the_batched_engines(capsys):
+    from smartcar_gym.agents import train
+
+    code, out, _ = _run(train.main, ["--help"], capsys)
+    text = " ".join(out.split())
+    assert code == 0
+    assert "SmartCarSim-v0: numpy arrays; --engine mujoco: MuJoCo in C; --engine planar: the " \
+           "planar model in numpy arrays" in text

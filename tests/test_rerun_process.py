@@ -161,7 +161,7 @@ def test_serving_outlives_close_until_stop(tmp_path):
 def test_eval_cli_interrupted_leaves_no_file_and_no_recorder(tmp_path, monkeypatch):
     """Ctrl-C during ``smartcar-eval --rerun``: no half-written file, no recorder process
     left (as with the in-process sink); a finished run leaves the file and no process."""
-    import smartcar_gym.agents.evaluate as evaluate
+    import smartcar_gym.agents.cli_eval as evaluate
 
     real = evaluate.evaluate_policy_episodes
 

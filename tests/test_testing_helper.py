@@ -80,6 +80,19 @@ def test_a_policy_and_its_bare_sb3_model_with_the_named_normaliser_give_the_same
                                                                   "95 (for 95% pass 0.95)"),
     (lambda: assert_success(go_to_goal, max_final_distance=-1), ValueError,
      "max_final_distance: expected metres > 0, got -1"),
+    (lambda: evaluate(go_to_goal, seed=None), ValueError, "seed: expected an integer >= 0, "
+                                                          "got None"),
+    (lambda: evaluate(go_to_goal, seed="a"), ValueError, "seed: expected an integer >= 0, "
+                                                         "got 'a'"),
+    (lambda: evaluate(go_to_goal, seed=-1), ValueError, "seed: expected an integer >= 0, "
+                                                        "got -1"),
+    (lambda: evaluate(go_to_goal, env_kwargs=[1]), TypeError, "env_kwargs: expected a mapping "
+                                                              "of gym.make keyword names to "
+                                                              "values, got [1]"),
+    (lambda: assert_success(go_to_goal, max_final_distance=True), ValueError,
+     "max_final_distance: expected metres > 0, got True"),
+    (lambda: assert_success(go_to_goal, at_least=np.float32(95)), ValueError,
+     "at_least: expected a fraction from 0 to 1, got 95.0 (for 95.0% pass 0.95)"),
 ])
 def test_bad_arguments_are_one_line_naming_the_argument(call, error, line):
     with pytest.raises(error) as raised:
@@ -95,3 +108,62 @@ def test_a_dict_observation_reaches_the_callable_one_car_at_a_time():
     actions, _ = model.predict({"a": np.arange(6.0).reshape(3, 2), "b": np.ones((3, 1))})
     assert actions.shape == (3, 2) and actions.dtype == np.float32
     assert [o["a"].tolist() for o in seen] == [[0.0, 1.0], [2.0, 3.0], [4.0, 5.0]]
+
+
+class _BoxModel:
+    """An SB3-like model trained on SmartCar-v0's Box observations."""
+
+    import gymnasium as _gym
+
+    observation_space = _gym.spaces.Box(-1.0, 1.0, (12,), dtype=np.float32)
+
+    def predict(self, obs, deterministic=True):
+        raise AssertionError("the episodes ran before the error")
+
+
+@pytest.mark.parametrize("batched", [True, False], ids=["batched", "sequential"])
+def test_a_box_model_on_a_dict_env_is_one_line_naming_both_spaces(batched):
+    from smartcar_gym.agents.episodes import ObservationShapeError
+
+    with pytest.raises(ObservationShapeError) as raised:
+        evaluate(_BoxModel(), "SmartCarGoal-v0", episodes=1, batched=batched)
+    line = str(raised.value)
+    assert "\n" not in line
+    assert line.startswith("the model expects observations of shape (12,) but SmartCarGoal-v0 "
+                           "gives a Dict of ")
+    assert "desired_goal (2,)" in line and line.endswith("retrain it (see the README, "
+                                                         "'Training')")
+
+
+def test_random_episodes_do_not_depend_on_the_cars_or_batching():
+    """Each episode's random actions are seeded by its episode, as its reset is: 1 car, 4 cars
+    and the single env give the same returns (docs/ci.md: episodes do not depend on
+    --n-envs)."""
+    kwargs = {"engine": "planar", "max_episode_steps": 30}
+
+    def returns(**how):
+        metrics = evaluate(RandomPolicy(0), "SmartCar-v0", episodes=4, env_kwargs=kwargs, **how)
+        return [r.episode_return for r in metrics.records]
+
+    single = returns(batched=False)
+    assert returns(n_envs=1) == single
+    assert returns(n_envs=4) == single
+    assert len(set(single)) == 4  # four episodes, four different action sequences
+
+
+@pytest.mark.parametrize("action", [[0.5], [0.1, 0.2, 0.3], 0.5], ids=["one", "three", "scalar"])
+@pytest.mark.parametrize("batched", [True, False], ids=["batched", "sequential"])
+def test_a_callable_s_action_of_another_shape_is_one_line_in_both_modes(action, batched):
+    with pytest.raises(ValueError) as raised:
+        evaluate(lambda obs: np.array(action), "SmartCarSim-v0", episodes=2, batched=batched)
+    shape = np.shape(action)
+    assert str(raised.value) == (f"policy: the callable returned an action of shape {shape}; "
+                                 "expected shape (2,) (linear, angular in [-1, 1])")
+
+
+@pytest.mark.parametrize("at_least", [np.float32(0.5), np.float64(0.5), np.int64(0)])
+def test_numpy_numbers_are_numbers_to_assert_success(at_least):
+    metrics = assert_success(go_to_goal, "SmartCarSim-v0", at_least=at_least,
+                             max_final_distance=np.float32(10.0), episodes=np.int64(2),
+                             seed=np.int64(4), env_kwargs=NEAR)
+    assert metrics.episodes == 2 and metrics.seed == 4

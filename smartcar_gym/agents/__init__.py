@@ -3,32 +3,49 @@
 They need the ``train`` extra (``pip install "smartcar-gym[train]"``: Stable-Baselines3, torch,
 TensorBoard, pandas, matplotlib, imageio-ffmpeg, tqdm, rich); the env does not.
 
-Modules (imported on demand; this package imports nothing heavy):
+Modules (imported on demand; this package imports nothing heavy), by concern:
 
-* ``hyperparams``: zoo-format YAML (``smartcar_gym/config/<algo>.yaml``), key=value overrides.
-* ``zoo_keys``: the zoo keys that shape a run (env_wrapper, frame_stack, callback, ...).
-* ``env_factory``: Monitor-wrapped vector envs (SubprocVecEnv) and VecNormalize.
-* ``run_files``: files written atomically, checkpoint names.
-* ``callbacks``: checkpoints, evaluation by success rate, progress bar, Ctrl-C.
-* ``run_folder``: a new run's config and folder, or the run to resume (``config.yaml``).
-* ``training``: ``train()``, training a run with checkpoints and evaluation.
-* ``train``: the ``smartcar-train`` command.
-* ``rollouts``: ``evaluate_policy_episodes()`` (seeded, vectorised), ``summarize()``, videos.
+* Command lines (argparse; each calls the library below):
+  ``cli_train`` (``smartcar-train``), ``cli_eval`` (``smartcar-eval``), ``cli_args`` (the
+  options' value types: key=value, counts, percentages, distances).
+* Configuration: ``hyperparams`` (zoo-format YAML, ``smartcar_gym/config/<algo>.yaml``,
+  key=value overrides, the algorithm's arguments), ``zoo_keys`` (the zoo keys that shape a
+  run: env_wrapper, frame_stack, callback, ...).
+* Envs: ``env_factory`` (single envs: ``make_env`` with Monitor and zoo's wrappers, and the
+  one-line checks of an env id and its kwargs), ``vec_envs`` (every vector env: SB3's
+  SubprocVecEnv/DummyVecEnv, the batched vector entry points, Gymnasium's Sync/Async vector
+  envs of single envs; VecNormalize), ``sb3_vec_env`` (``GymVectorVecEnv``: a Gymnasium
+  vector env seen as an SB3 VecEnv).
+* Episodes: ``episodes`` (every evaluation's episodes, sequential, batched and SB3's during
+  training; ``EpisodeRecord``, ``summarize``, ``RandomPolicy``, videos), ``eval_worker``
+  (evaluations in a second process while training goes on).
+* Training: ``training`` (``train()``: a run with checkpoints and evaluation),
+  ``callbacks`` (checkpoints, evaluation by success rate, progress bar, Ctrl-C).
+* Files: ``runs`` (a run's folder: a new run's config, the run to resume, checkpoint
+  names), ``atomic_files`` (files written atomically; whether a path can be written),
+  ``models`` (a saved model's run config and the VecNormalize statistics its place assigns
+  to it, never a pickle that the user did not name or that its run folder does not list;
+  the shipped policies; ``load_model()``), ``zoo_runs`` (rl-baselines3-zoo run folders, read
+  with a safe YAML loader), ``export`` (package a run as the shipped policy with
+  ``provenance.json``).
+* Figures: ``plots`` (learning curve and top-down trajectory figures).
 * ``smartcar_gym.policy`` (outside this package, used by the commands here and in ``ros``):
   ``Policy.load()``, a model with its normaliser and env settings, and ``act(obs)``.
-* ``model_files``: a model's run config and the VecNormalize statistics its place assigns to
-  it (never a pickle that the user did not name or that its run folder does not list), the
-  shipped policy, ``load_model()``.
-* ``zoo_folder``: rl-baselines3-zoo run folders, read with a safe YAML loader.
-* ``evaluate``: the ``smartcar-eval`` command.
-* ``plots``: learning curve and top-down trajectory figures.
-* ``export``: package a run as the shipped policy with ``provenance.json``.
+
+Old module paths, kept so that earlier imports work (each imports its names from the modules
+that now hold them): ``train`` (``cli_train``), ``evaluate`` (``cli_eval``), ``rollouts``
+and ``batched_rollouts`` (``episodes``), ``vec_env`` (``vec_envs``, ``sb3_vec_env``),
+``run_folder`` (``runs``), ``run_files`` (``atomic_files``, ``runs``), ``model_files``
+(``models``), ``zoo_folder`` (``zoo_runs``).
 """
 
 from __future__ import annotations
 
+import importlib
 import importlib.util
 import sys
+from collections.abc import Callable
+from typing import Any
 
 TRAIN_EXTRA = 'pip install "smartcar-gym[train]"'
 # Import names of what the commands import themselves (SB3 brings torch, pandas, matplotlib).
@@ -57,3 +74,21 @@ def require_train_extra(prog: str, modules: tuple[str, ...] = TRAIN_MODULES) -> 
         print(f"{prog}: error: {', '.join(missing)} not installed; {prog} needs the train "
               f"extra: {TRAIN_EXTRA}", file=sys.stderr)
         raise SystemExit(2)
+
+
+def moved(*modules: str, names: tuple[str, ...] | None = None) -> Callable[[str], Any]:
+    """A module ``__getattr__`` for an old module path: ``names`` (default: every name) are
+    looked up in ``modules``, in order, each imported on first use."""
+    def __getattr__(name: str) -> Any:
+        if names is None or name in names:
+            for module in modules:
+                found = getattr(importlib.import_module(module), name, _MISSING)
+                if found is not _MISSING:
+                    return found
+        raise AttributeError(f"{name!r} is not among the names kept at this old module path "
+                             f"(now in {', '.join(modules)})")
+
+    return __getattr__
+
+
+_MISSING = object()

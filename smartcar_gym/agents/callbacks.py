@@ -1,7 +1,8 @@
 """Training callbacks: atomic checkpoints, evaluation by success rate, a progress bar.
 
-The files are written atomically (``run_files``, whose functions can also be imported from
-here).
+The files are written atomically (``atomic_files``; those functions and the checkpoint names
+of ``runs`` can also be imported from here). The evaluations' episodes are run by
+``episodes.run_sb3_episodes`` and summarised by ``episodes.summarize``.
 """
 
 from __future__ import annotations
@@ -20,31 +21,29 @@ import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecEnv, sync_envs_normalization
 
-from smartcar_gym.agents.env_factory import close_vec_env
-from smartcar_gym.agents.eval_worker import (
-    EvalWorker,
-    Records,
-    normalization_stats,
-    run_episodes,
-)
-from smartcar_gym.agents.model_files import vecnormalize_path_for
-from smartcar_gym.agents.run_files import (
-    CHECKPOINT_RE,
+from smartcar_gym.agents.atomic_files import (
     atomic_path,
     atomic_write_bytes,
     atomic_write_text,
+    file_mode,
+    move_model_atomic,
+    remove_model,
+    save_model_atomic,
+)
+from smartcar_gym.agents.episodes import EpisodeRecord, run_sb3_episodes, summarize
+from smartcar_gym.agents.eval_worker import EvalWorker, Records, normalization_stats
+from smartcar_gym.agents.models import vecnormalize_path_for
+from smartcar_gym.agents.runs import (
+    CHECKPOINT_RE,
     checkpoint_info_path_for,
     checkpoint_path,
     checkpoint_steps,
-    file_mode,
     find_latest_checkpoint,
-    move_model_atomic,
-    remove_model,
     replay_buffer_path_for,
-    save_model_atomic,
 )
+from smartcar_gym.agents.vec_envs import close_vec_env
 
-__all__ = [  # with the file functions of run_files, imported from here by earlier code
+__all__ = [  # with the file functions of atomic_files and runs, imported from here before
     "CHECKPOINT_RE", "CheckpointCallback", "EvalResult", "ProgressBarCallback", "StopOnSigint",
     "SuccessEvalCallback", "atomic_path", "atomic_write_bytes", "atomic_write_text",
     "checkpoint_info_path_for", "checkpoint_path", "checkpoint_steps", "close_vec_env",
@@ -170,7 +169,7 @@ class SuccessEvalCallback(BaseCallback):
         self.eval_seed = int(eval_seed)
         self.eval_start = int(eval_start)
         self.deterministic = deterministic
-        self.history: list[tuple[EvalResult, list[float], list[int], list[bool], list[float]]] = []
+        self.history: list[tuple[EvalResult, list[EpisodeRecord]]] = []
         self.best_score: tuple[float, float] | None = None
         self.last_result: EvalResult | None = None
         self._next = 0
@@ -209,14 +208,15 @@ class SuccessEvalCallback(BaseCallback):
         for i, steps in enumerate(data["timesteps"]):
             if steps > self.num_timesteps:
                 continue
-            returns = data["results"][i].tolist()
-            lengths = data["ep_lengths"][i].tolist()
-            successes = data["successes"][i].astype(bool).tolist()
-            distances = data["final_distances"][i].tolist()
-            self.history.append((
-                _summarise(int(steps), returns, lengths, successes, distances),
-                returns, lengths, successes, distances,
-            ))
+            columns = zip(data["results"][i].tolist(), data["ep_lengths"][i].tolist(),
+                          data["successes"][i].astype(bool).tolist(),
+                          data["final_distances"][i].tolist(), strict=True)
+            records = [EpisodeRecord(episode=j, seed=None, success=success, episode_return=ret,
+                                     length=length, time_to_goal_s=None,
+                                     final_distance_m=distance, final_odom_error_m=np.nan,
+                                     goal=(np.nan, np.nan))
+                       for j, (ret, length, success, distance) in enumerate(columns)]
+            self.history.append((_summarise(int(steps), records), records))
         if self.history:
             self.last_result = self.history[-1][0]
         if self.best_json_path is not None and self.best_json_path.exists():
@@ -245,8 +245,8 @@ class SuccessEvalCallback(BaseCallback):
             return None
         if self.model.get_vec_normalize_env() is not None:
             sync_envs_normalization(self.training_env, self.eval_env)
-        records = run_episodes(self.model, self.eval_env, self.n_eval_episodes, self.eval_seed,
-                               self.deterministic)
+        records = run_sb3_episodes(self.model, self.eval_env, self.n_eval_episodes,
+                                   self.eval_seed, self.deterministic)
         return self._record(self.num_timesteps, records)
 
     def drain(self) -> None:
@@ -263,9 +263,9 @@ class SuccessEvalCallback(BaseCallback):
 
     def _record(self, steps: int, records: Records) -> EvalResult:
         """Log and save one evaluation's records; keep its model if it is the best."""
-        returns, lengths, successes, distances = (list(r) for r in records)
-        result = _summarise(steps, returns, lengths, successes, distances)
-        self.history.append((result, returns, lengths, successes, distances))
+        records = list(records)
+        result = _summarise(steps, records)
+        self.history.append((result, records))
         self.last_result = result
         self._save_history()
         for key in ("success_rate", "mean_reward", "mean_final_distance", "mean_ep_length"):
@@ -287,29 +287,30 @@ class SuccessEvalCallback(BaseCallback):
         return result
 
     def _save_history(self) -> None:
-        def stack(i: int, dtype: type) -> np.ndarray:
-            rows = [h[i] for h in self.history]
+        def stack(field: str, dtype: type) -> np.ndarray:
+            rows = [[getattr(r, field) for r in records] for _, records in self.history]
             width = max(len(r) for r in rows)
             fill = False if dtype is bool else np.nan
-            return np.array([list(r) + [fill] * (width - len(r)) for r in rows], dtype=dtype)
+            return np.array([r + [fill] * (width - len(r)) for r in rows], dtype=dtype)
 
         with atomic_path(self.npz_path) as tmp:
             np.savez(
                 tmp,
                 timesteps=np.array([h[0].timesteps for h in self.history], dtype=np.int64),
-                results=stack(1, float), ep_lengths=stack(2, float), successes=stack(3, bool),
-                final_distances=stack(4, float),
+                results=stack("episode_return", float), ep_lengths=stack("length", float),
+                successes=stack("success", bool),
+                final_distances=stack("final_distance_m", float),
             )
 
 
-def _summarise(steps: int, returns: list[float], lengths: list[int], successes: list[bool],
-               distances: list[float]) -> EvalResult:
+def _summarise(steps: int, records: list[EpisodeRecord]) -> EvalResult:
+    """One evaluation's ``EvalResult``: ``episodes.summarize``'s figures, under zoo's names."""
+    summary = summarize(records)
     return EvalResult(
-        timesteps=int(steps),
-        success_rate=float(np.mean(successes)) if successes else float("nan"),
-        mean_reward=float(np.mean(returns)), std_reward=float(np.std(returns)),
-        mean_final_distance=float(np.nanmean(distances)) if distances else float("nan"),
-        mean_ep_length=float(np.mean(lengths)),
+        timesteps=int(steps), success_rate=summary["success_rate"],
+        mean_reward=summary["mean_return"], std_reward=summary["std_return"],
+        mean_final_distance=summary["mean_final_distance_m"],
+        mean_ep_length=summary["mean_length"],
     )
 
 

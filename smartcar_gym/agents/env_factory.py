@@ -1,22 +1,23 @@
-"""Environments for training and evaluation: single envs, SB3 vector envs, VecNormalize.
+"""Single envs for training and evaluation: ``make_env`` (Monitor, zoo's env_wrapper) and the
+checks that an env id and its kwargs can be made, in one line (``EnvSetupError``).
 
 ``make_env`` is a module-level function so it pickles into ``SubprocVecEnv`` and
 ``gymnasium.vector.AsyncVectorEnv`` workers; importing this module registers the smartcar envs
-there. Stable-Baselines3 is imported lazily, so evaluation workers do not load torch.
+there. Stable-Baselines3 is imported lazily, so evaluation workers do not load torch. The
+vector envs are built in ``vec_envs`` (``make_vec_env``, ``close_vec_env``, ``wrap_normalize``
+and ``env_fns`` still import from here).
 """
 
 from __future__ import annotations
 
-import functools
 import multiprocessing
-import os
 import signal
-from collections.abc import Callable
 from typing import Any
 
 import gymnasium as gym
 
 import smartcar_gym  # noqa: F401  (registers SmartCar-v0 in worker processes)
+from smartcar_gym.agents import moved
 
 INFO_KEYWORDS = ("is_success",)
 
@@ -24,10 +25,6 @@ INFO_KEYWORDS = ("is_success",)
 class EnvSetupError(ValueError):
     """The env cannot be made with the given id and keyword arguments."""
 
-
-# modules the SubprocVecEnv workers need, imported once by the forkserver they are forked from
-FORKSERVER_PRELOAD = ("stable_baselines3.common.vec_env.subproc_vec_env",
-                      "smartcar_gym.envs.smartcar_env")
 
 #: what gym.make appends to an env creator's TypeError (the id and kwargs, said already)
 GYM_CREATOR_SUFFIX = " was raised from the environment creator for "
@@ -125,102 +122,6 @@ def make_env(
     return env
 
 
-def env_fns(
-    env_id: str,
-    n_envs: int,
-    env_kwargs: dict[str, Any] | None = None,
-    monitor_dir: str | os.PathLike | None = None,
-    monitor_prefix: str = "",
-    monitor: bool = True,
-    env_wrapper: Any = None,
-    monitor_kwargs: dict[str, Any] | None = None,
-) -> list[Callable[[], gym.Env]]:
-    """Picklable constructors of ``n_envs`` envs; env i logs to ``<monitor_dir>/<prefix><i>``."""
-    fns = []
-    for rank in range(n_envs):
-        monitor_file = (
-            None if monitor_dir is None else os.path.join(monitor_dir, f"{monitor_prefix}{rank}")
-        )
-        fns.append(functools.partial(
-            make_env, env_id, dict(env_kwargs or {}), monitor_file=monitor_file, monitor=monitor,
-            ignore_sigterm=True, env_wrapper=env_wrapper, monitor_kwargs=monitor_kwargs,
-        ))
-    return fns
-
-
-def make_vec_env(
-    env_id: str,
-    n_envs: int,
-    seed: int | None = None,
-    env_kwargs: dict[str, Any] | None = None,
-    monitor_dir: str | os.PathLike | None = None,
-    monitor_prefix: str = "",
-    env_wrapper: Any = None,
-    monitor_kwargs: dict[str, Any] | None = None,
-):
-    """An SB3 VecEnv of Monitor-wrapped envs: ``SubprocVecEnv`` if ``n_envs > 1``.
-
-    With a ``seed``, env i is reset with ``seed + i`` the first time. ``env_wrapper`` and
-    ``monitor_kwargs`` are zoo's (see ``make_env``).
-    """
-    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
-
-    if n_envs < 1:
-        raise ValueError(f"n_envs must be >= 1, got {n_envs}")
-    if monitor_dir is not None:
-        os.makedirs(monitor_dir, exist_ok=True)
-    fns = env_fns(env_id, n_envs, env_kwargs, monitor_dir, monitor_prefix,
-                  env_wrapper=env_wrapper, monitor_kwargs=monitor_kwargs)
-    if n_envs > 1:
-        # SB3 starts its workers from a forkserver; each would import torch (through SB3's
-        # worker module) and the env on its own: 8 workers took 30-40 s to start on 2 busy
-        # cores. Imported once in the server, they are forked ready (11-18 s).
-        multiprocessing.set_forkserver_preload(list(FORKSERVER_PRELOAD))
-    venv = SubprocVecEnv(fns) if n_envs > 1 else DummyVecEnv(fns)
-    if seed is not None:
-        venv.seed(seed)
-    return venv
-
-
-def close_vec_env(venv: Any, force: bool = False) -> None:
-    """Close a VecEnv; with ``force`` (after an abrupt interrupt) do not wait for pending
-    worker replies and kill workers that are still alive."""
-    base = venv
-    while hasattr(base, "venv"):
-        base = base.venv
-    if force and hasattr(base, "waiting"):
-        base.waiting = False  # the replies of an interrupted step may never come
-    try:
-        venv.close()
-    except (EOFError, OSError):
-        pass
-    for process in getattr(base, "processes", []):
-        if process.is_alive():
-            process.kill()  # workers ignore SIGTERM (see make_env)
-            process.join(timeout=5)
-
-
-def wrap_normalize(
-    venv,
-    normalize: dict[str, Any] | None,
-    gamma: float = 0.99,
-    load_path: str | os.PathLike | None = None,
-    training: bool = True,
-):
-    """Wrap ``venv`` in ``VecNormalize`` (new, or with statistics from ``load_path``).
-
-    For evaluation (``training=False``) the statistics are frozen and rewards are left raw.
-    Returns ``venv`` unchanged when ``normalize`` is None and there is nothing to load.
-    """
-    from stable_baselines3.common.vec_env import VecNormalize
-
-    if load_path is not None:
-        venv = VecNormalize.load(str(load_path), venv)
-    elif normalize is not None:
-        venv = VecNormalize(venv, gamma=gamma, **normalize)
-    else:
-        return venv
-    venv.training = training
-    if not training:
-        venv.norm_reward = False
-    return venv
+__getattr__ = moved("smartcar_gym.agents.vec_envs",
+                    names=("FORKSERVER_PRELOAD", "close_vec_env", "env_fns", "make_vec_env",
+                           "wrap_normalize"))

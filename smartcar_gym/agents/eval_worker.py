@@ -4,7 +4,8 @@ A batched run trains in one process, on one core. Its evaluations on pybullet (a
 single envs) stopped the training for a third of its wall time while the second core idled.
 ``EvalWorker`` runs them in a process of its own instead: the training sends each
 evaluation's policy and normalisation statistics and goes on; the worker, which built the
-eval env once, plays the seeded episodes and sends the records back, in order. They are the
+eval env once, plays the seeded episodes (``episodes.run_sb3_episodes``) and sends the records
+back, in order. They are the
 records the same evaluation makes in the training process (same policy, statistics, seed and
 env), so a run picks the same best model either way, only sooner.
 """
@@ -18,12 +19,12 @@ import traceback
 from collections.abc import Callable
 from typing import Any
 
-import numpy as np
+from smartcar_gym.agents.episodes import EpisodeRecord, run_sb3_episodes
 
 #: what the worker's forkserver imports once (as for SubprocVecEnv's workers)
 PRELOAD = ("stable_baselines3.common.evaluation", "smartcar_gym.envs.smartcar_env")
-#: an evaluation's records: returns, lengths, is_success and final distance (m) per episode
-Records = tuple[list[float], list[int], list[bool], list[float]]
+#: an evaluation's records (``episodes.run_sb3_episodes``), in the order the episodes ended
+Records = list[EpisodeRecord]
 
 
 class EvalWorkerError(RuntimeError):
@@ -58,28 +59,6 @@ def apply_normalization_stats(venv: Any, stats: list[tuple[Any, Any]]) -> None:
         wrapper.obs_rms, wrapper.ret_rms = obs_rms, ret_rms
 
 
-def run_episodes(policy: Any, venv: Any, n_episodes: int, seed: int,
-                 deterministic: bool = True) -> Records:
-    """Play ``n_episodes`` episodes of ``venv``, seeded with ``seed`` (the same goals at every
-    evaluation), with ``policy`` (anything with SB3's ``predict``)."""
-    from stable_baselines3.common.evaluation import evaluate_policy
-
-    successes: list[bool] = []
-    distances: list[float] = []
-
-    def collect(locals_: dict[str, Any], globals_: dict[str, Any]) -> None:
-        if locals_["done"]:
-            info = locals_["info"]
-            successes.append(bool(info.get("is_success", False)))
-            distances.append(float(info.get("distance", np.nan)))
-
-    venv.seed(seed)
-    returns, lengths = evaluate_policy(policy, venv, n_eval_episodes=n_episodes,
-                                       deterministic=deterministic, return_episode_rewards=True,
-                                       callback=collect, warn=False)
-    return list(returns), list(lengths), successes, distances
-
-
 def _serve(conn: Any, make_env: Any) -> None:
     """The worker: build the eval env, then answer each ``(steps, policy, stats, episodes,
     seed, deterministic)`` with ``("result", steps, records)`` until ``None`` comes or the
@@ -103,7 +82,7 @@ def _serve(conn: Any, make_env: Any) -> None:
                 break
             steps, policy, stats, n_episodes, seed, deterministic = message
             apply_normalization_stats(venv, stats)
-            records = run_episodes(policy, venv, n_episodes, seed, deterministic)
+            records = run_sb3_episodes(policy, venv, n_episodes, seed, deterministic)
             conn.send(("result", steps, records))
     except Exception as err:
         place = traceback.extract_tb(err.__traceback__)[-1]

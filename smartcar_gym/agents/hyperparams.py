@@ -20,17 +20,17 @@ SAC). Strings of Python (``dict(...)``) are read as literals, never evaluated.
 
 from __future__ import annotations
 
-import argparse
 import ast
 import copy
 import inspect
-import os
 from collections.abc import Sequence
 from importlib import resources
 from pathlib import Path
 from typing import Any
 
 import yaml
+
+from smartcar_gym.agents import moved
 
 ALGOS = ("ppo", "sac", "td3")
 # Keys of a zoo entry that configure the run, not the algorithm's constructor.
@@ -350,45 +350,7 @@ def _buffer_class(name: str) -> type:
     return import_object(name, "replay_buffer_class")
 
 
-# -- argparse value types shared by smartcar-train and smartcar-eval ----------------------------
-def key_value_arg(text: str) -> tuple[str, Any]:
-    """argparse type for ``key=value`` (the value read as YAML)."""
-    try:
-        return parse_key_value(text)
-    except HyperparamsError as err:
-        raise argparse.ArgumentTypeError(str(err)) from err
-
-
-def non_negative_int_arg(text: str) -> int:
-    """argparse type for a whole number >= 0 (``2e5`` allowed)."""
-    try:
-        value = int(float(text)) if "e" in text.lower() else int(text)
-    except ValueError as err:
-        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from err
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {text!r}")
-    return value
-
-
-def output_path_error(path: Path) -> str | None:
-    """Why a file cannot be written at ``path`` (None if it can; missing folders are created)."""
-    if path.is_dir():
-        return f"{path} is a directory"
-    if path.exists() and not os.access(path, os.W_OK):
-        return f"{path} is not writable"
-    folder = path.parent
-    while not folder.exists() and folder != folder.parent:
-        folder = folder.parent
-    if not folder.is_dir():
-        return f"cannot create {path}: {folder} is not a folder"
-    if not os.access(folder, os.W_OK | os.X_OK):
-        return f"cannot create {path}: {folder} is not writable"
-    return None
-
-
-def positive_int_arg(text: str) -> int:
-    """argparse type for a whole number >= 1."""
-    value = non_negative_int_arg(text)
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
-    return value
+# the command line's value types moved to cli_args, output_path_error to atomic_files
+__getattr__ = moved("smartcar_gym.agents.cli_args", "smartcar_gym.agents.atomic_files",
+                    names=("key_value_arg", "non_negative_int_arg", "positive_int_arg",
+                           "output_path_error"))

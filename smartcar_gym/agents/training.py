@@ -2,7 +2,7 @@
 
 The envs and the model are made from the config (``RunSetupError`` if they cannot be), then
 trained with checkpoints, evaluation by success rate and a progress bar; ``summary.json``
-and ``learning_curve.png`` are written at the end. ``smartcar-train`` (``train.py``) is the
+and ``learning_curve.png`` are written at the end. ``smartcar-train`` (``cli_train``) is the
 command line.
 """
 
@@ -27,7 +27,7 @@ from smartcar_gym.agents.hyperparams import (
     policy_class,
     vecnormalize_settings,
 )
-from smartcar_gym.agents.run_folder import utc_timestamp
+from smartcar_gym.agents.runs import utc_timestamp
 
 
 @dataclass
@@ -226,14 +226,10 @@ def _make_envs(config: dict[str, Any], run_dir: Path, seed: int, segment: int,
     (statistics from ``checkpoint``), VecFrameStack."""
     from stable_baselines3.common.vec_env import VecFrameStack
 
-    from smartcar_gym.agents.env_factory import (
-        EnvSetupError,
-        check_env,
-        make_vec_env,
-        wrap_normalize,
-    )
+    from smartcar_gym.agents.env_factory import EnvSetupError, check_env
     from smartcar_gym.agents.eval_worker import EvalWorker
-    from smartcar_gym.agents.model_files import vecnormalize_path_for
+    from smartcar_gym.agents.models import vecnormalize_path_for
+    from smartcar_gym.agents.vec_envs import make_vec_env, wrap_normalize
     from smartcar_gym.sim.engines import DEFAULT_ENGINE, on_engine
 
     env_id, hp = config["env"], config["hyperparams"]
@@ -258,23 +254,17 @@ def _make_envs(config: dict[str, Any], run_dir: Path, seed: int, segment: int,
         raise RunSetupError("eval_async evaluates in a second process beside a batched run "
                             "(--vectorization batched); a subproc run's env workers have the "
                             "cores already")
-    if batched:
-        from smartcar_gym.agents.vec_env import make_batched_vec_env
-
-        if wrapper is not None:
-            raise RunSetupError("env_wrapper wraps single envs; --vectorization batched has "
-                                "none (use vec_env_wrapper, or --vectorization subproc)")
-        try:
-            venv = make_batched_vec_env(env_id, n_envs, seed=seed, env_kwargs=env_kwargs,
-                                        monitor_dir=run_dir / "monitor",
-                                        monitor_prefix=f"seg{segment}_",
-                                        monitor_kwargs=monitor_kwargs)
-        except EnvSetupError as err:
-            raise RunSetupError(str(err)) from err
-    else:
+    vectorization = "batched" if batched else "subproc"
+    if batched and wrapper is not None:
+        raise RunSetupError("env_wrapper wraps single envs; --vectorization batched has "
+                            "none (use vec_env_wrapper, or --vectorization subproc)")
+    try:
         venv = make_vec_env(env_id, n_envs, seed=seed, env_kwargs=env_kwargs,
                             monitor_dir=run_dir / "monitor", monitor_prefix=f"seg{segment}_",
-                            env_wrapper=wrapper, monitor_kwargs=monitor_kwargs)
+                            env_wrapper=wrapper, monitor_kwargs=monitor_kwargs,
+                            vectorization=vectorization)
+    except EnvSetupError as err:
+        raise RunSetupError(str(err)) from err
     eval_env = None
     try:
         venv = wrap(venv, load_path=stats)
@@ -284,14 +274,13 @@ def _make_envs(config: dict[str, Any], run_dir: Path, seed: int, segment: int,
             env_kwargs = on_engine(env_kwargs, eval_engine)
         if config["eval_freq"] > 0:
             def make_eval_env() -> Any:
-                if batched:  # wrapped as the training env (on pybullet: a loop of single envs)
-                    env = make_batched_vec_env(env_id, min(n_envs, int(config["eval_episodes"])),
-                                               env_kwargs=env_kwargs,
-                                               monitor_kwargs=monitor_kwargs)
-                else:
-                    n_eval_envs = min(n_envs, int(config["eval_episodes"]), os.cpu_count() or 1)
-                    env = make_vec_env(env_id, n_eval_envs, env_kwargs=env_kwargs,
-                                       env_wrapper=wrapper, monitor_kwargs=monitor_kwargs)
+                # wrapped as the training env (batched on pybullet: a loop of single envs)
+                n_eval_envs = min(n_envs, int(config["eval_episodes"]))
+                if not batched:
+                    n_eval_envs = min(n_eval_envs, os.cpu_count() or 1)
+                env = make_vec_env(env_id, n_eval_envs, env_kwargs=env_kwargs,
+                                   env_wrapper=wrapper, monitor_kwargs=monitor_kwargs,
+                                   vectorization=vectorization)
                 return wrap(env, training=False)
 
             if config.get("eval_async"):  # runs before it existed: in the training process
@@ -312,8 +301,8 @@ def _make_envs(config: dict[str, Any], run_dir: Path, seed: int, segment: int,
 
 def close_env(env: Any, force: bool = False) -> None:
     """Close a VecEnv (``close_vec_env``) or stop an ``EvalWorker``."""
-    from smartcar_gym.agents.env_factory import close_vec_env
     from smartcar_gym.agents.eval_worker import EvalWorker
+    from smartcar_gym.agents.vec_envs import close_vec_env
 
     if isinstance(env, EvalWorker):
         env.close(force=force)
@@ -351,7 +340,7 @@ def _make_model(config: dict[str, Any], venv: Any, seed: int, tb_dir: Path,
 
 def _load_replay_buffer(model: Any, checkpoint: Path, config: dict[str, Any]) -> None:
     """Load the replay buffer saved with ``checkpoint`` (SAC/TD3); warn if there is none."""
-    from smartcar_gym.agents.run_files import replay_buffer_path_for
+    from smartcar_gym.agents.runs import replay_buffer_path_for
 
     if not hasattr(model, "load_replay_buffer"):
         return
@@ -373,7 +362,7 @@ def _load_replay_buffer(model: Any, checkpoint: Path, config: dict[str, Any]) ->
 def _kept_episodes(checkpoint: Path) -> dict[str, Any]:
     """For the resume record: the Monitor rows written before ``checkpoint`` (from its
     ``.json``; nothing for checkpoints of versions that did not write one)."""
-    from smartcar_gym.agents.run_files import checkpoint_info_path_for
+    from smartcar_gym.agents.runs import checkpoint_info_path_for
 
     try:
         info = json.loads(checkpoint_info_path_for(checkpoint).read_text())

@@ -1,0 +1,586 @@
+"""Seeded episodes of a policy, run in one place: one record type, one summary, a video.
+
+* ``evaluate_policy_episodes``: single envs (worker processes when ``n_envs > 1``), actions
+  one observation at a time (``Policy.act``): ``smartcar-eval``, the CI gate,
+  ``testing.evaluate(batched=False)``.
+* ``evaluate_batched_episodes``: ``n_envs`` cars of the id's ``vector_entry_point`` in this
+  process (the MuJoCo and planar batches, the numpy SmartCarSim-v0 batch, N single envs in a
+  loop elsewhere), every car's action from one ``predict`` call per step (``act_batch``):
+  ``smartcar-eval --vectorization batched``, ``testing.evaluate``.
+* ``run_sb3_episodes``: SB3's ``evaluate_policy`` on an SB3 VecEnv: the evaluations during
+  training, in the training process or in the evaluation worker (``eval_worker``).
+
+Each gives ``EpisodeRecord``s; ``summarize`` turns them into the figures every caller shows.
+In the first two, episode ``i`` is reset with seed ``seed + i`` whichever car or worker runs
+it, and a car whose episode ends is reset at once with the next episode's seed (Gymnasium's
+partial reset, ``reset(seed=[...], options={"reset_mask": mask})``), so the records do not
+depend on ``n_envs``.
+
+Where the vector env is bit for bit its single envs, the batched records equal the sequential
+ones exactly for a policy whose actions do not depend on batching (a plain function of one
+observation: ``testing.FunctionModel`` calls it per observation). A torch network's batched
+matrix products round differently from a batch of one: its actions differ by about 1e-7. In
+the hardware mode (SmartCar-v0's default) the controller turns them into integer encoder
+ticks, almost always the same ones, so the paths stayed equal to the last bit (the tests allow
+``RECORD_TOLERANCE``; the returns' action cost differs by about 1e-8); in the kinematic mode
+(SmartCarSim-v0) the car follows the commanded twist, so the difference grows along an
+episode and an episode may end otherwise (1 of 1,000 with the shipped policy:
+docs/performance.md). The same command (same ``n_envs``) gives the same records.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import os
+import sys
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from smartcar_gym.agents.env_factory import EnvSetupError, make_env
+from smartcar_gym.agents.vec_envs import make_batched_env, make_single_env_vector
+from smartcar_gym.policy import DEFAULT_ENV_ID, Policy, as_policy
+
+__all__ = ["DEFAULT_BATCH", "DEFAULT_ENV_ID", "RECORD_TOLERANCE", "EpisodeRecord",
+           "ObservationShapeError", "RandomPolicy", "act_batch", "evaluate_batched_episodes",
+           "evaluate_policy_episodes", "make_batched_env", "record_video", "run_sb3_episodes",
+           "summarize"]
+
+#: cars in the batch when ``n_envs`` is not given: more cars spread the batch's numpy cost
+#: further, and the cars left without an episode at the end are parked where the batch can
+#: (``park``: MuJoCo's and the planar engine's), so that the tail costs no physics. Measured
+#: (1,000 episodes on MuJoCo, 2 cores, interleaved): 128 cars took 13-17 % less wall time than
+#: 64 in each of 4 rounds; 256 were no faster than 128
+DEFAULT_BATCH = 128
+#: bound on |batched - sequential| of an SB3 model's returns, final distances and paths (m) in
+#: the hardware mode, as the tests check it (measured: 0 m for paths, about 5e-8 for returns)
+RECORD_TOLERANCE = 1e-4
+
+
+def _no_path() -> np.ndarray:
+    return np.zeros((0, 2))
+
+
+@dataclass
+class EpisodeRecord:
+    """One episode. Positions are ground-truth (``path``) or odometry, in metres.
+
+    ``seed`` is None and the paths are empty (the goal NaN) for the episodes of
+    ``run_sb3_episodes``: SB3's VecEnvs reset a finished env unseeded, and keep no path."""
+
+    episode: int
+    seed: int | None
+    success: bool
+    episode_return: float
+    length: int
+    time_to_goal_s: float | None
+    final_distance_m: float
+    final_odom_error_m: float
+    goal: tuple[float, float]
+    path: np.ndarray = field(repr=False, default_factory=_no_path)
+    odom_path: np.ndarray = field(repr=False, default_factory=_no_path)
+
+    def to_dict(self, include_paths: bool = False) -> dict[str, Any]:
+        """JSON-ready fields (paths as lists of [x, y] only if ``include_paths``)."""
+        data = asdict(self)
+        data["goal"] = [float(g) for g in self.goal]
+        for key, name in (("final_pose", "path"), ("final_odom_pose", "odom_path")):
+            points = np.asarray(getattr(self, name))
+            data[key] = points[-1].tolist() if len(points) else None
+        for key in ("path", "odom_path"):
+            data[key] = np.asarray(data[key]).tolist() if include_paths else None
+            if not include_paths:
+                del data[key]
+        return data
+
+
+def summarize(records: Sequence[EpisodeRecord]) -> dict[str, float | int | None]:
+    """Success rate, mean return, mean time to goal (s, successes only), distances (m; the
+    mean of the episodes that know theirs)."""
+    if not records:
+        raise ValueError("no episodes to summarize")
+    times = [r.time_to_goal_s for r in records if r.success and r.time_to_goal_s is not None]
+    returns = np.array([r.episode_return for r in records])
+    return {
+        "episodes": len(records),
+        "success_rate": float(np.mean([r.success for r in records])),
+        "mean_return": float(returns.mean()),
+        "std_return": float(returns.std()),
+        "mean_time_to_goal_s": float(np.mean(times)) if times else None,
+        "mean_final_distance_m": _nanmean([r.final_distance_m for r in records]),
+        "mean_final_odom_error_m": _nanmean([r.final_odom_error_m for r in records]),
+        "mean_length": float(np.mean([r.length for r in records])),
+    }
+
+
+def _nanmean(values: list[float]) -> float:
+    """The mean of the values that are not NaN; NaN (without a warning) if none is."""
+    array = np.asarray(values, dtype=float)
+    return float(np.nanmean(array)) if not np.isnan(array).all() else math.nan
+
+
+class RandomPolicy:
+    """Uniform random actions in [-1, 1]^2, seeded: a baseline (and the README's GIF).
+
+    In the episodes run here each episode's actions are drawn from a generator seeded with
+    ``(seed, episode)`` (``act_episodes``), as its reset is seeded with ``seed + episode``: the
+    records do not depend on ``n_envs``, on batching or on which car ran an episode.
+    ``predict`` (SB3's interface, for other callers) draws from one generator seeded with
+    ``seed``."""
+
+    observation_space = None
+
+    def __init__(self, seed: int = 0) -> None:
+        self.seed = seed
+        self.action_space = gym.spaces.Box(-1.0, 1.0, (2,), dtype=np.float32)
+        self.action_space.seed(seed)
+        self._episodes: dict[int, np.random.Generator] = {}
+
+    def predict(self, obs: np.ndarray, deterministic: bool = True) -> tuple[np.ndarray, None]:
+        """One sampled action per observation in the batch (a dict of batches for a Dict)."""
+        first = np.asarray(next(iter(obs.values())) if isinstance(obs, dict) else obs)
+        batch = first.reshape(-1, first.shape[-1])
+        return np.stack([self.action_space.sample() for _ in batch]), None
+
+    def act_episodes(self, episodes: np.ndarray, steps: np.ndarray) -> np.ndarray:
+        """Each car's action (float32, ``(N, 2)``) at step ``steps[car]`` of the episode
+        ``episodes[car]`` it runs (-1: none, a zero action); step 0 seeds the episode's
+        generator anew."""
+        actions = np.zeros((len(episodes), 2), dtype=np.float32)
+        for car, (episode, step) in enumerate(zip(episodes.tolist(), steps.tolist(),
+                                                  strict=True)):
+            if episode < 0:
+                continue
+            if step == 0 or episode not in self._episodes:
+                self._episodes[episode] = np.random.default_rng([self.seed, episode])
+            actions[car] = self._episodes[episode].uniform(-1.0, 1.0, 2)
+        running = set(episodes.tolist())
+        self._episodes = {e: g for e, g in self._episodes.items() if e in running}
+        return actions
+
+
+class ObservationShapeError(ValueError):
+    """The model was trained on observations of another shape than the env's."""
+
+
+def _check_spaces(policy: Policy, space: gym.spaces.Space, env_id: str) -> None:
+    """A clear error when the model was trained on observations of another shape (or kind: a
+    Box against a Dict)."""
+    expected = policy.observation_space
+    if expected is None or _same_shapes(expected, space):
+        return
+    shape = "shape " if getattr(expected, "shape", None) is not None else ""
+    raise ObservationShapeError(
+        f"the model expects observations of {shape}{_shapes(expected)} but {env_id} gives "
+        f"{_shapes(space)}: the env changed since the model was trained; retrain it "
+        "(see the README, 'Training')"
+    )
+
+
+def _same_shapes(a: gym.spaces.Space, b: gym.spaces.Space) -> bool:
+    """Whether two spaces have the same shape: Boxes (arrays), or Dicts with the same keys."""
+    if isinstance(a, gym.spaces.Dict) or isinstance(b, gym.spaces.Dict):
+        return (isinstance(a, gym.spaces.Dict) and isinstance(b, gym.spaces.Dict)
+                and list(a.spaces) == list(b.spaces)
+                and all(_same_shapes(a[k], b[k]) for k in a.spaces))
+    shape_a, shape_b = getattr(a, "shape", None), getattr(b, "shape", None)
+    return shape_a is None or shape_b is None or tuple(shape_a) == tuple(shape_b)
+
+
+def _shapes(space: gym.spaces.Space) -> str:
+    """``(12,)``, or ``a Dict of observation (10,), achieved_goal (2,), desired_goal (2,)``."""
+    if isinstance(space, gym.spaces.Dict):
+        return "a Dict of " + ", ".join(f"{k} {_shapes(v)}" for k, v in space.spaces.items())
+    shape = getattr(space, "shape", None)
+    return str(tuple(shape)) if shape is not None else type(space).__name__
+
+
+# -- the episodes -------------------------------------------------------------------------------
+def evaluate_policy_episodes(
+    model: Policy | Any,
+    env_id: str = DEFAULT_ENV_ID,
+    n_episodes: int = 100,
+    n_envs: int = 1,
+    seed: int = 0,
+    env_kwargs: dict[str, Any] | None = None,
+    deterministic: bool = True,
+    vecnormalize_path: str | os.PathLike | None = None,
+    progress: bool = False,
+    recorders: Sequence[Callable[[Any], None]] = (),
+) -> list[EpisodeRecord]:
+    """Run ``n_episodes`` complete episodes over ``n_envs`` envs; episode i uses seed seed+i.
+
+    ``model`` is a ``smartcar_gym.policy.Policy`` (its normaliser applies), or anything with
+    SB3's ``predict(obs, deterministic=...)``, whose observations are normalised with the
+    ``VecNormalize`` statistics at ``vecnormalize_path`` if given. Envs
+    run in worker processes when ``n_envs > 1`` (so call it under ``if __name__ ==
+    "__main__":`` in a script). Records are returned in episode order. Sampled actions
+    (``deterministic=False``) are reproducible for the same ``seed`` and ``n_envs``.
+
+    ``recorders`` (a Rerun recording, a ROS 2 bag: ``smartcar_gym.viewers``) are called with
+    each finished ``Episode`` (scene and per-step frames, read in the workers), in episode
+    order; recording only reads the simulator, so the episodes are the same with or without.
+    """
+    policy = _policy(model, vecnormalize_path, n_episodes, n_envs, deterministic, seed)
+    envs = make_single_env_vector(env_id, min(n_envs, n_episodes), env_kwargs,
+                                  capture=bool(recorders))
+    collector = None
+    if recorders:
+        from smartcar_gym.viewers.capture import EpisodeCollector
+
+        collector = EpisodeCollector(list(recorders))
+
+    def act(obs: Any, episode_of: np.ndarray, steps: np.ndarray) -> np.ndarray:
+        if hasattr(policy.model, "act_episodes"):
+            return policy.model.act_episodes(episode_of, steps)
+        actions = np.zeros((len(episode_of), *envs.single_action_space.shape), dtype=np.float32)
+        for car in np.flatnonzero(episode_of >= 0):
+            actions[car] = policy.act(_car(obs, car), deterministic)
+        return actions
+
+    return _episodes(envs, policy, env_id, n_episodes, seed, act, progress, "evaluating",
+                     collector)
+
+
+def evaluate_batched_episodes(
+    model: Policy | Any,
+    env_id: str = DEFAULT_ENV_ID,
+    n_episodes: int = 100,
+    n_envs: int = DEFAULT_BATCH,
+    seed: int = 0,
+    env_kwargs: dict[str, Any] | None = None,
+    deterministic: bool = True,
+    vecnormalize_path: str | os.PathLike | None = None,
+    progress: bool = False,
+) -> list[EpisodeRecord]:
+    """Run ``n_episodes`` episodes (episode i seeded ``seed + i``) on ``min(n_envs,
+    n_episodes)`` cars of ``env_id``'s vector env in this process; records in episode order.
+
+    ``model`` and ``vecnormalize_path``: as for ``evaluate_policy_episodes``. Sampled
+    actions (``deterministic=False``) are reproducible for the same ``seed`` and ``n_envs``.
+    """
+    policy = _policy(model, vecnormalize_path, n_episodes, n_envs, deterministic, seed)
+    envs = make_batched_env(env_id, min(n_envs, n_episodes), env_kwargs)
+
+    def act(obs: Any, episode_of: np.ndarray, steps: np.ndarray) -> np.ndarray:
+        if hasattr(policy.model, "act_episodes"):
+            return policy.model.act_episodes(episode_of, steps)
+        actions = act_batch(policy, obs, deterministic)
+        actions[episode_of < 0] = 0.0  # a car with no episode left stands still (or is parked)
+        return actions
+
+    with _one_torch_thread():
+        return _episodes(envs, policy, env_id, n_episodes, seed, act, progress,
+                         "evaluating (batched)", None, check_resets=True)
+
+
+def act_batch(policy: Policy, obs: np.ndarray | Mapping[str, np.ndarray],
+              deterministic: bool = True) -> np.ndarray:
+    """Every car's action (float32, ``(N, 2)``) from one ``predict`` call: ``Policy.act``'s
+    float32 observations and normaliser, on the whole batch (a dict of batches for a Dict
+    space)."""
+    if isinstance(obs, Mapping):
+        batch: Any = {key: np.asarray(value, dtype=np.float32) for key, value in obs.items()}
+        n = len(next(iter(batch.values())))
+    else:
+        batch = np.asarray(obs, dtype=np.float32)
+        n = len(batch)
+    if policy.normalizer is not None:
+        batch = policy.normalizer(batch)
+    action, _ = policy.model.predict(batch, deterministic=deterministic)
+    return np.asarray(action, dtype=np.float32).reshape(n, -1)
+
+
+def run_sb3_episodes(model: Any, venv: Any, n_episodes: int, seed: int,
+                     deterministic: bool = True) -> list[EpisodeRecord]:
+    """Play ``n_episodes`` episodes of the SB3 VecEnv ``venv`` (seeded with ``seed``: the same
+    goals at every evaluation) with ``model`` (anything with SB3's ``predict``), by SB3's
+    ``evaluate_policy``; records in the order the episodes ended."""
+    from stable_baselines3.common.evaluation import evaluate_policy
+
+    ends: list[tuple[bool, float, float]] = []
+
+    def collect(locals_: dict[str, Any], globals_: dict[str, Any]) -> None:
+        if locals_["done"]:
+            info = locals_["info"]
+            ends.append((bool(info.get("is_success", False)),
+                         float(info.get("distance", np.nan)),
+                         float(info.get("odom_error", np.nan))))
+
+    venv.seed(seed)
+    returns, lengths = evaluate_policy(model, venv, n_eval_episodes=n_episodes,
+                                       deterministic=deterministic, return_episode_rewards=True,
+                                       callback=collect, warn=False)
+    step_s = _step_s(venv.get_attr("metadata", [0])[0])
+    return [EpisodeRecord(episode=i, seed=None, success=success, episode_return=ret,
+                          length=length, time_to_goal_s=length * step_s if success else None,
+                          final_distance_m=distance, final_odom_error_m=odom_error,
+                          goal=(math.nan, math.nan))
+            for i, ((success, distance, odom_error), ret, length)
+            # an episode that a wrapper outside the Monitor ended is not among the returns
+            in enumerate(zip(ends, returns, lengths, strict=False))]
+
+
+def _policy(model: Any, vecnormalize_path: str | os.PathLike | None, n_episodes: int,
+            n_envs: int, deterministic: bool, seed: int) -> Policy:
+    """The checked arguments' ``Policy`` (seeded when it samples)."""
+    if n_episodes < 1 or n_envs < 1:
+        raise ValueError(f"n_episodes and n_envs must be >= 1, got {n_episodes}, {n_envs}")
+    policy = as_policy(model, vecnormalize_path)
+    if not deterministic and hasattr(policy.model, "set_random_seed"):
+        policy.model.set_random_seed(seed)
+    return policy
+
+
+def _episodes(envs: gym.vector.VectorEnv, policy: Policy, env_id: str, n_episodes: int,
+              seed: int, act: Callable[..., np.ndarray], progress: bool,
+              desc: str, collector: Any, check_resets: bool = False) -> list[EpisodeRecord]:
+    """``_play`` the episodes on ``envs`` (closed at the end) after checking the spaces."""
+    bar = None
+    try:
+        _check_spaces(policy, envs.single_observation_space, env_id)
+        if progress:
+            from tqdm.auto import tqdm
+
+            bar = tqdm(total=n_episodes, unit="episode", desc=desc, dynamic_ncols=True)
+        return _play(envs, env_id, n_episodes, seed, act, bar, collector, check_resets)
+    finally:
+        if bar is not None:
+            bar.close()
+        envs.close()
+
+
+def _play(envs: gym.vector.VectorEnv, env_id: str, n_episodes: int, seed: int,
+          act: Callable[..., np.ndarray], bar: Any, collector: Any,
+          check_resets: bool) -> list[EpisodeRecord]:
+    """Episodes 0..n_episodes-1 on the cars of ``envs``: each car runs the next episode not
+    started yet when its own ends; a car with none left is parked where the vector env can
+    (``park``), else stepped with zero actions, unread. ``act(obs, episode_of, steps)``: the
+    cars' actions (``episode_of``: each car's episode, -1 for none; ``steps``: the steps each
+    car's episode has run)."""
+    if collector is not None:
+        from smartcar_gym.viewers.capture import CAPTURE_KEY
+    n = envs.num_envs
+    step_s = _step_s(envs.metadata)
+    episode_of = np.arange(n)  # each car's episode, -1 once it has none left
+    obs, info = envs.reset(seed=[seed + i for i in range(n)])
+    tracks = _Tracks(n)
+    tracks.start(np.ones(n, dtype=bool), episode_of, seed, info, _goals(envs))
+    if collector is not None:
+        for car in range(n):
+            collector.begin(car, car, seed + car, info[CAPTURE_KEY][car])
+    next_episode = n
+    records: list[EpisodeRecord] = []
+    park = getattr(envs.unwrapped, "park", None)
+    while (episode_of >= 0).any():
+        active = episode_of >= 0
+        actions = act(obs, episode_of, tracks.length)
+        if park is not None:  # where the batch can, a car with no episode is not simulated
+            park(~active)
+        obs, reward, terminated, truncated, info = envs.step(actions)
+        tracks.add(active, reward, info)
+        if collector is not None:
+            for car in np.flatnonzero(active):
+                collector.add(car, info[CAPTURE_KEY][car])
+        done = active & (terminated | truncated)
+        if not done.any():
+            continue
+        for car in np.flatnonzero(done):
+            records.append(tracks.record(car, info, step_s))
+        if bar is not None:
+            bar.update(int(done.sum()))
+        refill = np.flatnonzero(done)[:max(0, n_episodes - next_episode)]
+        episode_of[done] = -1
+        if refill.size == 0:
+            continue  # the cars left without an episode are not read again
+        episode_of[refill] = np.arange(next_episode, next_episode + refill.size)
+        next_episode += refill.size
+        mask = np.zeros(n, dtype=bool)
+        mask[refill] = True
+        seeds = [seed + int(e) if m else None for e, m in zip(episode_of, mask, strict=True)]
+        new_obs, new_info = _partial_reset(envs, env_id, seeds, mask, check_resets)
+        for array, new in _arrays(obs, new_obs):
+            array[mask] = new[mask]
+        tracks.start(mask, episode_of, seed, new_info, _goals(envs))
+        if collector is not None:
+            for car in refill:
+                collector.begin(car, int(episode_of[car]), seed + int(episode_of[car]),
+                                new_info[CAPTURE_KEY][car])
+    return sorted(records, key=lambda r: r.episode)
+
+
+def _step_s(metadata: Mapping[str, Any]) -> float:
+    """Seconds per env step: 1 / the env's ``render_fps`` (10 if it names none)."""
+    return 1.0 / float(metadata.get("render_fps") or 10)
+
+
+@contextlib.contextmanager
+def _one_torch_thread() -> Iterator[None]:
+    """torch on one thread while the batch runs: its intra-op threads, idle-spinning beside
+    the physics' worker threads, made predict on 16 cars take 10 ms instead of 0.2 ms."""
+    torch = sys.modules.get("torch")
+    if torch is None:
+        yield
+        return
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(threads)
+
+
+def _partial_reset(envs: gym.vector.VectorEnv, env_id: str, seeds: list[int | None],
+                   mask: np.ndarray, check: bool) -> tuple[Any, dict[str, Any]]:
+    """Reset the masked cars with their seeds; with ``check``, one line if the vector env
+    cannot (a vector entry point that ignores the mask)."""
+    if not check:
+        return envs.reset(seed=seeds, options={"reset_mask": mask})
+    what = (f"{env_id}'s vector env ({type(envs.unwrapped).__name__}) cannot reset single cars "
+            "(reset(options={'reset_mask': mask}), Gymnasium's partial reset), which "
+            "--vectorization batched needs")
+    try:
+        obs, info = envs.reset(seed=seeds, options={"reset_mask": mask})
+    except (ValueError, TypeError, KeyError, AssertionError) as err:
+        raise EnvSetupError(f"{what}: {err}") from err
+    reset = info.get("_pose")
+    if reset is None or not np.array_equal(reset, mask):
+        raise EnvSetupError(f"{what}: it reset cars {np.flatnonzero(reset).tolist()}, "
+                            f"not {np.flatnonzero(mask).tolist()}")
+    return obs, info
+
+
+def _car(obs: np.ndarray | dict[str, np.ndarray], car: int) -> Any:
+    """Car ``car``'s observation of a batch (a dict of batches for a Dict space)."""
+    return {k: v[car] for k, v in obs.items()} if isinstance(obs, dict) else obs[car]
+
+
+def _arrays(obs: Any, new_obs: Any) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Pairs of (batch held, batch after the reset), one per Dict key."""
+    if isinstance(obs, Mapping):
+        return [(obs[k], new_obs[k]) for k in obs]
+    return [(obs, new_obs)]
+
+
+def _goals(envs: gym.vector.VectorEnv) -> np.ndarray:
+    """Every car's goal (x, y) now: the sub-envs' ``goal`` (single envs) or the batch's
+    ``(N, 2)`` ``goal``; NaN where the env exposes none."""
+    get_attr = getattr(envs, "get_attr", None)
+    try:
+        goals = get_attr("goal") if get_attr is not None else envs.unwrapped.goal
+    except AttributeError:
+        return np.full((envs.num_envs, 2), math.nan)
+    return np.array([np.asarray(g, dtype=float)[:2] for g in goals])
+
+
+class _Tracks:
+    """Every car's episode so far."""
+
+    def __init__(self, n: int) -> None:
+        self.episode = np.zeros(n, dtype=np.int64)
+        self.seed = np.zeros(n, dtype=np.int64)
+        self.goal = np.zeros((n, 2))
+        self.ret = np.zeros(n)
+        self.length = np.zeros(n, dtype=np.int64)
+        self.path: list[list[np.ndarray]] = [[] for _ in range(n)]
+        self.odom: list[list[np.ndarray]] = [[] for _ in range(n)]
+
+    def start(self, mask: np.ndarray, episode_of: np.ndarray, seed: int,
+              info: dict[str, Any], goals: np.ndarray) -> None:
+        """The masked cars begin their episodes (``info``: their reset's)."""
+        pose, odom = _xy(info, "pose"), _xy(info, "odom_pose")
+        for car in np.flatnonzero(mask):
+            self.path[car], self.odom[car] = [pose[car]], [odom[car]]
+        self.episode[mask] = episode_of[mask]
+        self.seed[mask] = seed + episode_of[mask]
+        self.goal[mask] = goals[mask]
+        self.ret[mask] = 0.0
+        self.length[mask] = 0
+
+    def add(self, active: np.ndarray, reward: np.ndarray, info: dict[str, Any]) -> None:
+        """One step of the active cars."""
+        self.ret[active] += np.asarray(reward, dtype=np.float64)[active]
+        self.length[active] += 1
+        pose, odom = _xy(info, "pose"), _xy(info, "odom_pose")
+        for car in np.flatnonzero(active):
+            self.path[car].append(pose[car])
+            self.odom[car].append(odom[car])
+
+    def record(self, car: int, info: dict[str, Any], step_s: float) -> EpisodeRecord:
+        """Car ``car``'s episode, ended at this step (``info``: the step's)."""
+        success = bool(info["is_success"][car])
+        length = int(self.length[car])
+        return EpisodeRecord(
+            episode=int(self.episode[car]), seed=int(self.seed[car]), success=success,
+            episode_return=float(self.ret[car]), length=length,
+            time_to_goal_s=length * step_s if success else None,
+            final_distance_m=float(info["distance"][car]),
+            final_odom_error_m=float(info["odom_error"][car]),
+            goal=(float(self.goal[car, 0]), float(self.goal[car, 1])),
+            path=np.array(self.path[car]), odom_path=np.array(self.odom[car]),
+        )
+
+
+def _xy(info: dict[str, Any], key: str) -> np.ndarray:
+    """Every car's x, y of ``info[key]`` as a float64 ``(N, 2)`` copy."""
+    return np.array(np.asarray(info[key])[:, :2], dtype=float)
+
+
+def record_video(
+    model: Policy | Any,
+    out_path: str | os.PathLike,
+    env_id: str = DEFAULT_ENV_ID,
+    n_episodes: int = 3,
+    seed: int = 0,
+    env_kwargs: dict[str, Any] | None = None,
+    deterministic: bool = True,
+    vecnormalize_path: str | os.PathLike | None = None,
+) -> int:
+    """Render episodes 0..n-1 (seeds seed+i, as in the evaluation) to a .gif or .mp4.
+
+    ``model`` and ``vecnormalize_path``: as for ``evaluate_policy_episodes``. Returns the
+    number of frames written (mp4 through ``imageio-ffmpeg``, a dependency).
+    """
+    import imageio.v3 as iio
+
+    out_path = Path(out_path)
+    suffix = out_path.suffix.lower()
+    if suffix not in (".gif", ".mp4"):
+        raise ValueError(f"video file must end in .gif or .mp4, got {out_path.name!r}")
+    policy = as_policy(model, vecnormalize_path)
+    env = make_env(env_id, {**(env_kwargs or {}), "render_mode": "rgb_array"})
+    fps = float(env.metadata.get("render_fps") or 10)
+    frames = []
+    try:
+        for i in range(n_episodes):
+            obs, _ = env.reset(seed=seed + i)
+            frames.append(env.render())
+            done, step = False, 0
+            while not done:
+                if hasattr(policy.model, "act_episodes"):  # the episode's own random actions
+                    action = policy.model.act_episodes(np.array([i]), np.array([step]))[0]
+                    step += 1
+                else:
+                    action = policy.act(obs, deterministic)
+                obs, _, terminated, truncated, _ = env.step(action)
+                frames.append(env.render())
+                done = terminated or truncated
+            frames.extend([frames[-1]] * int(fps // 2))  # a short pause between episodes
+    finally:
+        env.close()
+    # even sizes for yuv420p video
+    frames = [np.ascontiguousarray(f[: f.shape[0] // 2 * 2, : f.shape[1] // 2 * 2, :3])
+              for f in frames]
+    out_path.parent.mkdir(parents=True, exist_ok=True)
+    if suffix == ".gif":
+        iio.imwrite(out_path, np.stack(frames), plugin="pillow", duration=1000.0 / fps, loop=0)
+    else:
+        import imageio.v2 as iio2
+
+        iio2.mimsave(out_path, frames, format="FFMPEG", fps=fps, macro_block_size=2)
+    return len(frames)

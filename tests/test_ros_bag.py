@@ -90,6 +90,22 @@ def test_bag_holds_the_evaluated_episodes(evaluated):
     assert gap == 1_000_000_000
 
 
+def test_random_episodes_in_the_bag_are_the_scored_ones(tmp_path):
+    """``--random``: the bag replays the episodes scored (each episode's actions seeded by the
+    episode), with 1 car or 3: their final odometry poses are the evaluation's."""
+    for n_envs in ("1", "3"):
+        bag, record = tmp_path / f"random{n_envs}.bag", tmp_path / f"random{n_envs}.json"
+        assert eval_main(["--random", "--episodes", "3", "--seed", "2", "--engine", "planar",
+                          "--vectorization", "batched", "--n-envs", n_envs, "--env-kwargs",
+                          "max_episode_steps=15", "--no-progress", "--bag", str(bag),
+                          "--json", str(record)]) == 0
+        _, rows = _read_bag(bag)
+        results = json.loads(record.read_text())["episode_records"]
+        for episode, result in zip(_episodes(rows), results, strict=True):
+            last = [msg for topic, _, msg in episode if topic == "/odom"][-1].pose.pose.position
+            assert [last.x, last.y] == result["final_odom_pose"][:2]
+
+
 def test_mcap_holds_the_same_messages(evaluated):
     bag, mcap, _ = evaluated
     from mcap.reader import make_reader

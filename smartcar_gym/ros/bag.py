@@ -176,6 +176,9 @@ def write_bag(
     from smartcar_gym.policy import as_policy
 
     policy = as_policy(model, vecnormalize_path)
+    # a random policy draws each episode's own actions (seeded by the episode, as the scored
+    # episodes are: agents.episodes.RandomPolicy)
+    episodic = getattr(policy.model, "act_episodes", None)
     env = make_env(env_id, env_kwargs)
     base = env.unwrapped
     if not all(hasattr(base, name) for name in ("robot", "sim", "goal", "max_linear")):
@@ -193,9 +196,11 @@ def write_bag(
                 writer.write("/move_base_simple/goal",
                              m.goal_message(types, base.goal, offset_ns, frame), offset_ns)
                 _state(writer, types, base, offset_ns)
-                done = False
+                done, step = False, 0
                 while not done:
-                    action = policy.act(obs, deterministic)
+                    action = (episodic(np.array([i]), np.array([step]))[0] if episodic
+                              else policy.act(obs, deterministic))
+                    step += 1
                     linear, angular = np.clip(action.astype(np.float64), -1.0, 1.0) * scale
                     sent_ns = offset_ns + base.sim.now_ns + COMMAND_LAG_NS
                     writer.write("/cmd_vel", m.twist_message(types, linear, angular), sent_ns)

@@ -150,3 +150,12 @@ def check_keywords(name: str, kwargs: dict[str, Any] | Sequence[str], names: Seq
     hint = "" if all("did you mean" in p for p in parts) else \
         f"; it takes {', '.join(sorted(names))}"
     raise error(f"{name} got an unexpected keyword {what} {', '.join(parts)}{hint}")
+
+
+def distinct_figure(value: float, mark: float, decimals: int) -> str:
+    """``value`` with ``decimals`` decimals, or with more until it does not read as ``mark``
+    (96.45 against 96.5 is 96.45, not 96.5): a pass-mark line never contradicts itself."""
+    while (decimals < 9 and value != mark
+           and float(f"{value:.{decimals}f}") == float(f"{mark:.{decimals}f}")):
+        decimals += 1
+    return f"{value:.{decimals}f}"

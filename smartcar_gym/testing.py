@@ -48,6 +48,7 @@ from smartcar_gym.agents.episodes import (
     evaluate_policy_episodes,
     summarize,
 )
+from smartcar_gym.checks import distinct_figure
 from smartcar_gym.policy import DEFAULT_ENV_ID, Policy, as_policy
 
 __all__ = ["FunctionModel", "Metrics", "RandomPolicy", "assert_success", "evaluate"]
@@ -178,11 +179,11 @@ def assert_success(policy: Policy | Any, env_id: str | None = None, *, at_least:
     if metrics.success_rate + 1e-12 < at_least:
         failed = metrics.failed_seeds
         shown = ", ".join(map(str, failed[:10])) + (", ..." if len(failed) > 10 else "")
-        problems.append(f"success {metrics.success_rate:.1%} is under {at_least:.1%} (failed "
-                        f"seeds: {shown})")
+        rate = distinct_figure(100.0 * metrics.success_rate, 100.0 * at_least, 1)
+        problems.append(f"success {rate}% is under {at_least:.1%} (failed seeds: {shown})")
     if max_final_distance is not None and metrics.mean_final_distance_m > max_final_distance:
-        problems.append(f"mean final distance {metrics.mean_final_distance_m:.3f} m is over "
-                        f"{max_final_distance:g} m")
+        mean = distinct_figure(metrics.mean_final_distance_m, max_final_distance, 3)
+        problems.append(f"mean final distance {mean} m is over {max_final_distance:g} m")
     if problems:
         raise AssertionError(f"{metrics.summary_line()}: {'; '.join(problems)}")
     return metrics

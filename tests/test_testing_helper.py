@@ -167,3 +167,14 @@ def test_numpy_numbers_are_numbers_to_assert_success(at_least):
                              max_final_distance=np.float32(10.0), episodes=np.int64(2),
                              seed=np.int64(4), env_kwargs=NEAR)
     assert metrics.episodes == 2 and metrics.seed == 4
+
+
+def test_a_failed_mark_never_reads_as_the_mark_itself():
+    """1,929 of 2,000 is 96.45 %: under 96.5 %, and the line says so (it read "96.5% is under
+    96.5%"); 0.1004 m over 0.1 m likewise."""
+    from smartcar_gym.checks import distinct_figure
+
+    assert distinct_figure(100 * 1929 / 2000, 96.5, 1) == "96.45"
+    assert distinct_figure(0.1004, 0.1, 3) == "0.1004"
+    assert distinct_figure(97.0, 96.5, 1) == "97.0"
+    assert distinct_figure(96.5, 96.5, 1) == "96.5"

@@ -48,6 +48,7 @@ from smartcar_gym.agents.episodes import (
 )
 from smartcar_gym.agents.hyperparams import ALGOS
 from smartcar_gym.agents.models import PRETRAINED_MODEL, PRETRAINED_POLICIES, load_model
+from smartcar_gym.checks import distinct_figure
 from smartcar_gym.policy import Policy, PolicyError
 from smartcar_gym.sim.engines import DEFAULT_ENGINE, add_engine_argument
 
@@ -305,7 +306,7 @@ def check_marks(summary: dict[str, Any], args: argparse.Namespace) -> list[dict[
             "option": "--fail-under", "figure": "success_rate_pct", "mark": args.fail_under,
             "value": rate, "held": held,
             "line": f"pass mark {'held' if held else 'missed'}: success rate "
-                    f"{_distinct(rate, args.fail_under, 1)}% is "
+                    f"{distinct_figure(rate, args.fail_under, 1)}% is "
                     f"{'not ' if held else ''}under --fail-under {args.fail_under:g}% "
                     f"({count(summary['episodes'], 'episode')})"})
     if args.max_final_distance is not None:
@@ -315,19 +316,10 @@ def check_marks(summary: dict[str, Any], args: argparse.Namespace) -> list[dict[
             "option": "--max-final-distance", "figure": "mean_final_distance_m",
             "mark": args.max_final_distance, "value": mean, "held": held,
             "line": f"pass mark {'held' if held else 'missed'}: mean final distance "
-                    f"{_distinct(mean, args.max_final_distance, 3)} m is "
+                    f"{distinct_figure(mean, args.max_final_distance, 3)} m is "
                     f"{'not ' if held else ''}over --max-final-distance "
                     f"{args.max_final_distance:g} m ({count(summary['episodes'], 'episode')})"})
     return marks
-
-
-def _distinct(value: float, mark: float, decimals: int) -> str:
-    """``value`` with ``decimals`` decimals, or with more until it does not read as ``mark``
-    (96.45 against 96.5 is 96.45, not 96.5)."""
-    while (decimals < 9 and value != mark
-           and float(f"{value:.{decimals}f}") == float(f"{mark:.{decimals}f}")):
-        decimals += 1
-    return f"{value:.{decimals}f}"
 
 
 def fail_under_hint(fail_under: float | None) -> str | None:

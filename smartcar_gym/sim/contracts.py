@@ -305,3 +305,12 @@ class ConvergesContacts(Protocol):
 def window_of(sim: object) -> Window | None:
     """``sim`` if it has a window open (``gui=True``), else None."""
     return sim if isinstance(sim, Window) and sim.gui else None
+
+
+def joint_index(body: str, joints: dict[str, int], joint: str) -> int:
+    """``joints[joint]`` (a body's joints by name); KeyError naming the body's joints
+    otherwise: what every engine's ``Body.joint_index`` answers."""
+    try:
+        return joints[joint]
+    except KeyError:
+        raise KeyError(f"body {body!r} has no joint {joint!r}; joints: {sorted(joints)}") from None

@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING
 import mujoco
 import numpy as np
 
+from smartcar_gym.sim import contracts
 from smartcar_gym.sim.contracts import BASE, LinkDynamics
 from smartcar_gym.sim.mujoco.model import GROUP_COLLISION, GROUP_HIDDEN, GROUP_WORLD
 
@@ -75,12 +76,7 @@ class MujocoBody:
     # -- addressing ----------------------------------------------------------------------------
     def joint_index(self, joint: str) -> int:
         """The index of ``joint``; KeyError naming the body's joints otherwise."""
-        try:
-            return self.joints[joint]
-        except KeyError:
-            raise KeyError(
-                f"body {self.name!r} has no joint {joint!r}; joints: {sorted(self.joints)}"
-            ) from None
+        return contracts.joint_index(self.name, self.joints, joint)
 
     def _spec_body(self, link: int) -> mujoco.MjsBody:
         return self._spec_bodies[0] if link == BASE else self._spec_joints[link].parent

@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 
 from smartcar_gym.model.errors import ModelError
+from smartcar_gym.sim import contracts
 from smartcar_gym.sim.clock import EventClock, check_max_substep
 from smartcar_gym.sim.contracts import BASE, LinkDynamics
 from smartcar_gym.sim.planar import PLANAR_MAX_SUBSTEP_S, PLANAR_SUBSTEP_RANGE_S, jit
@@ -225,12 +226,7 @@ class PlanarBody:
 
     # -- joints --------------------------------------------------------------------------------
     def joint_index(self, joint: str) -> int:
-        try:
-            return self.joints[joint]
-        except KeyError:
-            raise KeyError(
-                f"body {self.name!r} has no joint {joint!r}; joints: {sorted(self.joints)}"
-            ) from None
+        return contracts.joint_index(self.name, self.joints, joint)
 
     def _joint(self, j: int) -> tuple[float, float]:
         self.compiled()

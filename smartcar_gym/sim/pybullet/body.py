@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from smartcar_gym.sim import contracts
 from smartcar_gym.sim.contracts import BASE, LinkDynamics, Quat, Vec3
 
 if TYPE_CHECKING:
@@ -49,12 +50,7 @@ class Body:
 
     def joint_index(self, joint: str) -> int:
         """pybullet's index of ``joint``; KeyError naming the body's joints otherwise."""
-        try:
-            return self.joints[joint]
-        except KeyError:
-            raise KeyError(
-                f"body {self.name!r} has no joint {joint!r}; joints: {sorted(self.joints)}"
-            ) from None
+        return contracts.joint_index(self.name, self.joints, joint)
 
     def _indices(self, joints: Sequence[str]) -> list[int]:
         return [self.joint_index(j) for j in joints]

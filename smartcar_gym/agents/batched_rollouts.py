@@ -94,12 +94,14 @@ def evaluate_batched_episodes(
     deterministic: bool = True,
     vecnormalize_path: str | os.PathLike | None = None,
     progress: bool = False,
+    steps: Any = None,
 ) -> list[EpisodeRecord]:
     """Run ``n_episodes`` episodes (episode i seeded ``seed + i``) on ``min(n_envs,
     n_episodes)`` cars of ``env_id``'s vector env in this process; records in episode order.
 
     ``model`` and ``vecnormalize_path``: as for ``rollouts.evaluate_policy_episodes``. Sampled
     actions (``deterministic=False``) are reproducible for the same ``seed`` and ``n_envs``.
+    ``steps`` (a ``datasets.steps.EpisodeSteps``) gets every step of the episodes.
     """
     if n_episodes < 1 or n_envs < 1:
         raise ValueError(f"n_episodes and n_envs must be >= 1, got {n_episodes}, {n_envs}")
@@ -118,7 +120,8 @@ def evaluate_batched_episodes(
             bar = tqdm(total=n_episodes, unit="episode", desc="evaluating (batched)",
                        dynamic_ncols=True)
         with _one_torch_thread():
-            return _run(envs, policy, env_id, n_episodes, seed, deterministic, step_s, bar)
+            return _run(envs, policy, env_id, n_episodes, seed, deterministic, step_s, bar,
+                        steps)
     finally:
         if bar is not None:
             bar.close()
@@ -126,12 +129,15 @@ def evaluate_batched_episodes(
 
 
 def _run(envs: gym.vector.VectorEnv, policy: Policy, env_id: str, n_episodes: int, seed: int,
-         deterministic: bool, step_s: float, bar: Any) -> list[EpisodeRecord]:
+         deterministic: bool, step_s: float, bar: Any, steps: Any = None,
+         ) -> list[EpisodeRecord]:
     n = envs.num_envs
     episode_of = np.arange(n)  # each car's episode, -1 once it has none left
     obs, info = envs.reset(seed=[seed + i for i in range(n)])
     tracks = _Tracks(n)
     tracks.start(np.ones(n, dtype=bool), episode_of, seed, info, _goals(envs))
+    if steps is not None:
+        steps.begin(range(n), episode_of, obs, info)
     next_episode = n
     records: list[EpisodeRecord] = []
     park = getattr(envs.unwrapped, "park", None)
@@ -143,6 +149,8 @@ def _run(envs: gym.vector.VectorEnv, policy: Policy, env_id: str, n_episodes: in
             park(~active)
         obs, reward, terminated, truncated, info = envs.step(actions)
         tracks.add(active, reward, info)
+        if steps is not None:
+            steps.step(np.flatnonzero(active), actions, obs, reward, terminated, truncated, info)
         done = active & (terminated | truncated)
         if not done.any():
             continue
@@ -163,6 +171,8 @@ def _run(envs: gym.vector.VectorEnv, policy: Policy, env_id: str, n_episodes: in
         for array, new in _arrays(obs, new_obs):
             array[mask] = new[mask]
         tracks.start(mask, episode_of, seed, new_info, _goals(envs))
+        if steps is not None:
+            steps.begin(refill, episode_of[refill], new_obs, new_info)
     return sorted(records, key=lambda r: r.episode)
 
 

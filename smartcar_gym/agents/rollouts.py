@@ -125,6 +125,7 @@ def evaluate_policy_episodes(
     vecnormalize_path: str | os.PathLike | None = None,
     progress: bool = False,
     recorders: Sequence[Callable[[Any], None]] = (),
+    steps: Any = None,
 ) -> list[EpisodeRecord]:
     """Run ``n_episodes`` complete episodes over ``n_envs`` envs; episode i uses seed seed+i.
 
@@ -138,6 +139,7 @@ def evaluate_policy_episodes(
     ``recorders`` (a Rerun recording, a ROS 2 bag: ``smartcar_gym.viewers``) are called with
     each finished ``Episode`` (scene and per-step frames, read in the workers), in episode
     order; recording only reads the simulator, so the episodes are the same with or without.
+    ``steps`` (a ``datasets.steps.EpisodeSteps``) gets every step, read from the vector env.
     """
     if n_episodes < 1 or n_envs < 1:
         raise ValueError(f"n_episodes and n_envs must be >= 1, got {n_episodes}, {n_envs}")
@@ -168,6 +170,8 @@ def evaluate_policy_episodes(
         obs, info = envs.reset(seed=[seed + i for i in range(n_slots)])
         goals = _goals(envs, range(n_slots))
         tracks = [_Track(i, seed + i, goals[i], info, i) for i in range(n_slots)]
+        if steps is not None:
+            steps.begin(range(n_slots), range(n_slots), obs, info)
         if collector is not None:
             for slot in range(n_slots):
                 collector.begin(slot, slot, seed + slot, info[CAPTURE_KEY][slot])
@@ -178,6 +182,9 @@ def evaluate_policy_episodes(
                 if episode is not None:
                     actions[slot] = policy.act(_slot(obs, slot), deterministic)
             obs, reward, terminated, truncated, info = envs.step(actions)
+            if steps is not None:
+                steps.step([s for s, e in enumerate(episode_of) if e is not None], actions, obs,
+                           reward, terminated, truncated, info)
             reset_mask = np.zeros(n_slots, dtype=bool)
             for slot, episode in enumerate(episode_of):
                 if episode is None:
@@ -201,6 +208,8 @@ def evaluate_policy_episodes(
                 new_obs, new_info = envs.reset(seed=seeds, options={"reset_mask": reset_mask})
                 slots = np.flatnonzero(reset_mask)
                 goals = _goals(envs, slots)
+                if steps is not None:
+                    steps.begin(slots, [episode_of[s] for s in slots], new_obs, new_info)
                 for slot in slots:
                     for array, new in _arrays(obs, new_obs):
                         array[slot] = new[slot]

@@ -15,9 +15,9 @@ made the dataset. ``check_dataset_id`` refuses a malformed id or an existing one
 from __future__ import annotations
 
 import dataclasses
-import importlib.util
 import json
 import shutil
+import warnings
 from collections.abc import Sequence
 from importlib import metadata as package_metadata
 from importlib import resources
@@ -39,7 +39,9 @@ CODE_PERMALINK = "https://github.com/smartcar-gym/smartcar-gym"
 
 def missing_minari() -> str | None:
     """One line naming what the ``minari`` extra would bring, or None if it is installed."""
-    missing = [name for name in ("minari", "h5py") if importlib.util.find_spec(name) is None]
+    from smartcar_gym.agents import missing_modules
+
+    missing = missing_modules(("minari", "h5py"))
     if not missing:
         return None
     return f"{', '.join(missing)} not installed; Minari datasets need the minari extra: " \
@@ -185,11 +187,14 @@ def write_dataset(dataset_id: str, episodes: Sequence[EpisodeSteps.Episode], *, 
     requirements = [f"smartcar-gym=={package_metadata.version('smartcar-gym')}"]
     if env_kwargs.get("engine") == "mujoco":
         requirements.append("mujoco>=3.10")
-    return minari.create_dataset_from_buffers(
-        dataset_id, buffers, env=spec, algorithm_name=f"{(algo or 'unknown').upper()} "
-        f"({policy})", code_permalink=CODE_PERMALINK, author="smartcar-eval",
-        ref_min_score=references.min_score, ref_max_score=references.max_score,
-        num_episodes_average_score=references.episodes,
-        description=_description(len(episodes), policy, algo, env_id, env_kwargs, seed,
-                                 deterministic, vectorization, references),
-        requirements=requirements)
+    with warnings.catch_warnings():  # a contact beyond the project's page: none to give
+        warnings.filterwarnings("ignore", message="`author_email` is set to None")
+        return minari.create_dataset_from_buffers(
+            dataset_id, buffers, env=spec, eval_env=spec,
+            algorithm_name=f"{(algo or 'unknown').upper()} ({policy})",
+            code_permalink=CODE_PERMALINK, author="smartcar-eval",
+            ref_min_score=references.min_score, ref_max_score=references.max_score,
+            num_episodes_average_score=references.episodes,
+            description=_description(len(episodes), policy, algo, env_id, env_kwargs, seed,
+                                     deterministic, vectorization, references),
+            requirements=requirements)

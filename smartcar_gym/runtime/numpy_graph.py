@@ -27,19 +27,21 @@ class UnknownOperatorError(ValueError):
     """A graph with an operator the numpy evaluator does not run."""
 
 
-#: rows per matrix product: OpenBLAS runs a larger product on several threads, which on a busy
-#: 2-core machine took 20 ms for 4,096 x 64 x 64 instead of 0.8 ms in blocks of 64 rows
-BLOCK_ROWS = 64
+#: OpenBLAS runs a matrix product of m x k by k x n on one thread while m * n * k is under
+#: 65,536 x 4 (its SMP threshold), on several above: on a busy 2-core machine the threads took
+#: 20-40 ms for 4,096 observations through a 64 or 128 wide layer, instead of 1-3 ms in blocks
+SINGLE_THREAD_MNK = 65536 * 4
 
 
 def _matmul(x: np.ndarray, w: np.ndarray) -> np.ndarray:
-    """``x @ w`` in blocks of ``BLOCK_ROWS`` rows (each one thread's work)."""
+    """``x @ w``, in blocks of rows small enough for one thread each."""
+    rows = max(1, (SINGLE_THREAD_MNK - 1) // (w.shape[0] * w.shape[1]))
     n = x.shape[0] if x.ndim == 2 else 0
-    if n <= BLOCK_ROWS:
+    if n <= rows:
         return x @ w
     out = np.empty((n, w.shape[1]), dtype=np.result_type(x, w))
-    for start in range(0, n, BLOCK_ROWS):
-        np.matmul(x[start:start + BLOCK_ROWS], w, out=out[start:start + BLOCK_ROWS])
+    for start in range(0, n, rows):
+        np.matmul(x[start:start + rows], w, out=out[start:start + rows])
     return out
 
 

@@ -13,7 +13,6 @@ does not know, or observations of another shape.
 
 from __future__ import annotations
 
-import importlib.util
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -22,6 +21,7 @@ from typing import Any, Literal
 import gymnasium as gym
 import numpy as np
 
+from smartcar_gym.agents import missing_modules
 from smartcar_gym.runtime.metadata import METADATA_KEY, check_metadata
 from smartcar_gym.runtime.numpy_graph import NumpyGraph
 from smartcar_gym.runtime.onnx_file import OnnxFormatError, read_model
@@ -93,7 +93,7 @@ def load_onnx(path: str | os.PathLike, runtime: Runtime = "auto") -> OnnxPolicy:
         raise OnnxPolicyError(str(err)) from None
     size = _input_size(model, meta, path)
     if runtime == "auto":
-        runtime = "onnxruntime" if importlib.util.find_spec("onnxruntime") else "numpy"
+        runtime = "numpy" if missing_modules(("onnxruntime",)) else "onnxruntime"
     run = _onnxruntime(data, path) if runtime == "onnxruntime" else _numpy(model, path)
     action_shape = tuple(meta["action_shape"])
     low = np.asarray(meta.get("action_low", -np.inf), dtype=np.float32)

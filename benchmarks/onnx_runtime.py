@@ -31,23 +31,10 @@ from pathlib import Path
 
 import numpy as np
 
-from smartcar_gym.agents.batched_rollouts import act_batch, make_batched_env
+from smartcar_gym.agents.batched_rollouts import act_batch
+from smartcar_gym.export.checks import episode_observations
 from smartcar_gym.export.cli import main as export_main
 from smartcar_gym.policy import Policy
-
-
-def observations(policy: Policy, n: int) -> np.ndarray:
-    """``n`` observations of seeded planar episodes driven by ``policy``."""
-    envs = make_batched_env(policy.env_id, 64, {**policy.env_kwargs, "engine": "planar"})
-    rows = []
-    try:
-        obs, _ = envs.reset(seed=list(range(64)))
-        while sum(len(r) for r in rows) < n:
-            rows.append(np.array(obs, dtype=np.float32))
-            obs, *_ = envs.step(act_batch(policy, obs))
-    finally:
-        envs.close()
-    return np.concatenate(rows)[:n]
 
 
 def time_single(predict, obs: np.ndarray) -> float:
@@ -96,7 +83,7 @@ def main() -> None:
             runtimes["onnxruntime"] = Policy.load(path, runtime="onnxruntime")
         except ValueError as err:
             print(f"onnxruntime: {err}")
-        obs = observations(runtimes["numpy evaluator"], 4096)
+        obs = episode_observations(runtimes["numpy evaluator"], 4096)
         print("| runtime | one action (median) | 4,096 observations (best / median) |")
         print("|---|---:|---:|")
         import torch

@@ -28,7 +28,7 @@ import numpy as np
 
 from smartcar_gym.agents.model_files import PRETRAINED_POLICIES
 
-__all__ = ["CHECKED", "TOLERANCE", "build_parser", "check_actions", "export_onnx", "main"]
+__all__ = ["CHECKED", "TOLERANCE", "build_parser", "export_onnx", "main"]
 
 PROG = "smartcar-export"
 CHECKED = 1000
@@ -89,6 +89,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.error(f"onnx not installed; {PROG} needs the onnx extra: {ONNX_EXTRA}")
     if args.output.suffix.lower() != ".onnx":
         parser.error(f"-o: the file must end in .onnx, got {str(args.output)!r}")
+    from smartcar_gym.export.checks import check_actions
     from smartcar_gym.export.onnx_graph import ExportError
     from smartcar_gym.policy import Policy, PolicyError
 
@@ -174,24 +175,6 @@ def export_onnx(policy: Any, out: str | Path, source: str) -> dict[str, Any]:
     out.write_bytes(model.SerializeToString())
     _side(out).write_text(json.dumps(meta, indent=2) + "\n")
     return meta
-
-
-def check_actions(policy: Any, path: str | Path, n: int, seed: int = 0) -> float | None:
-    """The largest difference between the SB3 policy's deterministic actions and the exported
-    file's (numpy evaluator) on ``n`` observations drawn in the observation space (None if
-    ``n`` is 0)."""
-    if n == 0:
-        return None
-    from smartcar_gym.runtime.onnx_policy import load_onnx
-
-    space = policy.model.observation_space
-    low = np.maximum(space.low, -10.0)
-    high = np.minimum(space.high, 10.0)
-    obs = np.random.default_rng(seed).uniform(low, high, (n, *space.shape)).astype(np.float32)
-    exported, _ = load_onnx(path, runtime="numpy").predict(obs)
-    batch = obs if policy.normalizer is None else policy.normalizer(obs)
-    expected, _ = policy.model.predict(batch, deterministic=True)
-    return float(np.max(np.abs(exported - expected)))
 
 
 if __name__ == "__main__":

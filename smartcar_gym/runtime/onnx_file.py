@@ -57,7 +57,6 @@ class Graph:
     initializers: dict[str, np.ndarray] = field(default_factory=dict)
     inputs: list[ValueInfo] = field(default_factory=list)
     outputs: list[ValueInfo] = field(default_factory=list)
-    name: str = ""
 
 
 @dataclass
@@ -221,22 +220,20 @@ def _attribute(data: bytes) -> tuple[str, Any]:
     return name, next(iter(values.values()), None)
 
 
+#: NodeProto's string fields other than its inputs (1) and outputs (2)
+_NODE_TEXT = {3: "name", 4: "op_type", 7: "domain"}
+
+
 def _node(data: bytes) -> Node:
     node = Node("", [], [])
     for number, _wire, value in _fields(data):
-        if number == 1:
-            node.inputs.append(_text(value))
-        elif number == 2:
-            node.outputs.append(_text(value))
-        elif number == 3:
-            node.name = _text(value)
-        elif number == 4:
-            node.op_type = _text(value)
+        if number in (1, 2):
+            (node.inputs if number == 1 else node.outputs).append(_text(value))
+        elif number in _NODE_TEXT:
+            setattr(node, _NODE_TEXT[number], _text(value))
         elif number == 5:
             key, attribute = _attribute(value)
             node.attributes[key] = attribute
-        elif number == 7:
-            node.domain = _text(value)
     return node
 
 
@@ -270,15 +267,11 @@ def _graph(data: bytes) -> Graph:
     for number, _wire, value in _fields(data):
         if number == 1:
             graph.nodes.append(_node(value))
-        elif number == 2:
-            graph.name = _text(value)
         elif number == 5:
             key, array = _tensor(value)
             graph.initializers[key] = array
-        elif number == 11:
-            graph.inputs.append(_value_info(value))
-        elif number == 12:
-            graph.outputs.append(_value_info(value))
+        elif number in (11, 12):
+            (graph.inputs if number == 11 else graph.outputs).append(_value_info(value))
     return graph
 
 

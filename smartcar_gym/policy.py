@@ -57,6 +57,7 @@ from smartcar_gym.agents.models import (
     shipped_model,
 )
 from smartcar_gym.agents.zoo_runs import ZooRunError
+from smartcar_gym.runtime.onnx_policy import is_onnx_path
 
 if TYPE_CHECKING:
     import gymnasium as gym
@@ -117,10 +118,14 @@ class Policy:
     @classmethod
     def load(cls, source: str | os.PathLike, *, algo: str | None = None,
              env_id: str | None = None, env_kwargs: Mapping[str, Any] | None = None,
-             normalizer: str | os.PathLike | None = None, device: str = "cpu") -> Policy:
+             normalizer: str | os.PathLike | None = None, device: str = "cpu",
+             runtime: str = "auto") -> Policy:
         """Load a policy from ``source``: a shipped policy's name (a ``str`` among
         ``PRETRAINED_POLICIES``; pass a ``Path`` for a folder of that name), a model ``.zip``,
-        or a run folder of ``smartcar-train``, rl-baselines3-zoo or an exported policy.
+        a run folder of ``smartcar-train``, rl-baselines3-zoo or an exported policy, or an
+        ``.onnx`` file of ``smartcar-export`` (run without torch, by onnxruntime or, with
+        ``runtime="numpy"`` or where onnxruntime is missing, by numpy: ``smartcar_gym.runtime``;
+        its normalisation is in the graph, so ``model.predict`` takes raw observations).
 
         ``algo``: the model's algorithm (default: its run's; it must match the saved model).
         ``env_id`` replaces the run's env id; ``env_kwargs`` are added to the run's (an
@@ -129,8 +134,12 @@ class Policy:
         default, the ones the model's place assigns to it. ``device``: torch's.
 
         Raises ``PolicyError`` for a missing or unreadable file, an unknown shipped name or
-        algorithm, or a model of another algorithm; ``ImportError`` without the train extra.
+        algorithm, or a model of another algorithm; ``ImportError`` without the train extra
+        (an ``.onnx`` file needs no extra).
         """
+        if is_onnx_path(source):
+            return _load_onnx(Path(source), algo=algo, env_id=env_id, env_kwargs=env_kwargs,
+                              normalizer=normalizer, runtime=runtime)
         missing = missing_modules(POLICY_MODULES)
         if missing:
             raise ImportError(f"{', '.join(missing)} not installed; loading a policy needs the "
@@ -248,6 +257,29 @@ def _run_env_kwargs(run: dict[str, Any], overrides: dict[str, Any]) -> dict[str,
     if overrides.get("engine") in ENGINES:  # an unknown engine: gym.make names it
         run = on_engine(run, overrides["engine"])
     return {**run, **overrides}
+
+
+def _load_onnx(path: Path, *, algo: str | None, env_id: str | None,
+               env_kwargs: Mapping[str, Any] | None, normalizer: str | os.PathLike | None,
+               runtime: str) -> Policy:
+    """``Policy.load`` of an exported ``.onnx`` file (``smartcar_gym.runtime``)."""
+    from smartcar_gym.runtime.onnx_policy import OnnxPolicyError, load_onnx
+
+    if normalizer is not None:
+        raise PolicyError(f"--vecnormalize: {path} has its normalisation in the graph; an "
+                          "exported policy takes no statistics file")
+    if not path.is_file():
+        raise PolicyError(f"--model: no such file: {path}")
+    try:
+        model = load_onnx(path, runtime)  # type: ignore[arg-type]
+    except OnnxPolicyError as err:
+        raise PolicyError(str(err)) from None
+    meta = model.metadata
+    if algo is not None and algo != meta["algo"]:
+        raise PolicyError(f"--algo {algo}: {path} was exported from a {meta['algo']} model")
+    return Policy(model, None, algo=meta["algo"], env_id=env_id or meta["env_id"],
+                  env_kwargs=_run_env_kwargs(dict(meta["env_kwargs"]), dict(env_kwargs or {})),
+                  model_path=path, normalizer_source=f"folded into {path.name} ({model.runtime})")
 
 
 def _model_files(source: str | os.PathLike, stack: contextlib.ExitStack) -> ModelFiles:

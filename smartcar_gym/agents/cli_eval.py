@@ -6,6 +6,7 @@
     smartcar-eval --model runs/ppo_SmartCar-v0_s0/model.zip --json results.json
     smartcar-eval --model logs/ppo/SmartCar-v0_1      # an rl-baselines3-zoo run folder
     smartcar-eval --model model.zip --engine mujoco --vectorization batched --fail-under 95
+    smartcar-eval --model policy.onnx --engine planar --minari smartcar/default-planar-v0
 
 The episodes are run by ``episodes.evaluate_policy_episodes`` (episode ``i`` uses seed
 ``seed + i``; the results do not depend on ``n_envs``); ``smartcar_gym.policy.Policy.load``
@@ -49,7 +50,14 @@ from smartcar_gym.agents.episodes import (
 from smartcar_gym.agents.hyperparams import ALGOS
 from smartcar_gym.agents.models import PRETRAINED_MODEL, PRETRAINED_POLICIES, load_model
 from smartcar_gym.checks import distinct_figure
+from smartcar_gym.datasets.eval_options import (
+    add_minari_arguments,
+    check_minari_arguments,
+    minari_steps,
+    write_minari,
+)
 from smartcar_gym.policy import Policy, PolicyError
+from smartcar_gym.runtime.onnx_policy import is_onnx_path
 from smartcar_gym.sim.engines import DEFAULT_ENGINE, add_engine_argument
 
 __all__ = ["build_parser", "check_outputs", "distance_arg", "evaluate_policy_episodes",
@@ -77,7 +85,8 @@ def build_parser() -> argparse.ArgumentParser:
     source = parser.add_mutually_exclusive_group(required=True)
     source.add_argument("--model", type=Path, help="a model .zip, or a run folder (its final "
                         "model) of smartcar-train or rl-baselines3-zoo; the run's config and "
-                        "normaliser are found from the folder's layout")
+                        "normaliser are found from the folder's layout; or an .onnx file of "
+                        "smartcar-export")
     source.add_argument("--pretrained", nargs="?", const="default", metavar="NAME",
                         choices=tuple(PRETRAINED_POLICIES), help="a policy shipped with the "
                         "package: default (the one --pretrained alone names), robust "
@@ -154,6 +163,7 @@ def build_parser() -> argparse.ArgumentParser:
                              "network (0.0.0.0: every interface) shares the viewer and the "
                              "episodes with anyone who can reach it (docs/viewers.md)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_minari_arguments(parser)
     return parser
 
 
@@ -163,6 +173,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     require_train_extra("smartcar-eval", EVAL_MODULES)
     check_outputs(parser, args)
+    check_minari_arguments(parser, args)
     _check_vectorization(parser, args)
     env_kwargs = dict(args.env_kwargs)
     if args.engine is not None:
@@ -179,6 +190,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                                  normalizer=args.vecnormalize, device=args.device)
         except PolicyError as err:
             parser.error(str(err))
+        if args.stochastic and is_onnx_path(policy.model_path):
+            parser.error(f"--stochastic: {policy.model_path} holds the deterministic policy "
+                         "only; sampled actions need the SB3 model (.zip)")
     model_path = policy.model_path or Path("random-policy")
     algo, env_id, env_kwargs = policy.algo, policy.env_id, policy.env_kwargs
     vecnormalize, source = policy.normalizer_path, policy.normalizer_source
@@ -198,14 +212,16 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(f"smartcar-eval: warning: {policy.warning}", file=sys.stderr)
     common = dict(env_id=env_id, seed=args.seed, env_kwargs=env_kwargs,
                   deterministic=not args.stochastic)
+    steps = minari_steps(args)
     with contextlib.ExitStack() as stack:
         recorders = _recorders(args, stack)
         try:
-            records = _evaluate(args, policy, recorders, common)
+            records = _evaluate(args, policy, recorders, common, steps)
         except (ObservationShapeError, EnvSetupError) as err:
             parser.error(str(err))
         outputs: dict[str, Any] = {} if args.random else {"normaliser": vecnormalize or source}
         outputs.update(_close_recorders(recorders))
+        outputs.update(write_minari(args, policy, records, steps, env_id, env_kwargs))
         summary = summarize(records)
         marks = check_marks(summary, args)
         if args.json is not None:
@@ -279,16 +295,17 @@ def _recorded(args: argparse.Namespace) -> int:
 
 
 def _evaluate(args: argparse.Namespace, policy: Policy, recorders: list[Any],
-              common: dict[str, Any]) -> list[Any]:
+              common: dict[str, Any], steps: Any = None) -> list[Any]:
     """The episodes' records: single envs (in worker processes when --n-envs > 1), or one
     batch; the recorders of a batched evaluation get its first episodes replayed one at a
-    time in single envs (the batch has no simulator to read per car)."""
+    time in single envs (the batch has no simulator to read per car). ``steps``: --minari's."""
     progress = not args.no_progress
     if args.vectorization != "batched":
         return evaluate_policy_episodes(policy, n_episodes=args.episodes, n_envs=args.n_envs,
-                                        progress=progress, recorders=recorders, **common)
+                                        progress=progress, recorders=recorders, steps=steps,
+                                        **common)
     records = evaluate_batched_episodes(policy, n_episodes=args.episodes, n_envs=args.n_envs,
-                                        progress=progress, **common)
+                                        progress=progress, steps=steps, **common)
     if recorders:
         evaluate_policy_episodes(policy, n_episodes=_recorded(args), recorders=recorders,
                                  **common)

@@ -212,6 +212,7 @@ def evaluate_policy_episodes(
     vecnormalize_path: str | os.PathLike | None = None,
     progress: bool = False,
     recorders: Sequence[Callable[[Any], None]] = (),
+    steps: Any = None,
 ) -> list[EpisodeRecord]:
     """Run ``n_episodes`` complete episodes over ``n_envs`` envs; episode i uses seed seed+i.
 
@@ -225,6 +226,7 @@ def evaluate_policy_episodes(
     ``recorders`` (a Rerun recording, a ROS 2 bag: ``smartcar_gym.viewers``) are called with
     each finished ``Episode`` (scene and per-step frames, read in the workers), in episode
     order; recording only reads the simulator, so the episodes are the same with or without.
+    ``steps`` (a ``datasets.steps.EpisodeSteps``) gets every step, read from the vector env.
     """
     policy = _policy(model, vecnormalize_path, n_episodes, n_envs, deterministic, seed)
     envs = make_single_env_vector(env_id, min(n_envs, n_episodes), env_kwargs,
@@ -244,7 +246,7 @@ def evaluate_policy_episodes(
         return actions
 
     return _episodes(envs, policy, env_id, n_episodes, seed, act, progress, "evaluating",
-                     collector)
+                     collector, steps=steps)
 
 
 def evaluate_batched_episodes(
@@ -257,12 +259,14 @@ def evaluate_batched_episodes(
     deterministic: bool = True,
     vecnormalize_path: str | os.PathLike | None = None,
     progress: bool = False,
+    steps: Any = None,
 ) -> list[EpisodeRecord]:
     """Run ``n_episodes`` episodes (episode i seeded ``seed + i``) on ``min(n_envs,
     n_episodes)`` cars of ``env_id``'s vector env in this process; records in episode order.
 
     ``model`` and ``vecnormalize_path``: as for ``evaluate_policy_episodes``. Sampled
     actions (``deterministic=False``) are reproducible for the same ``seed`` and ``n_envs``.
+    ``steps`` (a ``datasets.steps.EpisodeSteps``) gets every step of the episodes.
     """
     policy = _policy(model, vecnormalize_path, n_episodes, n_envs, deterministic, seed)
     envs = make_batched_env(env_id, min(n_envs, n_episodes), env_kwargs)
@@ -276,7 +280,7 @@ def evaluate_batched_episodes(
 
     with _one_torch_thread():
         return _episodes(envs, policy, env_id, n_episodes, seed, act, progress,
-                         "evaluating (batched)", None, check_resets=True)
+                         "evaluating (batched)", None, check_resets=True, steps=steps)
 
 
 def act_batch(policy: Policy, obs: np.ndarray | Mapping[str, np.ndarray],
@@ -339,7 +343,8 @@ def _policy(model: Any, vecnormalize_path: str | os.PathLike | None, n_episodes:
 
 def _episodes(envs: gym.vector.VectorEnv, policy: Policy, env_id: str, n_episodes: int,
               seed: int, act: Callable[..., np.ndarray], progress: bool,
-              desc: str, collector: Any, check_resets: bool = False) -> list[EpisodeRecord]:
+              desc: str, collector: Any, check_resets: bool = False,
+              steps: Any = None) -> list[EpisodeRecord]:
     """``_play`` the episodes on ``envs`` (closed at the end) after checking the spaces."""
     bar = None
     try:
@@ -348,7 +353,7 @@ def _episodes(envs: gym.vector.VectorEnv, policy: Policy, env_id: str, n_episode
             from tqdm.auto import tqdm
 
             bar = tqdm(total=n_episodes, unit="episode", desc=desc, dynamic_ncols=True)
-        return _play(envs, env_id, n_episodes, seed, act, bar, collector, check_resets)
+        return _play(envs, env_id, n_episodes, seed, act, bar, collector, check_resets, steps)
     finally:
         if bar is not None:
             bar.close()
@@ -357,12 +362,12 @@ def _episodes(envs: gym.vector.VectorEnv, policy: Policy, env_id: str, n_episode
 
 def _play(envs: gym.vector.VectorEnv, env_id: str, n_episodes: int, seed: int,
           act: Callable[..., np.ndarray], bar: Any, collector: Any,
-          check_resets: bool) -> list[EpisodeRecord]:
+          check_resets: bool, steps: Any = None) -> list[EpisodeRecord]:
     """Episodes 0..n_episodes-1 on the cars of ``envs``: each car runs the next episode not
     started yet when its own ends; a car with none left is parked where the vector env can
     (``park``), else stepped with zero actions, unread. ``act(obs, episode_of, steps)``: the
     cars' actions (``episode_of``: each car's episode, -1 for none; ``steps``: the steps each
-    car's episode has run)."""
+    car's episode has run); ``steps`` (or None) is told of every reset and step."""
     if collector is not None:
         from smartcar_gym.viewers.capture import CAPTURE_KEY
     n = envs.num_envs
@@ -371,6 +376,8 @@ def _play(envs: gym.vector.VectorEnv, env_id: str, n_episodes: int, seed: int,
     obs, info = envs.reset(seed=[seed + i for i in range(n)])
     tracks = _Tracks(n)
     tracks.start(np.ones(n, dtype=bool), episode_of, seed, info, _goals(envs))
+    if steps is not None:
+        steps.begin(range(n), episode_of, obs, info)
     if collector is not None:
         for car in range(n):
             collector.begin(car, car, seed + car, info[CAPTURE_KEY][car])
@@ -384,6 +391,8 @@ def _play(envs: gym.vector.VectorEnv, env_id: str, n_episodes: int, seed: int,
             park(~active)
         obs, reward, terminated, truncated, info = envs.step(actions)
         tracks.add(active, reward, info)
+        if steps is not None:
+            steps.step(np.flatnonzero(active), actions, obs, reward, terminated, truncated, info)
         if collector is not None:
             for car in np.flatnonzero(active):
                 collector.add(car, info[CAPTURE_KEY][car])
@@ -407,6 +416,8 @@ def _play(envs: gym.vector.VectorEnv, env_id: str, n_episodes: int, seed: int,
         for array, new in _arrays(obs, new_obs):
             array[mask] = new[mask]
         tracks.start(mask, episode_of, seed, new_info, _goals(envs))
+        if steps is not None:
+            steps.begin(refill, episode_of[refill], new_obs, new_info)
         if collector is not None:
             for car in refill:
                 collector.begin(car, int(episode_of[car]), seed + int(episode_of[car]),

@@ -4,7 +4,7 @@
 
     smartcar-ros bringup [--model URDF|XACRO] [--controller-config YAML] [--speed N]
                          [--engine pybullet|mujoco]
-    smartcar-ros policy (--pretrained [NAME] | --model ZIP) [--vecnormalize FILE]
+    smartcar-ros policy (--pretrained [NAME] | --model ZIP|ONNX) [--vecnormalize FILE]
     smartcar-ros package        # the ROS package folder, for ROS_PACKAGE_PATH
 
 ``--pretrained`` alone is the ``ros`` policy (SmartCarArrive-v0: it drives to a goal and
@@ -92,8 +92,9 @@ def build_parser() -> argparse.ArgumentParser:
                "it holds. A normaliser is loaded only from --vecnormalize or from the model's "
                "own place, as smartcar-eval does.")
     source = policy.add_mutually_exclusive_group(required=True)
-    source.add_argument("--model", type=Path, help="a model .zip, or a run folder of "
-                        "smartcar-train or rl-baselines3-zoo")
+    source.add_argument("--model", type=Path, help="a model .zip, a run folder of "
+                        "smartcar-train or rl-baselines3-zoo, or an .onnx file of "
+                        "smartcar-export (runs without torch)")
     source.add_argument("--pretrained", nargs="?", const=ROS_POLICY, metavar="NAME",
                         choices=tuple(PRETRAINED_POLICIES), help="a policy shipped with the "
                         f"package: {ROS_POLICY} (the one --pretrained alone names: it drives "
@@ -267,8 +268,10 @@ def _run_bringup(ros: Any, args: argparse.Namespace, setup: tuple,
 def _policy(parser: argparse.ArgumentParser, args: argparse.Namespace,
             ros_args: list[str]) -> int:
     from smartcar_gym.agents import require_train_extra
+    from smartcar_gym.runtime.onnx_policy import is_onnx_path
 
-    require_train_extra(f"{PROG} policy", POLICY_MODULES)
+    if not is_onnx_path(args.model):  # an exported .onnx runs without torch
+        require_train_extra(f"{PROG} policy", POLICY_MODULES)
     from smartcar_gym.model import ModelError
     from smartcar_gym.policy import Policy, PolicyError
     from smartcar_gym.ros.driving import GoalDriver

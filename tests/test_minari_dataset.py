@@ -1,0 +1,136 @@
+"""``smartcar-eval --minari``: the evaluated episodes as a Minari dataset that Minari reads
+back, whose env spec recovers the env (engine included) and whose returns are the
+evaluation's records; existing ids, bad ids and a missing extra get one line."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+minari = pytest.importorskip("minari")
+pytest.importorskip("h5py")
+pytest.importorskip("stable_baselines3")
+
+from smartcar_gym.agents.cli_eval import main as eval_main  # noqa: E402
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+@pytest.fixture(autouse=True)
+def datasets(tmp_path, monkeypatch) -> Path:
+    root = tmp_path / "minari"
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(root))
+    return root
+
+
+def _evaluate(tmp_path, *argv: str) -> dict:
+    out = tmp_path / f"eval{len(list(tmp_path.glob('eval*.json')))}.json"
+    assert eval_main([*argv, "--no-progress", "--json", str(out)]) == 0
+    return json.loads(out.read_text())
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("vectorization, engine", [("subproc", "planar"),
+                                                   ("batched", "planar"),
+                                                   ("batched", "pybullet")])
+def test_the_dataset_holds_the_evaluated_episodes(tmp_path, vectorization, engine):
+    dataset_id = f"smartcar/default-{engine}-{vectorization}-v0"
+    run = _evaluate(tmp_path, "--pretrained", "--engine", engine, "--episodes", "4",
+                    "--vectorization", vectorization, "--minari", dataset_id)
+    dataset = minari.load_dataset(dataset_id)
+    records = run["episode_records"]
+    assert dataset.total_episodes == 4
+    assert dataset.total_steps == sum(r["length"] for r in records)
+    for episode, record in zip(dataset.iterate_episodes(), records, strict=True):
+        assert np.cumsum(episode.rewards)[-1] == record["episode_return"]  # summed in order
+        assert len(episode.actions) == record["length"]
+        assert episode.observations.shape == (record["length"] + 1, 21)
+        assert episode.terminations[-1] or episode.truncations[-1]
+        assert not (episode.terminations[:-1] | episode.truncations[:-1]).any()
+        assert set(episode.infos) >= {"is_success", "distance", "pose", "odom_pose"}
+        assert bool(episode.infos["is_success"][-1]) == record["success"]
+        assert episode.infos["pose"].shape == (record["length"] + 1, 3)
+        assert episode.infos["distance"][-1] == pytest.approx(record["final_distance_m"])
+    env = dataset.recover_environment()
+    try:
+        assert env.spec.id == "SmartCar-v0" and env.spec.kwargs["engine"] == engine
+        first = next(dataset.iterate_episodes())
+        obs, _ = env.reset(seed=0)  # episode 0 is seed 0: the dataset's first observation
+        np.testing.assert_array_equal(obs, first.observations[0])
+    finally:
+        env.close()
+    meta = dataset.storage.metadata
+    assert meta["ref_min_score"] < meta["ref_max_score"]
+    assert meta["ref_max_score"] == pytest.approx(np.mean([r["episode_return"]
+                                                           for r in records]))
+    description = meta["description"]
+    for said in ("shipped 'default'", f"engine {engine}", "seeds 0..3", "SmartCar-v0",
+                 f"--vectorization {vectorization}"):
+        assert said in description, said
+
+
+@pytest.mark.slow
+def test_recording_the_steps_leaves_the_records_as_they_were(tmp_path):
+    argv = ["--pretrained", "--engine", "planar", "--episodes", "6",
+            "--vectorization", "batched", "--n-envs", "4"]
+    plain = _evaluate(tmp_path, *argv)
+    recorded = _evaluate(tmp_path, *argv, "--minari", "smartcar/same-v0")
+    assert plain["episode_records"] == recorded["episode_records"]
+
+
+@pytest.mark.slow
+def test_an_existing_id_is_kept_without_overwrite(tmp_path, capsys, datasets):
+    _evaluate(tmp_path, "--random", "--engine", "planar", "--episodes", "2",
+              "--vectorization", "batched", "--minari", "smartcar/kept-v0")
+    with pytest.raises(SystemExit) as exit_info:
+        eval_main(["--random", "--engine", "planar", "--episodes", "3",
+                   "--minari", "smartcar/kept-v0"])
+    assert exit_info.value.code == 2
+    assert capsys.readouterr().err.strip().splitlines()[-1] == (
+        "smartcar-eval: error: --minari: the dataset smartcar/kept-v0 exists "
+        f"({datasets / 'smartcar' / 'kept-v0'}); pass --overwrite to replace it")
+    assert minari.load_dataset("smartcar/kept-v0").total_episodes == 2
+    _evaluate(tmp_path, "--random", "--engine", "planar", "--episodes", "3",
+              "--vectorization", "batched", "--minari", "smartcar/kept-v0", "--overwrite")
+    dataset = minari.load_dataset("smartcar/kept-v0")
+    assert dataset.total_episodes == 3
+    assert "uniform random actions" in dataset.storage.metadata["description"]
+
+
+@pytest.mark.parametrize("bad", ["no-version", "a b-v0", "smartcar/x-vv"])
+def test_a_bad_id_is_one_line(capsys, bad):
+    with pytest.raises(SystemExit):
+        eval_main(["--random", "--episodes", "1", "--minari", bad])
+    assert capsys.readouterr().err.strip().splitlines()[-1] == (
+        f"smartcar-eval: error: --minari: {bad!r} is not a Minari dataset id: expected "
+        "(namespace/)name-vN, e.g. smartcar/default-pybullet-v0 (letters, digits, - and _)")
+
+
+def test_without_the_minari_extra_one_line_names_it():
+    code = ("import sys\n"
+            "class Blocker:\n"
+            "    def find_spec(self, name, path=None, target=None):\n"
+            "        if name.partition('.')[0] == 'minari':\n"
+            "            raise ModuleNotFoundError(name)\n"
+            "sys.meta_path.insert(0, Blocker())\n"
+            "from smartcar_gym.agents.cli_eval import main\n"
+            "sys.exit(main(['--random', '--episodes', '1', '--minari', 'smartcar/x-v0']))\n")
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                            timeout=120, cwd=ROOT,
+                            env={**os.environ, "PYTHONPATH": str(ROOT)})
+    assert result.returncode == 2
+    assert result.stderr.strip().splitlines()[-1] == (
+        "smartcar-eval: error: --minari: minari not installed; Minari datasets need the "
+        'minari extra: pip install "smartcar-gym[minari]"')
+
+
+def test_overwrite_alone_is_refused(capsys):
+    with pytest.raises(SystemExit):
+        eval_main(["--random", "--episodes", "1", "--overwrite"])
+    assert capsys.readouterr().err.strip().endswith("--overwrite: only with --minari")

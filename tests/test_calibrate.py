@@ -176,6 +176,28 @@ def test_cli_bad_input_is_one_line_and_exit_code_2(argv, message, capsys):
     assert err.startswith("smartcar-calibrate: error: ") and message in err, err
 
 
+@pytest.mark.parametrize("argv, named", [
+    (["--bag", "robot_missing.bag", "--keep", "not_a_key", "--truth-topic", "/mocap"],
+     "--bag, --truth-topic, --keep"),
+    (["--start", "planar_pybullet"], "--start"),
+    (["--cmd-topic", "/cmd_vel"], "--cmd-topic"),  # the default value, given: refused too
+    (["--odom-topic", "/odom", "--fit", "umbmark"], "--odom-topic"),
+    (["--generations", "3"], "--generations"),
+])
+def test_cli_refuses_the_planar_flags_without_fit_planar(argv, named, tmp_path, capsys):
+    """They would be ignored, and the spin fit's YAML would replace the planar parameter file
+    the user meant to write: one line, exit 2, the output left as it was."""
+    out = tmp_path / "mine.yaml"
+    out.write_text("planar: {}\n")
+    with pytest.raises(SystemExit) as exit_info:
+        cli.main([*argv, "-o", str(out)])
+    assert exit_info.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1] == (f"smartcar-calibrate: error: {named}: only with --fit planar (the "
+                       "planar engine's parameters); the other fits ignore them"), err
+    assert out.read_text() == "planar: {}\n"
+
+
 def test_cli_a_car_that_cannot_move_is_reported(tmp_path, capsys):
     text = open(default_config_path(), encoding="utf-8").read()
     path = tmp_path / "stuck.yaml"

@@ -35,7 +35,7 @@ SHORT = Plan(straight_m=1.0, spin_revolutions=1.0, square_side_m=0.5)  # a faste
 
 
 def _mis_set_yaml(tmp_path, base_width="0.26", ticks_meter="4100"):
-    text = open(default_config_path(), encoding="utf-8").read()
+    text = Path(default_config_path()).read_text(encoding="utf-8")
     text = text.replace("    base_width: 0.26\n", f"    base_width: {base_width}\n")
     text = text.replace("    ticks_meter: 4100\n", f"    ticks_meter: {ticks_meter}\n")
     path = tmp_path / "mis_set.yaml"
@@ -121,7 +121,7 @@ def test_integrate_reproduces_the_drivers_odometry_and_the_fit_inverts_it():
 
 
 def test_the_calibrated_yaml_keeps_layout_and_comments(shipped_config):
-    text = open(default_config_path(), encoding="utf-8").read()
+    text = Path(default_config_path()).read_text(encoding="utf-8")
     out = calibrated_text(text, shipped_config, 0.32917, 4099.64, "calibrated\n  line two")
     assert out.startswith("# calibrated\n#   line two\n# ArbotiX ROS driver configuration")
     old_lines, new_lines = text.splitlines(), out.splitlines()[2:]
@@ -176,8 +176,30 @@ def test_cli_bad_input_is_one_line_and_exit_code_2(argv, message, capsys):
     assert err.startswith("smartcar-calibrate: error: ") and message in err, err
 
 
+@pytest.mark.parametrize("argv, named", [
+    (["--bag", "robot_missing.bag", "--keep", "not_a_key", "--truth-topic", "/mocap"],
+     "--bag, --truth-topic, --keep"),
+    (["--start", "planar_pybullet"], "--start"),
+    (["--cmd-topic", "/cmd_vel"], "--cmd-topic"),  # the default value, given: refused too
+    (["--odom-topic", "/odom", "--fit", "umbmark"], "--odom-topic"),
+    (["--generations", "3"], "--generations"),
+])
+def test_cli_refuses_the_planar_flags_without_fit_planar(argv, named, tmp_path, capsys):
+    """They would be ignored, and the spin fit's YAML would replace the planar parameter file
+    the user meant to write: one line, exit 2, the output left as it was."""
+    out = tmp_path / "mine.yaml"
+    out.write_text("planar: {}\n")
+    with pytest.raises(SystemExit) as exit_info:
+        cli.main([*argv, "-o", str(out)])
+    assert exit_info.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1] == (f"smartcar-calibrate: error: {named}: only with --fit planar (the "
+                       "planar engine's parameters); the other fits ignore them"), err
+    assert out.read_text() == "planar: {}\n"
+
+
 def test_cli_a_car_that_cannot_move_is_reported(tmp_path, capsys):
-    text = open(default_config_path(), encoding="utf-8").read()
+    text = Path(default_config_path()).read_text(encoding="utf-8")
     path = tmp_path / "stuck.yaml"
     path.write_text(text.replace("    accel_limit: 1.0\n", "    accel_limit: 0.001\n"))
     with pytest.warns(UserWarning, match="can never move"), pytest.raises(SystemExit) as err:

@@ -1,11 +1,16 @@
-"""close() frees the pybullet client; make/step/close cycles leak neither clients nor memory."""
+"""close() frees the pybullet client; make/step/close cycles leak neither clients nor memory;
+an env collected unclosed leaves no folder and says nothing."""
 
 from __future__ import annotations
 
 import contextlib
+import copy
 import ctypes
 import gc
 import os
+import sys
+import warnings
+import weakref
 
 import gymnasium as gym
 import numpy as np
@@ -102,3 +107,32 @@ def test_resets_do_not_grow_memory():
     env.close()
     assert min(growth) < 1.5, (
         f"{growth} MB more after each 600 resets (3.5 MB with the file cache)")
+
+
+@pytest.mark.parametrize("engine", ["pybullet", "mujoco", "planar"])
+@pytest.mark.parametrize("how", ["dropped", "a copy"])
+def test_a_simulator_collected_unclosed_removes_its_folder_without_a_warning(engine, how,
+                                                                            monkeypatch):
+    """An env that nobody closes (an env copy, or one a test or a user dropped): its
+    simulator's scratch folder goes when the collector takes it, without the ResourceWarning
+    that once fell into whatever warning check was running then (issue 42, item 14)."""
+    if engine == "mujoco":
+        pytest.importorskip("smartcar_gym.sim.mujoco", reason="needs the mujoco extra")
+    original = gym.make("SmartCar-v0", engine=engine)
+    env = copy.deepcopy(original) if how == "a copy" else original
+    env.reset(seed=0)
+    sim = weakref.ref(env.unwrapped.sim)
+    folder = env.unwrapped.sim.scratch_dir
+    assert folder.is_dir() and any(folder.iterdir())  # the robot's URDF
+    unraised: list = []
+    monkeypatch.setattr(sys, "unraisablehook", unraised.append)  # errors in finalizers
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        del env
+        if how == "a copy":
+            original.close()
+        del original
+        gc.collect()
+    assert sim() is None  # collected, not closed
+    assert [f"{u.exc_type.__name__}: {u.exc_value}" for u in unraised] == []
+    assert not folder.exists()

@@ -32,6 +32,7 @@ for _ in range(40):
     digest.update(np.float64(reward).tobytes())
     if terminated or truncated:
         env.reset()
+env.close()
 print(digest.hexdigest())
 """
 
@@ -87,7 +88,7 @@ def test_rollouts_are_bit_identical_across_processes(env_id, randomize):
     old_argv = sys.argv
     sys.argv = ["x", env_id, randomize]
     try:
-        with contextlib.redirect_stdout(open(os.devnull, "w")):  # noqa: SIM115
+        with open(os.devnull, "w") as devnull, contextlib.redirect_stdout(devnull):
             exec(ROLLOUT, namespace)  # noqa: S102
     finally:
         sys.argv = old_argv

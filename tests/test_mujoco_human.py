@@ -3,12 +3,13 @@ Gymnasium's ``check_env`` with its render check on every physics id and both eng
 
 from __future__ import annotations
 
-import warnings
+import os
+import subprocess
+import sys
 
 import gymnasium as gym
 import numpy as np
 import pytest
-from gymnasium.utils.env_checker import check_env
 
 pytest.importorskip("smartcar_gym.sim.mujoco", reason="engine='mujoco' needs the mujoco extra")
 
@@ -54,17 +55,83 @@ def test_human_mode_shows_the_world_in_mujocos_viewer(viewer_display):
     assert not shown.is_open and sim.window is None
 
 
-@needs_xvfb
-@pytest.mark.parametrize("engine", ["mujoco", "pybullet"])
-@pytest.mark.parametrize("env_id", PHYSICS_IDS)
-def test_check_env_with_its_render_check_passes(viewer_display, env_id, engine):
-    """``check_env`` makes the env in every mode ``metadata["render_modes"]`` lists."""
-    env = gym.make(env_id, engine=engine)
-    assert "human" in env.metadata["render_modes"]
+# Gymnasium's check_env with its render check (skip_render_check=False), as Gymnasium's own
+# test_env_api_with_render_check runs it: the checked env (rendered once) stays open while
+# check_env makes, renders and closes an env in every listed mode, the human window included.
+CHECK_EVERY_MODE = """
+import sys, warnings
+import gymnasium as gym
+from gymnasium.utils.env_checker import check_env
+import smartcar_gym
+
+env_id, engine, *outer = sys.argv[1:]
+first = gym.make(env_id, engine=engine)
+print("listed", *first.metadata["render_modes"])
+first.close()
+for mode in outer:
+    env = gym.make(env_id, engine=engine, render_mode=None if mode == "None" else mode)
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # check_env's warnings are failures here
         check_env(env.unwrapped)
     env.close()
+    print("checked", mode)
+"""
+
+# issue 42, item 15: under a display MuJoCo's offscreen renderer draws in a hidden GLFW window;
+# closing the last human window once ended GLFW (glfw.terminate), that hidden window with it,
+# and closing the rgb_array env then crashed the process (SIGSEGV)
+OUTLIVES_A_WINDOW = """
+import gymnasium as gym
+import smartcar_gym
+
+def make(mode):
+    env = gym.make("SmartCar-v0", engine="mujoco", render_mode=mode)
+    env.reset(seed=0)
+    env.render()
+    return env
+
+a = make("rgb_array")
+make("human").close()
+make("rgb_array").close()
+print("std", a.render().std())
+a.close()
+print("closed")
+"""
+
+
+def _child(code: str, display: str, *args: str) -> subprocess.CompletedProcess:
+    """``code`` in a fresh interpreter on ``display``: a crash fails one test, not the run."""
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("MUJOCO_GL", "PYOPENGL_PLATFORM", "WAYLAND_DISPLAY")}  # GLFW, as a desktop
+    env["DISPLAY"] = display
+    done = subprocess.run([sys.executable, "-X", "faulthandler", "-c", code, *args],
+                          capture_output=True, text=True, env=env, timeout=600)
+    how = "killed by a signal" if done.returncode < 0 else "an error"
+    assert done.returncode == 0, f"exit {done.returncode} ({how}): {done.stderr[-3000:]}"
+    return done
+
+
+@needs_xvfb
+@pytest.mark.parametrize("engine", ["mujoco", "pybullet"])
+@pytest.mark.parametrize("env_id", PHYSICS_IDS)
+def test_check_env_with_its_render_check_passes_in_every_mode(viewer_display, env_id, engine):
+    """``check_env`` makes an env in every mode ``metadata["render_modes"]`` lists (a human
+    window, an rgb_array renderer) while the env it checks, made without a render mode and
+    then in rgb_array mode and rendered, stays open. The checked env is not made "human":
+    check_env's own human env would be a second window beside it, which pybullet refuses
+    (one GUI per process) and MuJoCo's viewer threads do not survive reliably."""
+    outer = ["None", "rgb_array"]
+    done = _child(CHECK_EVERY_MODE, viewer_display, env_id, engine, *outer)
+    said = [line for line in done.stdout.splitlines()
+            if line.startswith(("listed", "checked"))]  # not pybullet's own lines
+    assert said == ["listed human rgb_array", *(f"checked {mode}" for mode in outer)], said
+
+
+@needs_xvfb
+def test_an_rgb_array_env_outlives_a_closed_human_window(viewer_display):
+    done = _child(OUTLIVES_A_WINDOW, viewer_display)
+    std, closed = done.stdout.strip().splitlines()[-2:]
+    assert float(std.split()[1]) > 10 and closed == "closed", done.stdout  # not a blank frame
 
 
 def test_human_mode_without_a_display_is_one_line(monkeypatch):

@@ -41,8 +41,9 @@ BLOCKER = textwrap.dedent("""
 def _run(argv: list[str], blocked: tuple[str, ...] = (), env: dict | None = None,
          ) -> subprocess.CompletedProcess:
     code = BLOCKER.format(blocked=blocked, argv=argv)
+    # warnings on, as many developers and CI have them: a one-line error stays one line
     return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                          timeout=120, env={**os.environ, "PYTHONWARNINGS": "ignore",
+                          timeout=120, env={**os.environ, "PYTHONWARNINGS": "default",
                                             **(env or {})})
 
 

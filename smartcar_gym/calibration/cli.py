@@ -119,10 +119,26 @@ def _check_output(path: Path | None, option: str) -> str | None:
     return None
 
 
+def _planar_flags_given(argv: Sequence[str] | None) -> list[str]:
+    """The ``--fit planar`` options on the command line, default values given included."""
+    group = argparse.ArgumentParser(add_help=False)
+    planar_cli.add_arguments(group)
+    dests = list(vars(group.parse_args([])))
+    probe = build_parser()
+    unset = object()
+    probe.set_defaults(**dict.fromkeys(dests, unset))
+    given = vars(probe.parse_args(argv))
+    return ["--" + dest.replace("_", "-") for dest in dests if given[dest] is not unset]
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """``smartcar-calibrate``; returns the exit code."""
     parser = build_parser()
     args = parser.parse_args(argv)
+    planar_flags = _planar_flags_given(argv) if args.fit != "planar" else []
+    if planar_flags:
+        parser.error(f"{', '.join(planar_flags)}: only with --fit planar (the planar engine's "
+                     "parameters); the other fits ignore them")
     for problem in (_check_output(args.output, "--output"), _check_output(args.json, "--json")):
         if problem:
             parser.error(problem)

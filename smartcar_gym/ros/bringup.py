@@ -158,7 +158,11 @@ def start_robot(model: Any, config: ArbotixConfig, mode: str,
     """A fresh world of ``engine`` with the robot spawned at the origin, its controller started
     at t = 0."""
     sim = make_simulator(engine)
-    robot = SmartCarRobot(sim, model, config, mode=mode)
-    sim.reset()
-    robot.spawn(0.0, 0.0, 0.0)
+    try:
+        robot = SmartCarRobot(sim, model, config, mode=mode)
+        sim.reset()
+        robot.spawn(0.0, 0.0, 0.0)
+    except BaseException:
+        sim.close()  # a refused robot leaves no world behind
+        raise
     return robot

@@ -24,7 +24,8 @@ import sys
 import threading
 import time
 import warnings
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -144,11 +145,26 @@ def _fail(message: str) -> int:
     return 2
 
 
+@contextmanager
+def _master(caller_id: str) -> Iterator[Any]:
+    """A ``rosgraph.Master`` whose connection is closed on the way out: left open, its socket
+    is a ResourceWarning when collected, printed (with warnings on) before a one-line error."""
+    import rosgraph
+
+    master = rosgraph.Master(caller_id)
+    try:
+        yield master
+    finally:
+        master.handle("close")()
+
+
 def _ros_or_fail() -> Any:
     ros = import_ros()  # RosUnavailable: one line, said by the caller
     import rosgraph
 
-    if not rosgraph.is_master_online():
+    with _master("/rosgraph") as master:  # rosgraph.is_master_online(), closed
+        online = master.is_online()
+    if not online:
         raise RosUnavailable(f"no ROS master at {rosgraph.get_master_uri()}: start roscore (or "
                              "roslaunch) first, or set ROS_MASTER_URI")
     return ros
@@ -222,15 +238,15 @@ def _bringup_setup(args: argparse.Namespace, ros_args: list[str]) -> tuple:
 
     try:
         name = _private_name(ros_args)
-        master = rosgraph.Master(name)
-        with warnings.catch_warnings(record=True) as caught:
+        with _master(name) as master, warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             params = master.getParam(name) if master.hasParam(name) else {}
+            sim_time = bool(master.hasParam("/use_sim_time")
+                            and master.getParam("/use_sim_time"))
             config, source = controller_config(params if isinstance(params, dict) else {}, name,
                                                args.controller_config or calibrated_config_path())
             model = load_model(args.model, package_path=args.package_path)
         mode = args.mode or ("sim" if config.kinematic else "hardware")
-        sim_time = bool(master.hasParam("/use_sim_time") and master.getParam("/use_sim_time"))
         if args.speed != 1.0 and not sim_time:
             raise ValueError(f"--speed {args.speed:g} needs /use_sim_time true (set it before "
                              "the nodes start, e.g. <param name=\"/use_sim_time\" value=\"true\"/>"

@@ -15,7 +15,9 @@ from __future__ import annotations
 
 import abc
 import math
+import shutil
 import tempfile
+import weakref
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Protocol
@@ -66,6 +68,16 @@ def check_max_substep(value: object, name: str = "max_substep_s",
     return float(value)
 
 
+class ScratchFolder:
+    """A temporary folder of ``owner``'s, removed by ``remove()`` or, when ``owner`` is
+    collected unclosed (an env copy, an env dropped), by the collector without a word (a
+    ``TemporaryDirectory`` warns then, inside whatever warning check is running)."""
+
+    def __init__(self, owner: object) -> None:
+        self.path = Path(tempfile.mkdtemp(prefix="smartcar_gym_"))
+        self.remove = weakref.finalize(owner, shutil.rmtree, self.path, ignore_errors=True)
+
+
 class EventClock(abc.ABC):
     """The clock, the event sources and the named bodies of one simulated world.
 
@@ -107,13 +119,13 @@ class EventClock(abc.ABC):
         rewritten at each spawn), made on first use and removed by ``close()`` (or when the
         simulator is collected)."""
         if getattr(self, "_scratch", None) is None:
-            self._scratch = tempfile.TemporaryDirectory(prefix="smartcar_gym_")
-        return Path(self._scratch.name)
+            self._scratch = ScratchFolder(self)
+        return self._scratch.path
 
     def _remove_scratch(self) -> None:
         scratch = getattr(self, "_scratch", None)
         if scratch is not None:
-            scratch.cleanup()
+            scratch.remove()
             self._scratch = None
 
     # -- clock and stepping --------------------------------------------------------------------

@@ -8,7 +8,8 @@ line saying what to install.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import threading
+from collections.abc import Callable, Sequence
 
 import mujoco
 import numpy as np
@@ -19,6 +20,45 @@ from smartcar_gym.sim.mujoco.model import GROUP_COLLISION, GROUP_HIDDEN, GROUP_V
 INSTALL_HINT = ("install Mesa's EGL (Debian: apt-get install libegl1 libgl1-mesa-dri) and set "
                 "MUJOCO_GL=egl, or OSMesa (apt-get install libosmesa6) and set MUJOCO_GL=osmesa")
 
+_glfw_lock = threading.Lock()
+_glfw_users = 0  # viewer windows and GLFW offscreen renderers, each from its start to its close
+_glfw_window_used = False  # a viewer window used GLFW since it was started
+
+
+def use_glfw(start: Callable[[], None] | None = None, window: bool = False) -> None:
+    """One more user of GLFW: a viewer window (``window``) or an offscreen renderer on MuJoCo's
+    GLFW backend. ``start`` runs first when there is none (its error: no user is added)."""
+    global _glfw_users, _glfw_window_used
+    with _glfw_lock:
+        if _glfw_users == 0 and start is not None:
+            start()
+        _glfw_users += 1
+        _glfw_window_used = _glfw_window_used or window
+
+
+def release_glfw() -> None:
+    """One user of GLFW less. GLFW lives while any window or renderer uses it:
+    ``glfw.terminate()`` destroys every GLFW window, a renderer's hidden one included. When the
+    last one goes and a viewer window used GLFW, it is ended (no connection outlives the
+    windows); offscreen renderers alone leave it to MuJoCo, as they always did."""
+    global _glfw_users, _glfw_window_used
+    with _glfw_lock:
+        _glfw_users -= 1
+        if _glfw_users == 0 and _glfw_window_used:
+            import glfw
+
+            glfw.terminate()
+            _glfw_window_used = False
+
+
+def renders_through_glfw() -> bool:
+    """Whether MuJoCo's offscreen renderer draws in a hidden GLFW window (``MUJOCO_GL`` unset
+    or ``glfw`` under a display)."""
+    import mujoco.gl_context
+
+    context = getattr(mujoco.gl_context, "GLContext", None)
+    return getattr(context, "__module__", "") == "mujoco.glfw"
+
 
 class OffscreenCamera:
     """A ``mujoco.Renderer`` of ``width`` x ``height`` pixels for one compiled model."""
@@ -28,9 +68,15 @@ class OffscreenCamera:
         self.size = (width, height)
         model.vis.global_.offwidth = max(width, model.vis.global_.offwidth)
         model.vis.global_.offheight = max(height, model.vis.global_.offheight)
+        self._glfw = renders_through_glfw()
+        if self._glfw:
+            use_glfw()
         try:
-            self.renderer = mujoco.Renderer(model, height, width, max_geom=4000)
+            self.renderer: mujoco.Renderer | None = mujoco.Renderer(model, height, width,
+                                                                    max_geom=4000)
         except Exception as exc:  # GL libraries missing: MuJoCo's own error is long
+            if self._glfw:
+                release_glfw()
             reason = " ".join(str(exc).split())[:160]
             raise RuntimeError(f"MuJoCo cannot render headless here ({reason}): "
                                f"{INSTALL_HINT}") from None
@@ -53,7 +99,12 @@ class OffscreenCamera:
         return renderer.render().copy()
 
     def close(self) -> None:
-        self.renderer.close()
+        """Free the renderer (idempotent)."""
+        renderer, self.renderer = self.renderer, None
+        if renderer is not None:
+            renderer.close()
+            if self._glfw:
+                release_glfw()
 
 
 def show_groups(option: mujoco.MjvOption, show_collision: bool) -> None:

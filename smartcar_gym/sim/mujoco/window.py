@@ -25,14 +25,18 @@ from typing import Any
 import mujoco
 
 from smartcar_gym.sim.mujoco.body import Marker
-from smartcar_gym.sim.mujoco.render import add_markers, point_orbit, show_groups
+from smartcar_gym.sim.mujoco.render import (
+    add_markers,
+    point_orbit,
+    release_glfw,
+    show_groups,
+    use_glfw,
+)
 
 #: how long ``close`` waits for the viewer's thread to destroy its window (s)
 CLOSE_TIMEOUT_S = 5.0
 #: how long ``start_glfw`` tries to reach the display (s)
 START_TIMEOUT_S = 2.0
-_glfw_users = 0  # simulators with a window, from start_glfw to stop_glfw
-_lock = threading.Lock()
 
 
 @functools.cache
@@ -53,9 +57,10 @@ def start_glfw() -> None:
 
     GLFW stays started while any such simulator is open, so the viewer's own start is a no-op
     that cannot fail (a failed one in its thread would leave ``launch_passive`` waiting
-    forever). The last ``stop_glfw`` ends it: no connection outlives the windows.
+    forever). It ends when the last window or offscreen renderer using it closes
+    (``render.release_glfw``): no connection outlives the windows, and no renderer loses its
+    hidden window.
     """
-    global _glfw_users
     why = unavailable()
     if why is not None:
         raise RuntimeError(f"render_mode='human' opens MuJoCo's viewer, but {why}; use "
@@ -67,10 +72,7 @@ def start_glfw() -> None:
                            "rendering")
     import glfw
 
-    with _lock:
-        if _glfw_users == 0:
-            _init_glfw(glfw, display)
-        _glfw_users += 1
+    use_glfw(lambda: _init_glfw(glfw, display), window=True)
 
 
 def _init_glfw(glfw: Any, display: str | None) -> None:
@@ -103,14 +105,8 @@ def _said(caught: list[warnings.WarningMessage]) -> str:
 
 
 def stop_glfw() -> None:
-    """One simulator with a window less; the last one ends GLFW."""
-    global _glfw_users
-    import glfw
-
-    with _lock:
-        _glfw_users -= 1
-        if _glfw_users == 0:
-            glfw.terminate()
+    """One simulator with a window less; GLFW ends with its last window or renderer."""
+    release_glfw()
 
 
 class Window:

@@ -316,9 +316,13 @@ class SmartCarEnv(gym.Env):
 
         self.sim: Simulator | None = None
         self._open()
-        if get_engine(self.engine).spawn_check:
-            self._check_car()
-        self.observation = self._declare_observation()
+        try:
+            if get_engine(self.engine).spawn_check:
+                self._check_car()
+            self.observation = self._declare_observation()
+        except BaseException:  # a refused robot leaves no world behind
+            self.close()
+            raise
         #: what each observation entry is, in order (wheels as found: left then right)
         self.observation_names: tuple[str, ...] = self.observation.names
         self.observation_space = self.observation.space

@@ -41,7 +41,6 @@ from smartcar_gym.sim.planar.layout import (
     YAW_RATE,
     X,
     Y,
-    drive_values,
     rest_state,
     speed_row,
     state_size,
@@ -173,6 +172,7 @@ class PlanarBody:
             self._arrays = (np.array(model.car), np.array(model.contacts).reshape(-1, NC),
                             np.array(model.contact_groups, dtype=np.int64))
         self.model, self.groups, self.com, self.state = model, model.groups, model.com, state
+        self._speed_row = speed_row(ng)  # where the groups' speeds start, read every step
         self._dirty = False
         self._drive()
 
@@ -207,7 +207,7 @@ class PlanarBody:
             if j in self.groups.of:
                 g, sign = self.groups.of[j]
                 damping[g] += sign * sign * b
-        self.drive = drive_values(torque=tau, damping=damping)
+        self.drive = tau + damping  # drive_values' layout, without its check (every frame)
         if jit.COMPILED:
             self._drive_array = np.array(self.drive)
 
@@ -234,8 +234,7 @@ class PlanarBody:
         if found is None:
             return self._fixed_q.get(j, (0.0, 0.0))
         g, sign = found
-        speed = speed_row(len(self.groups.members))
-        return sign * self.state[ANGLE + g], sign * self.state[speed + g]
+        return sign * self.state[ANGLE + g], sign * self.state[self._speed_row + g]
 
     def joint_states(self, joints: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
         """Positions (rad) and velocities (rad/s) of joints given by index."""

@@ -71,13 +71,14 @@ def build_parser() -> argparse.ArgumentParser:
     marks.add_argument("--max-final-distance", type=distance_arg, metavar="M",
                        help="largest mean final distance to the goal, m")
     barn.add_argument("--quiet", action="store_true", help="no line per run")
+    barn.set_defaults(command_parser=barn)  # its errors read "smartcar-bench barn: error: ..."
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """``smartcar-bench``: the exit code (2 for bad arguments, 1 for a missed pass mark)."""
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    args = build_parser().parse_args(argv)
+    parser = args.command_parser
     for option in ("json", "plot"):
         path = getattr(args, option)
         why = None if path is None else output_path_error(path)

@@ -23,7 +23,7 @@ def summarize(records: Sequence[RunRecord]) -> dict[str, Any]:
     n = len(records)
     outcomes = [r.outcome for r in records]
     times = [r.time_s for r in records if r.outcome == SUCCESS]
-    summary: dict[str, Any] = {"episodes": n, "worlds": len({r.world for r in records})}
+    summary: dict[str, Any] = {"episodes": n, "n_worlds": len({r.world for r in records})}
     for outcome in OUTCOMES:
         summary[f"{outcome}_rate"] = outcomes.count(outcome) / n if n else 0.0
     summary.update(

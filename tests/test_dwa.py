@@ -76,8 +76,8 @@ def test_scan_points_and_the_turn_response():
     mount = np.eye(4)
     mount[0, 3] = 0.1
     ranges = np.array([1.0, np.inf, -np.inf])
-    points = scan_points(ranges, np.array([0.0, np.pi / 2, np.pi]), mount, range_min=0.12)
-    assert np.allclose(points, [[1.1, 0.0], [-0.02, 0.0]])
+    points = scan_points(ranges, np.array([0.0, np.pi / 2, np.pi]), mount)
+    assert np.allclose(points, [[1.1, 0.0]])
     # the car turns at 0.53 rad/s when driving with 0.8 commanded, in place at 0.69 with 1.0
     assert turn_command(np.array([0.1, 0.0]), np.array([0.53, -0.69])) == pytest.approx(
         [0.8, -1.0])

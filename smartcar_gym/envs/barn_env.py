@@ -50,9 +50,12 @@ PROTOCOL_KWARGS = ("goal_range", "goal_tolerance", "arena_size", "obstacles", "o
                    "obstacle_clearance", "obstacle_layout")
 
 
-def footprint_half_extents(model: RobotModel) -> tuple[float, float]:
+def footprint_half_extents(model: RobotModel, wheel_contact: str = "urdf"
+                           ) -> tuple[float, float]:
     """Half the length (along base_link x) and half the width (y) of the box about base_link
-    that holds the model's collision shapes' bounding boxes (a mesh counts as its origin)."""
+    that holds the model's collision shapes' bounding boxes (a mesh counts as its origin);
+    with ``wheel_contact="sphere"`` the drive wheels as the simulator has them, spheres of
+    their radius."""
     robot = UrdfRobot(model.name, model.links, model.joints, model.base_link)
     frames = link_frames(robot)
     reach = np.zeros(2)
@@ -66,6 +69,9 @@ def footprint_half_extents(model: RobotModel) -> tuple[float, float]:
                         g.size)
             # the shape's box's extent along base_link x and y: |t| + |R| . half
             reach = np.maximum(reach, np.abs(pose[:2, 3]) + np.abs(pose[:2, :3]) @ half)
+    if wheel_contact == "sphere":
+        for wheel in model.left_wheels + model.right_wheels:
+            reach = np.maximum(reach, np.abs(wheel.position_m[:2]) + wheel.radius_m)
     return float(reach[0]), float(reach[1])
 
 
@@ -108,7 +114,8 @@ class SmartCarBARNEnv(SmartCarNavEnv):
     scan's sectors), then ``waypoint_base``: the global path's next waypoint (``lookahead``
     metres along it beyond the point nearest the odometry pose) in the odometry base_link
     frame. No ground truth. The global path is planned once per world on its occupancy grid
-    (0.02 m cells) with the cylinders inflated by half the car's width, Dijkstra as move_base's
+    (0.02 m cells) with the cylinders inflated by half the simulated car's width (0.105 m: the
+    default ``wheel_contact="sphere"`` makes the wheels spheres), Dijkstra as move_base's
     navfn: ``env.unwrapped.global_path`` (odom frame), the same path the DWA driver follows.
 
     ## Episodes
@@ -202,15 +209,15 @@ class SmartCarBARNEnv(SmartCarNavEnv):
 
     def _global_path(self) -> np.ndarray:
         """The world's global path (cached): Dijkstra on its grid, cylinders inflated by half
-        the car's width, from the start to the goal."""
+        the simulated car's width, from the start to the goal."""
         index = self.world.index
         if index not in self._paths:
             margin = MAP_MARGIN_M
             low = np.minimum(self._centres.min(axis=0), [0.0, 0.0]) - margin
             high = np.maximum(self._centres.max(axis=0), self.goal) + margin
             grid = distance_grid(self._centres, self._radii, low, high, GRID_RESOLUTION_M)
-            self._paths[index] = plan_path(grid, np.zeros(2), self.goal,
-                                           self.protocol.scale * JACKAL_WIDTH_M / 2.0)
+            half_width = footprint_half_extents(self.robot_model, self.wheel_contact)[1]
+            self._paths[index] = plan_path(grid, np.zeros(2), self.goal, half_width)
         return self._paths[index]
 
     def reset(self, *, seed: int | None = None,

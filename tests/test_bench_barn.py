@@ -13,12 +13,11 @@ from smartcar_gym.bench.runner import RunRecord, barn_jobs
 
 
 def _run(argv: list[str], capsys) -> tuple[int, str, str]:
+    """smartcar-bench's exit status (argparse's SystemExit's too), stdout and stderr."""
     try:
-        code = main(argv)
+        return (main(argv), *capsys.readouterr())
     except SystemExit as exit_:
-        code = exit_.code
-    out, err = capsys.readouterr()
-    return code, out, err
+        return (exit_.code, *capsys.readouterr())
 
 
 def _error(err: str) -> str:

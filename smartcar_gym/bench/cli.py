@@ -62,8 +62,9 @@ def build_parser() -> argparse.ArgumentParser:
     barn.add_argument("--device", default="cpu", help="torch device of --model")
     barn.add_argument("--json", type=Path, metavar="FILE", help="write the table and every run")
     barn.add_argument("--plot", type=Path, metavar="FILE.png",
-                      help="draw the first --plot-worlds worlds' first runs")
-    barn.add_argument("--plot-worlds", type=positive_int_arg, default=4, metavar="N")
+                      help="draw the first runs of the --plot-worlds")
+    barn.add_argument("--plot-worlds", type=non_negative_int_arg, nargs="+", metavar="I",
+                      help="the worlds --plot draws (default: the first four run)")
     marks = barn.add_argument_group("pass marks", "as smartcar-eval's: exit status 1 when one "
                                                   "is missed")
     marks.add_argument("--fail-under", type=percent_arg, metavar="PCT",
@@ -99,7 +100,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 driver.check(ENV_ID, envs[0].observation_space)
             except DriverError as err:
                 parser.error(str(err))
-        plotted = set(chosen[:args.plot_worlds]) if args.plot is not None else set()
+        plotted = set() if args.plot is None else set(args.plot_worlds or chosen[:4])
         jobs = barn_jobs(chosen, args.runs, args.seed)
         records = run_barn(envs, driver, jobs,
                            keep=lambda job: job.world in plotted and job.run == 0,

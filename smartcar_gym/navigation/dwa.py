@@ -32,32 +32,36 @@ LETHAL_COST = 252.0
 
 @dataclass(frozen=True)
 class DWAConfig:
-    """base_local_planner's parameters (m, s, rad), the footprint and the costmap's."""
+    """base_local_planner's parameters (m, s, rad), the footprint and the costmap's; the
+    defaults are the BARN challenge's move_base set for the Jackal."""
 
+    # the limits (m/s, rad/s, m/s^2, rad/s^2)
     max_vel_x: float = 0.5
     min_vel_x: float = 0.1
     max_vel_theta: float = 1.57
     min_in_place_vel_theta: float = 0.4
     acc_lim_x: float = 10.0
     acc_lim_theta: float = 20.0
+    escape_vel: float = -0.1
+    # the rollouts: seconds ahead, the control period, poses along each, samples
     sim_time: float = 2.0
     sim_period: float = 0.1
-    sim_steps: int = 20  # poses along each rollout
+    sim_steps: int = 20
     vx_samples: int = 6
     vtheta_samples: int = 20
+    # the scoring
     pdist_scale: float = 0.75
     gdist_scale: float = 1.0
     occdist_scale: float = 0.1
     meter_scoring: bool = False
-    escape_vel: float = -0.1
-    # the footprint: a rectangle about base_link, and the costmap around it
+    local_goal_m: float = 1.5
+    # the footprint, a rectangle about base_link, and the costmap around it
     half_length: float = 0.254
     half_width: float = 0.215
     footprint_padding: float = 0.02
     resolution: float = 0.05  # costmap cells (m), the unit of path_dist and goal_dist
     inflation_radius: float = 0.5
     cost_scaling_factor: float = 10.0  # 1/m
-    local_goal_m: float = 1.5
 
     @classmethod
     def challenge(cls, scale: float, speed_scale: float, sim_period: float = 0.1,

@@ -125,7 +125,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"wrote {args.json}")
     if args.plot is not None:
         plot_runs(records, worlds, envs[0].unwrapped.protocol.scale, args.plot,
-                  f"{name} on {engine}: {summary['success_rate']:.0%} success")
+                  f"{name} on {engine}: {summary['success_rate']:.0%} success (dashed: the "
+                  "global path)", envs[0].unwrapped.planned_paths)
         print(f"wrote {args.plot}")
     for mark in marks:
         print(f"smartcar-bench: {mark['line']}", file=sys.stderr)

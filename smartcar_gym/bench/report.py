@@ -55,8 +55,9 @@ def table(summary: dict[str, Any], name: str) -> str:
 
 
 def plot_runs(records: Sequence[RunRecord], worlds: Any, scale: float, path: Path,
-              title: str) -> None:
-    """The kept trajectories, one panel per world: cylinders, start, goal and the car's way."""
+              title: str, global_paths: dict[int, np.ndarray] | None = None) -> None:
+    """The kept trajectories, one panel per world: cylinders, start, goal, the global path
+    (``global_paths``, by world) and the car's way."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -65,7 +66,7 @@ def plot_runs(records: Sequence[RunRecord], worlds: Any, scale: float, path: Pat
     from smartcar_gym.worlds.barn import GOAL_XY, to_car_frame
 
     kept = [r for r in records if r.trajectory is not None]
-    fig, axes = plt.subplots(1, max(1, len(kept)), figsize=(3.2 * max(1, len(kept)), 3.4),
+    fig, axes = plt.subplots(1, max(1, len(kept)), figsize=(3.2 * max(1, len(kept)), 2.1),
                              squeeze=False)
     goal = to_car_frame(np.array(GOAL_XY), scale)
     for ax, record in zip(axes[0], kept, strict=False):
@@ -73,6 +74,9 @@ def plot_runs(records: Sequence[RunRecord], worlds: Any, scale: float, path: Pat
         centres, radii = to_car_frame(world.centres, scale), world.radii * scale
         for (x, y), r in zip(centres, radii, strict=True):
             ax.add_patch(plt.Circle((x, y), r, color="0.4"))
+        planned = (global_paths or {}).get(record.world)
+        if planned is not None:
+            ax.plot(planned[:, 0], planned[:, 1], color="tab:orange", lw=0.8, ls="--")
         way = record.trajectory
         ax.plot(way[:, 0], way[:, 1], color="tab:blue", lw=1.2)
         ax.plot(0, 0, "go", ms=4)

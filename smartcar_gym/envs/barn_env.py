@@ -220,6 +220,11 @@ class SmartCarBARNEnv(SmartCarNavEnv):
             self._paths[index] = plan_path(grid, np.zeros(2), self.goal, half_width)
         return self._paths[index]
 
+    @property
+    def planned_paths(self) -> dict[int, np.ndarray]:
+        """The global paths planned so far, by world."""
+        return dict(self._paths)
+
     def reset(self, *, seed: int | None = None,
               options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
         obs, info = super().reset(seed=seed, options=options)

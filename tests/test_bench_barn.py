@@ -27,21 +27,22 @@ def _error(err: str) -> str:
 
 def test_dwa_on_two_worlds_prints_the_table_writes_json_and_misses_a_mark(tmp_path, capsys):
     out_json, out_png = tmp_path / "dwa.json", tmp_path / "dwa.png"
-    # world 30: DWA collides on MuJoCo (docs/barn.md); world 0: a success
+    # world 228: DWA times out on MuJoCo, turning in front of a gap (docs/barn.md); 0: a success
     code, out, err = _run(["barn", "--driver", "dwa", "--engine", "mujoco", "--worlds", "0",
-                           "30", "--json", str(out_json), "--plot", str(out_png),
+                           "228", "--json", str(out_json), "--plot", str(out_png),
                            "--fail-under", "60", "--max-final-distance", "5"], capsys)
     assert code == 1
     assert out.startswith("smartcar-bench barn: dwa on mujoco, 2 worlds x 1 run(s), seed 0\n")
-    assert "| dwa | 2 | 0.500 | 0.500 | 0.000 | 0.000 |" in out
+    assert "| dwa | 2 | 0.500 | 0.000 | 0.500 | 0.000 |" in out
     assert "| move_base + DWA (Jackal), published | 50 x 10 | 0.88 |" in out
-    assert "world   0 run 0: success after" in err and "world  30 run 0: collision" in err
+    assert "world   0 run 0: success after" in err
+    assert "world 228 run 0: timeout after 1675 steps" in err
     assert ("smartcar-bench: pass mark missed: success rate 50.0% is under --fail-under 60% "
             "(2 episodes)") in err
     assert "pass mark held: mean final distance" in err
     data = json.loads(out_json.read_text())
-    assert data["passed"] is False and data["engine"] == "mujoco" and data["worlds"] == [0, 30]
-    assert [r["outcome"] for r in data["records"]] == ["success", "collision"]
+    assert data["passed"] is False and data["engine"] == "mujoco" and data["worlds"] == [0, 228]
+    assert [r["outcome"] for r in data["records"]] == ["success", "timeout"]
     assert data["success_rate"] == 0.5 and data["mean_score"] == pytest.approx(
         data["records"][0]["score"] / 2)
     assert data["mean_time_s"] == pytest.approx(data["records"][0]["time_s"])

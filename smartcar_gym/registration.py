@@ -15,6 +15,7 @@ from smartcar_gym.controller.config_yaml import calibrated_config_path
 ENTRY_POINT = "smartcar_gym.envs.smartcar_env:SmartCarEnv"
 NAV_ENTRY_POINT = "smartcar_gym.envs.nav_env:SmartCarNavEnv"
 GOAL_ENTRY_POINT = "smartcar_gym.envs.goal_env:SmartCarGoalEnv"
+BARN_ENTRY_POINT = "smartcar_gym.envs.barn_env:SmartCarBARNEnv"
 VECTOR = "smartcar_gym.envs.vector:"  # each id's vector_entry_point (docs/vector.md)
 MAX_EPISODE_STEPS = 200
 # Mean return of a policy that reaches the goal reliably (see docs/results.md).
@@ -51,6 +52,10 @@ SPECS: dict[str, EnvSpec] = {
     # 10 s: HER learns from short episodes; goals 0.5-1.5 m away take 3-5 s
     "SmartCarGoal-v0": EnvSpec(GOAL_ENTRY_POINT, 100, None,
                                vector_entry_point=VECTOR + "smartcar_goal_v0"),
+    # the env ends its runs at the challenge's timeout (1675 steps for the shipped car); the
+    # limit is one step beyond, so that the env's own "timeout" outcome is always seen
+    "SmartCarBARN-v0": EnvSpec(BARN_ENTRY_POINT, 1676, None,
+                               vector_entry_point="smartcar_gym.envs.barn_env:barn_vector_env"),
 }
 
 #: every registered id

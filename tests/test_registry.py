@@ -53,7 +53,7 @@ def rollout_digest(env_id: str, seed: int, n_steps: int = N_STEPS) -> str:
 def test_env_ids_is_one_exported_tuple_of_every_registered_id():
     assert isinstance(ENV_IDS, tuple) and smartcar_gym.ENV_IDS is ENV_IDS
     assert ENV_IDS == ("SmartCar-v0", "SmartCarSim-v0", "SmartCarArrive-v0", "SmartCarNav-v0",
-                       "SmartCarGoal-v0")
+                       "SmartCarGoal-v0", "SmartCarBARN-v0")
     ours = {spec.id for spec in registry.values()
             if str(spec.entry_point).startswith("smartcar_gym.")}
     assert ours == set(ENV_IDS)

@@ -25,6 +25,10 @@ import pytest
 import smartcar_gym  # noqa: F401
 from smartcar_gym.registration import ENV_IDS
 
+#: the ids whose rollouts were recorded (ids added since, such as SmartCarBARN-v0, have none:
+#: their behaviour is new, not a redesign's to keep)
+RECORDED_IDS = ("SmartCar-v0", "SmartCarSim-v0", "SmartCarArrive-v0", "SmartCarNav-v0",
+                "SmartCarGoal-v0")
 HASHES = Path(__file__).parent / "fixtures" / "rollout_hashes.json"
 RECORD = os.environ.get("SMARTCAR_RECORD_HASHES") == "1"
 ENGINES = ("pybullet", "mujoco", "planar")
@@ -92,7 +96,7 @@ def batched_digest(env_id: str, engine: str, mode: str) -> str:
     return digest.hexdigest()
 
 
-CASES = [(env_id, engine, how) for env_id in ENV_IDS for engine in ENGINES
+CASES = [(env_id, engine, how) for env_id in RECORDED_IDS for engine in ENGINES
          for how in ("single", "NextStep", "SameStep")]
 
 
@@ -132,6 +136,10 @@ def test_every_case_has_a_recorded_hash(recorded):
     # SmartCarSim-v0 steps no physics: its numpy batch is the same on every engine (6 keys,
     # one hash per autoreset mode)
     assert len(set(recorded.values())) == len(recorded) - 4, "two cases hashed the same rollout"
+
+
+def test_the_recorded_ids_are_registered():
+    assert set(RECORDED_IDS) <= set(ENV_IDS)
 
 
 def test_the_digest_sees_one_changed_bit():

@@ -1,0 +1,171 @@
+"""``smartcar-bench``: a policy or the DWA baseline on the BARN test worlds, the challenge's table.
+
+::
+
+    smartcar-bench barn --driver dwa --engine pybullet --runs 1 --json dwa.json --plot dwa.png
+    smartcar-bench barn --model runs/ppo_SmartCarBARN-v0_s0 --runs 10 --fail-under 80
+
+Every test world (0, 6, ..., 294; ``--worlds`` for others) K times (run k seeded
+``--seed + k``); the table says the rates of success, collision and timeout, the mean time of
+the successful runs and the mean score on both scales (docs/barn.md). ``--fail-under`` and
+``--max-final-distance`` are smartcar-eval's pass marks (exit status 1 when one is missed).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+
+from smartcar_gym.agents.cli_args import distance_arg, percent_arg
+from smartcar_gym.agents.cli_eval import check_marks
+from smartcar_gym.agents.hyperparams import (
+    non_negative_int_arg,
+    output_path_error,
+    positive_int_arg,
+)
+from smartcar_gym.bench.drivers import DRIVERS, DriverError, PolicyDriver, make_driver
+from smartcar_gym.bench.report import plot_runs, summarize, table
+from smartcar_gym.bench.runner import RunRecord, barn_jobs, run_barn
+from smartcar_gym.sim.engines import DEFAULT_ENGINE, add_engine_argument
+from smartcar_gym.worlds.barn import TEST_WORLDS, BarnWorldError, load_worlds
+
+ENV_ID = "SmartCarBARN-v0"
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="smartcar-bench", description=__doc__.split("\n")[0])
+    sub = parser.add_subparsers(dest="benchmark", required=True, metavar="BENCHMARK")
+    barn = sub.add_parser("barn", help="the BARN challenge's 50 test worlds",
+                          description="Runs a policy or a classical driver on the BARN test "
+                                      "worlds and prints the challenge's table.")
+    source = barn.add_mutually_exclusive_group()
+    source.add_argument("--model", type=Path, help="a model .zip or a run folder")
+    source.add_argument("--pretrained", metavar="NAME", help="a shipped policy by name")
+    source.add_argument("--driver", metavar="NAME",
+                        help=f"a classical driver: {', '.join(sorted(DRIVERS))} (the default: "
+                             "dwa)")
+    add_engine_argument(barn)
+    barn.add_argument("--runs", type=positive_int_arg, default=1, metavar="K",
+                      help="runs of each world (default 1; the challenge: 10)")
+    barn.add_argument("--worlds", type=non_negative_int_arg, nargs="+", metavar="I",
+                      help="these worlds instead of the 50 test worlds")
+    barn.add_argument("--world-file", type=Path, metavar="FILE.npz",
+                      help="the worlds (default: the shipped barn_worlds.npz)")
+    barn.add_argument("--n-envs", type=positive_int_arg, default=1,
+                      help="envs stepped side by side (one driver call for all)")
+    barn.add_argument("--seed", type=int, default=0)
+    barn.add_argument("--device", default="cpu", help="torch device of --model")
+    barn.add_argument("--json", type=Path, metavar="FILE", help="write the table and every run")
+    barn.add_argument("--plot", type=Path, metavar="FILE.png",
+                      help="draw the first runs of the --plot-worlds")
+    barn.add_argument("--plot-worlds", type=non_negative_int_arg, nargs="+", metavar="I",
+                      help="the worlds --plot draws (default: the first four run)")
+    marks = barn.add_argument_group("pass marks", "as smartcar-eval's: exit status 1 when one "
+                                                  "is missed")
+    marks.add_argument("--fail-under", type=percent_arg, metavar="PCT",
+                       help="least success rate, percent")
+    marks.add_argument("--max-final-distance", type=distance_arg, metavar="M",
+                       help="largest mean final distance to the goal, m")
+    barn.add_argument("--quiet", action="store_true", help="no line per run")
+    barn.set_defaults(command_parser=barn)  # its errors read "smartcar-bench barn: error: ..."
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``smartcar-bench``: the exit code (2 for bad arguments, 1 for a missed pass mark)."""
+    args = build_parser().parse_args(argv)
+    parser = args.command_parser
+    for option in ("json", "plot"):
+        path = getattr(args, option)
+        why = None if path is None else output_path_error(path)
+        if why is not None:
+            parser.error(f"--{option}: {why}")
+    try:
+        worlds = load_worlds(args.world_file)
+        chosen = TEST_WORLDS if args.worlds is None else tuple(args.worlds)
+        for index in chosen:
+            worlds.world(index)
+        driver, name = _driver(args)
+        envs = [_make_env(args) for _ in range(args.n_envs)]
+    except (BarnWorldError, DriverError) as err:
+        parser.error(str(err))
+    try:
+        if isinstance(driver, PolicyDriver):
+            try:
+                driver.check(ENV_ID, envs[0].observation_space)
+            except DriverError as err:
+                parser.error(str(err))
+        plotted = set() if args.plot is None else set(args.plot_worlds or chosen[:4])
+        jobs = barn_jobs(chosen, args.runs, args.seed)
+        records = run_barn(envs, driver, jobs,
+                           keep=lambda job: job.world in plotted and job.run == 0,
+                           report=None if args.quiet else _report)
+    finally:
+        for env in envs:
+            env.close()
+    summary = summarize(records)
+    marks = check_marks(summary, args)
+    engine = args.engine or DEFAULT_ENGINE
+    print(f"smartcar-bench barn: {name} on {engine}, {len(set(chosen))} worlds x {args.runs} "
+          f"run(s), seed {args.seed}")
+    print(table(summary, name))
+    if args.json is not None:
+        payload = {"benchmark": "barn", "driver": name, "env": ENV_ID, "engine": engine,
+                   "runs_per_world": args.runs, "seed": args.seed, "worlds": list(chosen),
+                   "scale": envs[0].unwrapped.protocol.scale, "marks": marks,
+                   "passed": all(m["held"] for m in marks), **summary,
+                   "records": [r.to_dict() for r in records]}
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        args.json.write_text(json.dumps(payload, indent=2) + "\n")
+        print(f"wrote {args.json}")
+    if args.plot is not None:
+        plot_runs(records, worlds, envs[0].unwrapped.protocol.scale, args.plot,
+                  f"{name} on {engine}: {summary['success_rate']:.0%} success (dashed: the "
+                  "global path)", envs[0].unwrapped.planned_paths)
+        print(f"wrote {args.plot}")
+    for mark in marks:
+        print(f"smartcar-bench: {mark['line']}", file=sys.stderr)
+    return 0 if all(m["held"] for m in marks) else 1
+
+
+def _driver(args: argparse.Namespace) -> tuple[Any, str]:
+    """The driver the arguments name, and its name in the table."""
+    if args.model is None and args.pretrained is None:
+        name = args.driver or "dwa"
+        return make_driver(name), name
+    from smartcar_gym.agents.models import PRETRAINED_POLICIES
+    from smartcar_gym.policy import Policy, PolicyError
+
+    if args.pretrained is not None and args.pretrained not in PRETRAINED_POLICIES:
+        raise DriverError(f"--pretrained: no shipped policy {args.pretrained!r}; the shipped "
+                          f"ones are {', '.join(PRETRAINED_POLICIES)} (none for BARN yet)")
+    source = args.model if args.model is not None else args.pretrained
+    try:
+        policy = Policy.load(source, device=args.device)
+    except PolicyError as err:
+        raise DriverError(str(err)) from None
+    name = f"pretrained:{args.pretrained}" if args.model is None else str(args.model)
+    return PolicyDriver(policy, name), name
+
+
+def _make_env(args: argparse.Namespace) -> gym.Env:
+    kwargs: dict[str, Any] = {"world_file": args.world_file}
+    if args.engine is not None:
+        kwargs["engine"] = args.engine
+    return gym.make(ENV_ID, **kwargs)
+
+
+def _report(record: RunRecord) -> None:
+    print(f"world {record.world:3d} run {record.run}: {record.outcome} after {record.steps} "
+          f"steps, time {record.time_s:.1f} s, score {record.score:.3f}", file=sys.stderr,
+          flush=True)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

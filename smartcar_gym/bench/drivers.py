@@ -1,0 +1,58 @@
+"""What drives the cars in a benchmark: a trained policy, or a classical driver by name.
+
+A driver has ``reset(envs, indices)`` (the episodes of ``envs[i]``, i in ``indices``, have
+just started) and ``act(envs, obs, indices)`` (actions (N, 2) for N of the envs, their
+observations (N, ...) and their places among those ``reset`` was given). ``DRIVERS`` names the
+classical ones; ``PolicyDriver`` wraps a ``smartcar_gym.policy.Policy``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from smartcar_gym.navigation.dwa_driver import DWADriver
+
+#: the classical drivers, by ``--driver`` name
+DRIVERS = {"dwa": DWADriver}
+
+
+class DriverError(ValueError):
+    """A driver that cannot drive these envs (unknown name, another observation space)."""
+
+
+def make_driver(name: str) -> Any:
+    """The classical driver called ``name`` (DriverError listing them for another name)."""
+    if name not in DRIVERS:
+        raise DriverError(f"--driver: unknown driver {name!r}; the drivers are "
+                          f"{', '.join(sorted(DRIVERS))}")
+    return DRIVERS[name]()
+
+
+class PolicyDriver:
+    """A trained policy, one observation at a time (``Policy.act``)."""
+
+    def __init__(self, policy: Any, name: str, deterministic: bool = True) -> None:
+        self.policy = policy
+        self.name = name
+        self.deterministic = deterministic
+
+    def check(self, env_id: str, space: Any) -> None:
+        """DriverError (one line, both shapes) if the policy was trained on observations of
+        another shape than the env's."""
+        expected = getattr(self.policy.observation_space, "shape", None)
+        if expected is not None and tuple(expected) != tuple(space.shape):
+            trained = getattr(self.policy, "env_id", None) or "another env"
+            raise DriverError(f"{self.name} takes observations of shape {tuple(expected)} (it "
+                              f"was trained on {trained}) but {env_id} gives "
+                              f"{tuple(space.shape)}: train a policy on {env_id}")
+
+    def reset(self, envs: Sequence[Any], indices: Sequence[int] | None = None) -> None:
+        """Nothing to prepare: a policy sees only its observations."""
+
+    def act(self, envs: Sequence[Any], obs: np.ndarray,
+            indices: Sequence[int] | None = None) -> np.ndarray:
+        """One action per observation."""
+        return np.stack([self.policy.act(o, deterministic=self.deterministic) for o in obs])

@@ -1,0 +1,191 @@
+"""A dynamic-window local planner: ROS base_local_planner's TrajectoryPlanner with ``dwa: true``.
+
+Every control period it samples (v, w) in the dynamic window (the velocities reachable from
+the current ones within ``acc_lim * sim_period``, capped by the limits), rolls each out at
+constant velocity for ``sim_time``, drops those whose footprint would touch a scan point,
+and scores the rest as base_local_planner does::
+
+    pdist_scale * path_dist + gdist_scale * goal_dist + occdist_scale * occ_cost
+
+path_dist: the end point's distance to the global path; goal_dist: its distance to the local
+goal (the path's point ``local_goal_m`` ahead); both in costmap cells (``meter_scoring``:
+metres); occ_cost: the highest inflation cost (0-252, the costmap's) on the way. In-place
+turns are sampled too; when nothing is free it backs up at ``escape_vel``, and when that is
+blocked as well it stops (move_base would start its recovery behaviours).
+
+``DWAConfig.challenge(scale, speed_scale)`` is the BARN challenge's parameter set for a robot
+``scale`` times the Jackal's size and ``speed_scale`` times its speed. ``DWAPlanner.plan`` is
+batched: N robots' velocities, obstacle points, path windows and local goals, each in its own
+base frame, in numpy arrays.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+FAR_M = 1e3  # where padding points lie
+LETHAL_COST = 252.0
+
+
+@dataclass(frozen=True)
+class DWAConfig:
+    """base_local_planner's parameters (m, s, rad), the footprint and the costmap's; the
+    defaults are the BARN challenge's move_base set for the Jackal."""
+
+    # the limits (m/s, rad/s, m/s^2, rad/s^2)
+    max_vel_x: float = 0.5
+    min_vel_x: float = 0.1
+    max_vel_theta: float = 1.57
+    min_in_place_vel_theta: float = 0.4
+    acc_lim_x: float = 10.0
+    acc_lim_theta: float = 20.0
+    escape_vel: float = -0.1
+    # the rollouts: seconds ahead, the control period, poses along each, samples
+    sim_time: float = 2.0
+    sim_period: float = 0.1
+    sim_steps: int = 20
+    vx_samples: int = 6
+    vtheta_samples: int = 20
+    # the scoring
+    pdist_scale: float = 0.75
+    gdist_scale: float = 1.0
+    occdist_scale: float = 0.1
+    meter_scoring: bool = False
+    local_goal_m: float = 1.5
+    # the footprint, a rectangle about base_link, and the costmap around it
+    half_length: float = 0.254
+    half_width: float = 0.215
+    footprint_padding: float = 0.02
+    resolution: float = 0.05  # costmap cells (m), the unit of path_dist and goal_dist
+    inflation_radius: float = 0.5
+    cost_scaling_factor: float = 10.0  # 1/m
+
+    @classmethod
+    def challenge(cls, scale: float, speed_scale: float, sim_period: float = 0.1,
+                  half_length: float | None = None, half_width: float | None = None
+                  ) -> DWAConfig:
+        """The BARN challenge's set (the Jackal's) for a robot ``scale`` times as big and
+        ``speed_scale`` times as fast: lengths x scale, speeds x speed_scale, times x
+        scale / speed_scale (so that every manoeuvre takes the same share of a run)."""
+        base = cls()
+        rate = speed_scale / scale  # angular rates and 1 / times
+        config = replace(
+            base, max_vel_x=base.max_vel_x * speed_scale,
+            min_vel_x=base.min_vel_x * speed_scale,
+            max_vel_theta=base.max_vel_theta * rate,
+            min_in_place_vel_theta=base.min_in_place_vel_theta * rate,
+            acc_lim_x=base.acc_lim_x * speed_scale * rate,
+            acc_lim_theta=base.acc_lim_theta * rate * rate,
+            sim_time=base.sim_time / rate, sim_period=sim_period,
+            escape_vel=base.escape_vel * speed_scale,
+            half_length=base.half_length * scale, half_width=base.half_width * scale,
+            footprint_padding=base.footprint_padding * scale,
+            resolution=base.resolution * scale,
+            inflation_radius=base.inflation_radius * scale,
+            cost_scaling_factor=base.cost_scaling_factor / scale,
+            local_goal_m=base.local_goal_m * scale,
+        )
+        if half_length is not None or half_width is not None:
+            config = replace(config, half_length=half_length or config.half_length,
+                             half_width=half_width or config.half_width)
+        return config
+
+    @property
+    def reach_m(self) -> float:
+        """How far from base_link a rollout's footprint can reach."""
+        return (max(self.max_vel_x, abs(self.escape_vel)) * self.sim_time
+                + math.hypot(self.half_length, self.half_width) + self.footprint_padding)
+
+
+def rollouts(v: np.ndarray, w: np.ndarray, duration: float, steps: int) -> np.ndarray:
+    """Poses (..., steps, 3) of constant-velocity arcs from the origin, at ``duration / steps``
+    to ``duration``."""
+    t = duration * np.arange(1, steps + 1) / steps
+    v, w = np.asarray(v, dtype=float)[..., None], np.asarray(w, dtype=float)[..., None]
+    theta = w * t
+    straight = np.abs(w) < 1e-9
+    safe_w = np.where(straight, 1.0, w)
+    x = np.where(straight, v * t, v / safe_w * np.sin(theta))
+    y = np.where(straight, 0.0, v / safe_w * (1.0 - np.cos(theta)))
+    return np.stack([x, y, theta * np.ones_like(x)], axis=-1)
+
+
+class DWAPlanner:
+    """Chooses cmd_vel (v, w) for N robots at once (``plan``)."""
+
+    def __init__(self, config: DWAConfig) -> None:
+        self.config = config
+
+    def candidates(self, velocity: np.ndarray) -> np.ndarray:
+        """(N, C, 2) velocity samples: the dynamic window's (vx_samples x vtheta_samples), the
+        in-place turns, and last the escape (backing up)."""
+        c = self.config
+        v, w = velocity[:, 0], velocity[:, 1]
+        v_lo = np.clip(v - c.acc_lim_x * c.sim_period, c.min_vel_x, c.max_vel_x)
+        v_hi = np.clip(v + c.acc_lim_x * c.sim_period, c.min_vel_x, c.max_vel_x)
+        w_lo = np.clip(w - c.acc_lim_theta * c.sim_period, -c.max_vel_theta, c.max_vel_theta)
+        w_hi = np.clip(w + c.acc_lim_theta * c.sim_period, -c.max_vel_theta, c.max_vel_theta)
+        a = np.linspace(0.0, 1.0, c.vx_samples)
+        b = np.linspace(0.0, 1.0, c.vtheta_samples)
+        vs = v_lo[:, None] + (v_hi - v_lo)[:, None] * a  # (N, vx)
+        ws = w_lo[:, None] + (w_hi - w_lo)[:, None] * b  # (N, vth)
+        moving = np.stack(np.broadcast_arrays(vs[:, :, None], ws[:, None, :]), -1)
+        turns = np.linspace(c.min_in_place_vel_theta, c.max_vel_theta, c.vtheta_samples // 2)
+        turns = np.concatenate([-turns, turns])
+        in_place = np.stack([np.zeros_like(turns), turns], -1)
+        n = len(velocity)
+        escape = np.array([[c.escape_vel, 0.0]])
+        return np.concatenate([moving.reshape(n, -1, 2),
+                               np.broadcast_to(in_place, (n, *in_place.shape)),
+                               np.broadcast_to(escape, (n, 1, 2))], axis=1)
+
+    def plan(self, velocity: np.ndarray, obstacles: np.ndarray, path: np.ndarray,
+             goal: np.ndarray) -> np.ndarray:
+        """cmd_vel (N, 2) for N robots with ``velocity`` (N, 2) (v, w), scan ``obstacles``
+        (N, P, 2), a window of the global ``path`` (N, Q, 2) and the local ``goal`` (N, 2), all
+        in each robot's base frame (pad with points far away). (0, 0) where nothing is free."""
+        c = self.config
+        cand = self.candidates(np.asarray(velocity, dtype=float))  # (N, C, 2)
+        n, count = cand.shape[:2]
+        poses = rollouts(cand[..., 0], cand[..., 1], c.sim_time, c.sim_steps)  # (N, C, T, 3)
+        obstacles = np.asarray(obstacles, dtype=float)
+        # every obstacle point in every pose's frame: (N, C, T, P)
+        dx = obstacles[:, None, None, :, 0] - poses[..., 0, None]
+        dy = obstacles[:, None, None, :, 1] - poses[..., 1, None]
+        cos, sin = np.cos(poses[..., 2, None]), np.sin(poses[..., 2, None])
+        lx, ly = cos * dx + sin * dy, -sin * dx + cos * dy
+        pad = c.footprint_padding
+        hit = (np.abs(lx) < c.half_length + pad) & (np.abs(ly) < c.half_width + pad)
+        valid = ~np.any(hit, axis=(2, 3))  # (N, C)
+        nearest = np.sqrt(np.min(dx * dx + dy * dy, axis=3))  # (N, C, T)
+        occ = np.max(self.inflation_cost(nearest), axis=2)  # (N, C)
+        end = poses[:, :, -1, :2]
+        path = np.asarray(path, dtype=float)
+        path_dist = np.sqrt(np.min(np.sum((end[:, :, None, :] - path[:, None]) ** 2, -1), -1))
+        goal_dist = np.linalg.norm(end - np.asarray(goal, dtype=float)[:, None], axis=-1)
+        unit = 1.0 if c.meter_scoring else c.resolution
+        cost = (c.pdist_scale * path_dist / unit + c.gdist_scale * goal_dist / unit
+                + c.occdist_scale * occ)
+        cost[:, -1] = np.inf  # the escape: only when nothing else is free
+        cost = np.where(valid, cost, np.nan)
+        best = np.full(n, -1)
+        free = np.any(valid[:, :-1], axis=1)
+        best[free] = np.nanargmin(cost[free][:, :-1], axis=1)
+        best[~free & valid[:, -1]] = count - 1
+        out = np.zeros((n, 2))
+        chosen = best >= 0
+        out[chosen] = cand[chosen, best[chosen]]
+        return out
+
+    def inflation_cost(self, distance: np.ndarray) -> np.ndarray:
+        """The costmap's inflation cost (0-252) at ``distance`` (m) from the nearest obstacle:
+        lethal within the inscribed radius, decaying with ``cost_scaling_factor`` beyond, 0
+        past ``inflation_radius``."""
+        c = self.config
+        inscribed = c.half_width
+        cost = LETHAL_COST * np.exp(-c.cost_scaling_factor * np.maximum(distance - inscribed,
+                                                                        0.0))
+        return np.where(distance > c.inflation_radius, 0.0, cost)

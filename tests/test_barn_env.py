@@ -1,0 +1,145 @@
+"""SmartCarBARN-v0: the worlds on every engine, the protocol's outcomes and scores, the waypoint."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import smartcar_gym  # noqa: F401
+from smartcar_gym.envs.barn_env import car_width
+from smartcar_gym.envs.tasks.barn import SHIPPED_CAR_WIDTH_M, barn_score
+from smartcar_gym.navigation.dwa_driver import DWADriver
+from smartcar_gym.registration import SPECS
+from smartcar_gym.worlds.barn import TRAIN_WORLDS, load_worlds, to_car_frame
+
+SCALE = 0.18 / 0.43
+
+
+@pytest.fixture(scope="module")
+def env():
+    env = gym.make("SmartCarBARN-v0", engine="mujoco")
+    yield env
+    env.close()
+
+
+def test_the_world_is_scaled_to_the_cars_width_and_the_protocol_with_it(env):
+    u = env.unwrapped
+    assert car_width(u.robot_model) == pytest.approx(SHIPPED_CAR_WIDTH_M)
+    assert u.protocol.scale == pytest.approx(SCALE)
+    obs, info = env.reset(seed=0, options={"world": 6})
+    assert obs.shape == (59,) and obs in env.observation_space
+    assert u.observation_names[-2:] == ("waypoint_x_base", "waypoint_y_base")
+    world = load_worlds().world(6)
+    assert len(u.obstacles) == len(world.centres)
+    assert u.obstacles[0].size == pytest.approx((2 * 0.075 * SCALE,))
+    assert np.allclose([o.position for o in u.obstacles], to_car_frame(world.centres, SCALE))
+    assert np.allclose(u.goal, [10 * SCALE, 0.0])
+    assert u.task.goal_tolerance_m == pytest.approx(SCALE)
+    assert u.timeout_steps == 1675 and SPECS["SmartCarBARN-v0"].max_episode_steps == 1676
+    assert info["world"] == 6 and info["outcome"] is None and info["score"] == 0.0
+    assert info["optimal_time_s"] == pytest.approx(world.path_length_m * SCALE / 0.5)
+
+
+def test_the_global_path_goes_from_start_to_goal_clear_of_the_inflated_cylinders(env):
+    env.reset(seed=0, options={"world": 150})
+    u = env.unwrapped
+    path = u.global_path
+    assert np.linalg.norm(path[0]) < 0.02 and np.linalg.norm(path[-1] - u.goal) < 0.02
+    centres = np.array([o.position for o in u.obstacles])
+    clear = np.linalg.norm(path[:, None] - centres[None], axis=-1) - 0.075 * SCALE
+    assert clear.min() >= 0.09 - 1e-9  # half the car's width
+
+
+def test_the_waypoint_is_the_path_a_lookahead_ahead_in_the_base_frame(env):
+    obs, _ = env.reset(seed=0, options={"world": 0})
+    u = env.unwrapped
+    path = u.global_path
+    arc = np.concatenate([[0], np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))])
+    expected = [np.interp(0.5, arc, path[:, 0]), np.interp(0.5, arc, path[:, 1])]
+    assert np.allclose(obs[-2:], expected, atol=1e-5)  # odometry at the origin, facing +x
+
+
+def test_reset_draws_training_worlds_unless_one_is_given(env):
+    drawn = {env.reset(seed=s)[1]["world"] for s in range(8)}
+    assert drawn <= set(TRAIN_WORLDS) and len(drawn) > 1
+    assert env.reset(seed=3)[1]["world"] == env.reset(seed=3)[1]["world"]
+
+
+@pytest.mark.parametrize(("options", "message"), [
+    ({"world": 300}, r"^BARN world 300 is out of range: the worlds are 0 to 299 \("),
+    ({"world": -1}, r"^BARN world -1 is out of range"),
+    ({"goal": (1, 0)}, r"^unknown reset option\(s\) \['goal'\]; SmartCarBARN-v0 takes 'world'"),
+])
+def test_bad_reset_options_are_one_line(env, options, message):
+    with pytest.raises(ValueError, match=message):
+        env.reset(options=options)
+
+
+def test_what_the_protocol_sets_is_refused_as_a_kwarg():
+    with pytest.raises(TypeError, match="SmartCarBARN-v0 takes no goal_range, obstacles: the "
+                                        "BARN protocol sets"):
+        gym.make("SmartCarBARN-v0", goal_range=(1, 2), obstacles=3)
+
+
+def test_a_missing_world_file_is_one_line(tmp_path):
+    with pytest.raises(ValueError, match=f"^BARN world file {tmp_path / 'x.npz'}: no such file$"):
+        gym.make("SmartCarBARN-v0", world_file=tmp_path / "x.npz")
+
+
+def test_driving_straight_ends_in_a_collision_that_scores_nothing(env):
+    env.reset(seed=0, options={"world": 0})
+    for _ in range(200):
+        _, _, terminated, truncated, info = env.step(np.array([1.0, 0.0]))
+        if terminated or truncated:
+            break
+    assert terminated and not truncated and info["collision"]
+    assert info["outcome"] == "collision" and info["score"] == 0.0 == info["score_025"]
+    assert info["run_time_s"] > 0
+
+
+def test_standing_still_times_out(env):
+    env.reset(seed=0, options={"world": 0})
+    limit, env.unwrapped.timeout_steps = env.unwrapped.timeout_steps, 5
+    try:
+        ends = [env.step(np.zeros(2))[2:] for _ in range(5)]
+    finally:
+        env.unwrapped.timeout_steps = limit
+    assert [t for _, t, _ in ends] == [False] * 4 + [True]
+    assert [i["outcome"] for _, _, i in ends] == [None] * 4 + ["timeout"]
+    assert ends[-1][2]["run_time_s"] == 0.0  # it never moved
+
+
+def test_a_success_scores_as_the_challenge(env):
+    driver = DWADriver()
+    env.reset(seed=0, options={"world": 0})
+    driver.reset([env])
+    for _ in range(1000):
+        _, _, terminated, truncated, info = env.step(driver.act([env])[0])
+        if terminated or truncated:
+            break
+    assert info["outcome"] == "success" and info["is_success"]
+    at, ot = info["run_time_s"], info["optimal_time_s"]
+    assert 10 * SCALE / 0.5 < at < 4 * ot  # at most the car's top speed; DWA at a quarter
+    assert info["score"] == pytest.approx(barn_score(True, at, ot)) and info["score"] > 0.25
+    assert info["score_025"] == pytest.approx(ot / max(at, 4 * ot))
+
+
+@pytest.mark.parametrize("engine", ["pybullet", "planar"])
+def test_every_engine_builds_the_world_and_its_laser_sees_the_cylinders(engine):
+    env = gym.make("SmartCarBARN-v0", engine=engine)
+    try:
+        env.reset(seed=0, options={"world": 0})
+        ranges = env.unwrapped.laser.latest.ranges
+        # the corridor's walls of touching cylinders, 1.0 m to the left and 0.8 m to the right:
+        # the nearest returns within 15 degrees of either side
+        beams = env.unwrapped.laser_config.angles
+        left = ranges[np.abs(beams - np.pi / 2) < np.radians(15)].min()
+        right = ranges[np.abs(beams + np.pi / 2) < np.radians(15)].min()
+        walls = to_car_frame(load_worlds().world(0).centres, SCALE)[:, 1]
+        assert left == pytest.approx(walls.max() - 0.075 * SCALE, abs=0.01)
+        assert right == pytest.approx(-walls.min() - 0.075 * SCALE, abs=0.01)
+        _, _, terminated, _, info = env.step(np.array([0.5, 0.0]))
+        assert not terminated and not info["collision"] and info["clearance"] > 0.1
+    finally:
+        env.close()

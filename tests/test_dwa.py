@@ -1,0 +1,149 @@
+"""The DWA baseline: its choices on hand-made scans, batching, the challenge's parameters, and
+its drives through hand-made worlds (a corridor, a wall with a gap, a dead end) on MuJoCo."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import smartcar_gym  # noqa: F401
+from smartcar_gym.navigation.dwa import DWAConfig, DWAPlanner
+from smartcar_gym.navigation.dwa_driver import DWADriver, scan_points, turn_command
+from smartcar_gym.navigation.grid_planner import distance_grid, plan_path
+
+SCALE = 0.18 / 0.43
+CONFIG = DWAConfig.challenge(SCALE, 0.25, half_length=0.125, half_width=0.09)
+DIAMETER = 0.075 * 2 * SCALE  # a BARN cylinder, scaled
+
+
+def _path_ahead(n: int = 1) -> np.ndarray:
+    return np.broadcast_to(np.stack([np.linspace(0, 2, 101), np.zeros(101)], 1), (n, 101, 2))
+
+
+def _far(n: int = 1) -> np.ndarray:
+    return np.full((n, 1, 2), 1e3)
+
+
+def test_the_challenges_parameters_scale_with_size_and_speed():
+    assert DWAConfig.challenge(1.0, 1.0) == DWAConfig()  # the Jackal's, as in the README
+    c = DWAConfig.challenge(0.5, 0.25)
+    assert (c.max_vel_x, c.max_vel_theta, c.sim_time) == pytest.approx((0.125, 0.785, 4.0))
+    assert (c.acc_lim_x, c.acc_lim_theta) == pytest.approx((1.25, 5.0))
+    assert (c.half_width, c.local_goal_m, c.cost_scaling_factor) == pytest.approx((0.1075, 0.75,
+                                                                                   20.0))
+    assert (c.vx_samples, c.vtheta_samples, c.pdist_scale, c.gdist_scale, c.occdist_scale) == (
+        6, 20, 0.75, 1.0, 0.1)
+
+
+def test_in_free_space_it_drives_along_the_path_at_full_speed():
+    cmd = DWAPlanner(CONFIG).plan(np.zeros((1, 2)), _far(), _path_ahead(), np.array([[0.6, 0.]]))
+    assert cmd[0, 0] == pytest.approx(CONFIG.max_vel_x) and abs(cmd[0, 1]) < 0.06
+
+
+def test_a_wall_ahead_turns_it_in_place_and_a_box_around_it_stops_it():
+    angles = np.radians(np.arange(-60, 61, 2))
+    wall = np.stack([0.2 + 0 * angles, 0.2 * np.tan(angles) * 0.5], 1)[None]
+    cmd = DWAPlanner(CONFIG).plan(np.zeros((1, 2)), wall, _path_ahead(), np.array([[0.6, 0.]]))
+    assert cmd[0, 0] <= 0.0 and abs(cmd[0, 1]) >= CONFIG.min_in_place_vel_theta - 1e-9
+    around = np.radians(np.arange(0, 360, 5))
+    box = 0.14 * np.stack([np.cos(around), np.sin(around)], 1)[None]
+    cmd = DWAPlanner(CONFIG).plan(np.zeros((1, 2)), box, _path_ahead(), np.array([[0.6, 0.]]))
+    assert np.array_equal(cmd, [[0.0, 0.0]])
+
+
+def test_blocked_ahead_and_on_the_sides_it_backs_up():
+    ahead = np.array([[0.14, y] for y in np.linspace(-0.12, 0.12, 13)])
+    sides = np.array([[x, s * 0.1] for x in np.linspace(-0.12, 0.12, 13) for s in (-1, 1)])
+    cmd = DWAPlanner(CONFIG).plan(np.zeros((1, 2)), np.vstack([ahead, sides])[None],
+                                  _path_ahead(), np.array([[0.6, 0.]]))
+    assert cmd.tolist() == [[CONFIG.escape_vel, 0.0]]
+
+
+def test_a_batch_plans_each_robot_as_alone():
+    rng = np.random.default_rng(0)
+    planner = DWAPlanner(CONFIG)
+    velocity = rng.uniform(0, 0.1, (3, 2))
+    obstacles = rng.uniform(-0.6, 0.6, (3, 40, 2))
+    goals = rng.uniform(0.3, 0.6, (3, 2))
+    batch = planner.plan(velocity, obstacles, _path_ahead(3), goals)
+    alone = [planner.plan(velocity[i:i + 1], obstacles[i:i + 1], _path_ahead(), goals[i:i + 1])
+             for i in range(3)]
+    assert np.array_equal(batch, np.vstack(alone))
+
+
+def test_scan_points_and_the_turn_response():
+    mount = np.eye(4)
+    mount[0, 3] = 0.1
+    ranges = np.array([1.0, np.inf, -np.inf])
+    points = scan_points(ranges, np.array([0.0, np.pi / 2, np.pi]), mount)
+    assert np.allclose(points, [[1.1, 0.0]])
+    # the car turns at 0.53 rad/s when driving with 0.8 commanded, in place at 0.69 with 1.0
+    assert turn_command(np.array([0.1, 0.0]), np.array([0.53, -0.69])) == pytest.approx(
+        [0.8, -1.0])
+    assert turn_command(np.array([0.1]), np.array([0.0])) == pytest.approx([0.0])
+
+
+# -- hand-made worlds ----------------------------------------------------------------------------
+def _wall(a: tuple[float, float], b: tuple[float, float]) -> list[tuple[float, float]]:
+    """Touching cylinders from a to b."""
+    a_, b_ = np.array(a), np.array(b)
+    n = int(np.ceil(np.linalg.norm(b_ - a_) / DIAMETER)) + 1
+    return [tuple(a_ + (b_ - a_) * t) for t in np.linspace(0, 1, n)]
+
+
+def _drive(centres: list, goal: tuple[float, float], path: np.ndarray | None = None,
+           steps: int = 600) -> tuple[dict, np.ndarray]:
+    """DWA in SmartCarNav-v0 (MuJoCo) among ``centres``, on ``path`` (None: the grid
+    planner's); the last info and the way driven."""
+    layout = [{"shape": "cylinder", "position": list(c), "size": [DIAMETER]} for c in centres]
+    env = gym.make("SmartCarNav-v0", engine="mujoco", obstacle_layout=layout, arena_size=8.0,
+                   max_episode_steps=steps)
+    try:
+        env.reset(seed=0, options={"goal": goal})
+        if path is None:
+            grid = distance_grid(np.array(centres), np.full(len(centres), DIAMETER / 2),
+                                 [-0.5, -1.5], [goal[0] + 0.5, 1.5], 0.02)
+            path = plan_path(grid, np.zeros(2), np.array(goal), 0.09)
+        driver = DWADriver()
+        driver.reset([env], paths=[path])
+        way = []
+        for _ in range(steps):
+            _, _, terminated, truncated, info = env.step(driver.act([env])[0])
+            way.append(info["pose"][:2])
+            if terminated or truncated:
+                break
+    finally:
+        env.close()
+    return info, np.array(way)
+
+
+def test_it_drives_down_a_corridor():
+    """A corridor 0.34 m wide (the car: 0.18 m), 2 m long, through a wall across the map."""
+    corridor = _wall((0.4, 0.2), (2.4, 0.2)) + _wall((0.4, -0.2), (2.4, -0.2))
+    across = _wall((0.4, 0.2 + DIAMETER), (0.4, 1.5)) + _wall((0.4, -0.2 - DIAMETER),
+                                                                (0.4, -1.5))
+    info, way = _drive(corridor + across, (2.8, 0.0))
+    assert info["is_success"] and not info["collision"]
+    assert np.abs(way[way[:, 0] < 2.4, 1]).max() < 0.1  # down the middle
+
+
+def test_it_finds_the_gap_in_a_wall():
+    ys = [y for y in np.arange(-1.5, 1.5, DIAMETER) if abs(y - 0.5) > 0.15 + DIAMETER / 2]
+    info, way = _drive([(1.2, float(y)) for y in ys], (2.4, 0.0))
+    assert info["is_success"] and not info["collision"]
+    crossing = way[np.argmin(np.abs(way[:, 0] - 1.2))]
+    assert 0.35 < crossing[1] < 0.65
+
+
+def test_in_a_dead_end_it_stops_short_of_the_wall_and_turns_without_touching_it():
+    """A cup open towards the car and a path straight through its bottom (a map that missed
+    it): DWA drives in, stops in front of the bottom and turns in place (its local minimum;
+    move_base would start its recovery behaviours), never touching a wall."""
+    cup = (_wall((0.6, 0.4), (1.5, 0.4)) + _wall((0.6, -0.4), (1.5, -0.4))
+           + _wall((1.5, -0.4), (1.5, 0.4)))
+    straight = np.stack([np.linspace(0, 2.5, 126), np.zeros(126)], 1)
+    info, way = _drive(cup, (2.5, 0.0), path=straight, steps=400)
+    assert not info["collision"] and not info["is_success"] and len(way) == 400
+    assert 1.1 < way[-1][0] < 1.5 - 0.125 - DIAMETER / 2  # in front of the bottom
+    assert np.ptp(way[-100:, 0]) < 0.05  # standing (turning in place)

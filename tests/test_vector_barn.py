@@ -57,11 +57,11 @@ def test_barn_batch_equals_n_single_envs_bit_for_bit(engine, mode, timeout, monk
             assert np.array_equal(got[0][1][key], want[0][1][key]), key
         outcomes, truncated = set(), 0
         for k, (g, w) in enumerate(zip(got[1:], want[1:], strict=True), 1):
-            assert np.array_equal(g[0], w[0]), f"step {k}: observations differ"
-            assert np.array_equal(g[1], w[1]), f"step {k}: rewards differ"
-            assert np.array_equal(g[2], w[2]) and np.array_equal(g[3], w[3]), f"step {k}"
-            for key in INFO_KEYS:
-                assert np.array_equal(g[4][key], w[4][key]), f"step {k}: info[{key!r}]"
+            named = zip(("observations", "rewards", "terminated", "truncated"), g[:4], w[:4],
+                        strict=True)
+            for what, mine, theirs in [*named, *((f"info[{key!r}]", g[4][key], w[4][key])
+                                                 for key in INFO_KEYS)]:
+                assert np.array_equal(mine, theirs), f"step {k}: {what} differ"
             if mode == "SameStep":
                 done = w[4].get("_final_obs", np.zeros(N, bool))
                 assert np.array_equal(g[4].get("_final_obs", np.zeros(N, bool)), done)
@@ -112,16 +112,11 @@ def test_world_option_per_car_and_for_all(engine):
         envs.close()
 
 
-def test_pybullet_and_render_fall_back_to_the_loop():
+@pytest.mark.parametrize("kwargs", [{"engine": "pybullet"},
+                                    {"engine": "planar", "render_mode": "rgb_array"}])
+def test_pybullet_and_render_fall_back_to_the_loop(kwargs):
     envs = gym.make_vec("SmartCarBARN-v0", num_envs=2, vectorization_mode="vector_entry_point",
-                        engine="pybullet")
-    try:
-        assert isinstance(envs, SmartCarLoopVectorEnv)
-    finally:
-        envs.close()
-    envs = gym.make_vec("SmartCarBARN-v0", num_envs=2, vectorization_mode="vector_entry_point",
-                        engine="planar", render_mode="rgb_array")
-    try:
-        assert isinstance(envs, SmartCarLoopVectorEnv)
-    finally:
-        envs.close()
+                        **kwargs)
+    kind = type(envs)
+    envs.close()
+    assert kind is SmartCarLoopVectorEnv

@@ -2,9 +2,10 @@
 
 ``run_barn_vector`` is ``runner.run_barn`` for a batch: the same jobs to the same cars in the
 same order (a car whose run ends takes the next job by a partial reset with its seed and
-world), one ``driver.act`` for the cars with a run, idle cars parked. ``BatchCar`` shows the
-driver car i as it sees a single env (odometry, scan, global path, the car's settings). Per car
-the batch is its single env bit for bit, so the records are the single envs' row's.
+world), ``driver.act`` for the cars with a run (``ACT_CHUNK`` at a time), idle cars parked.
+``BatchCar`` shows the driver car i as it sees a single env (odometry, scan, global path, the
+car's settings). Per car the batch is its single env bit for bit, so the records are the
+single envs' row's.
 """
 
 from __future__ import annotations
@@ -18,6 +19,8 @@ import numpy as np
 
 from smartcar_gym.bench.runner import Job, RunRecord, record_of
 
+#: cars per ``driver.act`` call: DWA's arrays grow with the cars times their scans' points
+ACT_CHUNK = 4
 #: the ``info`` keys a run's record reads
 RECORD_KEYS = ("outcome", "run_time_s", "score", "score_025", "optimal_time_s", "distance")
 
@@ -92,7 +95,9 @@ def run_barn_vector(envs: gym.vector.VectorEnv, driver: Any, jobs: Sequence[Job]
     while any(slot is not None for slot in slots):
         active = [i for i, slot in enumerate(slots) if slot is not None]
         actions = np.zeros((n, 2), dtype=np.float32)
-        actions[active] = driver.act([cars[i] for i in active], obs[active], active)
+        for j in range(0, len(active), ACT_CHUNK):
+            chunk = active[j:j + ACT_CHUNK]
+            actions[chunk] = driver.act([cars[i] for i in chunk], obs[chunk], chunk)
         obs[:], _, terminated, truncated, info = envs.step(actions)
         ended = []
         for i in active:

@@ -9,6 +9,8 @@ Every test world (0, 6, ..., 294; ``--worlds`` for others) K times (run k seeded
 ``--seed + k``); the table says the rates of success, collision and timeout, the mean time of
 the successful runs and the mean score on both scales (docs/barn.md). ``--fail-under`` and
 ``--max-final-distance`` are smartcar-eval's pass marks (exit status 1 when one is missed).
+Where the engine batches (planar, MuJoCo) the ``--n-envs`` cars are one batched env
+(``SmartCarBatchVectorEnv``); elsewhere a row of single envs.
 """
 
 from __future__ import annotations
@@ -29,9 +31,11 @@ from smartcar_gym.agents.hyperparams import (
     output_path_error,
     positive_int_arg,
 )
+from smartcar_gym.bench.batched import run_barn_vector
 from smartcar_gym.bench.drivers import DRIVERS, DriverError, PolicyDriver, make_driver
 from smartcar_gym.bench.report import plot_runs, summarize, table
 from smartcar_gym.bench.runner import RunRecord, barn_jobs, run_barn
+from smartcar_gym.envs.vector import CannotBatch, SmartCarBatchVectorEnv
 from smartcar_gym.sim.engines import DEFAULT_ENGINE, add_engine_argument
 from smartcar_gym.worlds.barn import TEST_WORLDS, BarnWorldError, load_worlds
 
@@ -58,7 +62,8 @@ def build_parser() -> argparse.ArgumentParser:
     barn.add_argument("--world-file", type=Path, metavar="FILE.npz",
                       help="the worlds (default: the shipped barn_worlds.npz)")
     barn.add_argument("--n-envs", type=positive_int_arg, default=1,
-                      help="envs stepped side by side (one driver call for all)")
+                      help="cars stepped side by side (one driver call for all; one "
+                           "batched env where the engine batches)")
     barn.add_argument("--seed", type=int, default=0)
     barn.add_argument("--device", default="cpu", help="torch device of --model")
     barn.add_argument("--json", type=Path, metavar="FILE", help="write the table and every run")
@@ -92,20 +97,24 @@ def main(argv: Sequence[str] | None = None) -> int:
         for index in chosen:
             worlds.world(index)
         driver, name = _driver(args)
-        envs = [_make_env(args) for _ in range(args.n_envs)]
+        batch = _make_batch(args)
+        envs = [_make_env(args) for _ in range(args.n_envs)] if batch is None else [batch]
     except (BarnWorldError, DriverError) as err:
         parser.error(str(err))
+    barn = envs[0].unwrapped
     try:
         if isinstance(driver, PolicyDriver):
             try:
-                driver.check(ENV_ID, envs[0].observation_space)
+                driver.check(ENV_ID, getattr(barn, "single_observation_space",
+                                             envs[0].observation_space))
             except DriverError as err:
                 parser.error(str(err))
         plotted = set() if args.plot is None else set(args.plot_worlds or chosen[:4])
         jobs = barn_jobs(chosen, args.runs, args.seed)
-        records = run_barn(envs, driver, jobs,
-                           keep=lambda job: job.world in plotted and job.run == 0,
-                           report=None if args.quiet else _report)
+        run = run_barn if batch is None else run_barn_vector
+        records = run(envs if batch is None else batch, driver, jobs,
+                      keep=lambda job: job.world in plotted and job.run == 0,
+                      report=None if args.quiet else _report)
     finally:
         for env in envs:
             env.close()
@@ -117,17 +126,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     print(table(summary, name))
     if args.json is not None:
         payload = {"benchmark": "barn", "driver": name, "env": ENV_ID, "engine": engine,
+                   "vectorization": "single" if batch is None else "batched",
                    "runs_per_world": args.runs, "seed": args.seed, "worlds": list(chosen),
-                   "scale": envs[0].unwrapped.protocol.scale, "marks": marks,
+                   "scale": barn.protocol.scale, "marks": marks,
                    "passed": all(m["held"] for m in marks), **summary,
                    "records": [r.to_dict() for r in records]}
         args.json.parent.mkdir(parents=True, exist_ok=True)
         args.json.write_text(json.dumps(payload, indent=2) + "\n")
         print(f"wrote {args.json}")
     if args.plot is not None:
-        plot_runs(records, worlds, envs[0].unwrapped.protocol.scale, args.plot,
+        plot_runs(records, worlds, barn.protocol.scale, args.plot,
                   f"{name} on {engine}: {summary['success_rate']:.0%} success (dashed: the "
-                  "global path)", envs[0].unwrapped.planned_paths)
+                  "global path)", barn.planned_paths)
         print(f"wrote {args.plot}")
     for mark in marks:
         print(f"smartcar-bench: {mark['line']}", file=sys.stderr)
@@ -154,11 +164,27 @@ def _driver(args: argparse.Namespace) -> tuple[Any, str]:
     return PolicyDriver(policy, name), name
 
 
-def _make_env(args: argparse.Namespace) -> gym.Env:
+def _env_kwargs(args: argparse.Namespace) -> dict[str, Any]:
     kwargs: dict[str, Any] = {"world_file": args.world_file}
     if args.engine is not None:
         kwargs["engine"] = args.engine
-    return gym.make(ENV_ID, **kwargs)
+    return kwargs
+
+
+def _make_env(args: argparse.Namespace) -> gym.Env:
+    return gym.make(ENV_ID, **_env_kwargs(args))
+
+
+def _make_batch(args: argparse.Namespace) -> SmartCarBatchVectorEnv | None:
+    """The ``--n-envs`` cars as one batched env where the engine batches (None: it does not;
+    the row is single envs)."""
+    kwargs = _env_kwargs(args)
+    if SmartCarBatchVectorEnv.why_not(ENV_ID, kwargs) is not None:
+        return None
+    try:
+        return SmartCarBatchVectorEnv(ENV_ID, num_envs=args.n_envs, **kwargs)
+    except CannotBatch:  # a differential-drive model on a skid-steer batch
+        return None
 
 
 def _report(record: RunRecord) -> None:

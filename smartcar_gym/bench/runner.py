@@ -1,8 +1,8 @@
 """Runs of a driver on BARN worlds: jobs (world, run, seed) handed to a row of envs in step.
 
 ``run_barn`` keeps every env busy: each steps with the others (one ``driver.act`` for all)
-and takes the next job when its run ends. Today the row is single envs (any engine); a batched
-env of the same ids drops in where the row is stepped (``_step``).
+and takes the next job when its run ends. The row is single envs (any engine);
+``bench.batched.run_barn_vector`` runs the same jobs on one batched env.
 """
 
 from __future__ import annotations
@@ -83,14 +83,15 @@ def run_barn(envs: Sequence[Any], driver: Any, jobs: Sequence[Job],
             index, job, way = slots[i]
             way.append(info["pose"][:2])
             if terminated or truncated:
-                records[index] = _record(job, info, way, keep(job))
+                records[index] = record_of(job, info, way, keep(job))
                 if report is not None:
                     report(records[index])
                 start(i)
     return records
 
 
-def _record(job: Job, info: dict[str, Any], way: list, keep: bool) -> RunRecord:
+def record_of(job: Job, info: dict[str, Any], way: list, keep: bool) -> RunRecord:
+    """The record of ``job`` from its last step's ``info`` and its ``way`` (poses)."""
     return RunRecord(job.world, job.run, job.seed, info["outcome"], float(info["run_time_s"]),
                      float(info["score"]), float(info["score_025"]),
                      float(info["optimal_time_s"]), float(info["distance"]), len(way) - 1,

@@ -80,15 +80,21 @@ def car_width(model: RobotModel) -> float:
     return 2.0 * footprint_half_extents(model)[1]
 
 
+def to_base_frame(point: Sequence[float], x: float, y: float,
+                  theta: float) -> tuple[float, float]:
+    """``point`` (odom frame) in the base_link frame of the odometry pose (x, y, theta)."""
+    dx, dy = point[0] - x, point[1] - y
+    c, s = math.cos(theta), math.sin(theta)
+    return c * dx + s * dy, -s * dx + c * dy
+
+
 def waypoint_entry(arena_half_size_m: float) -> Entry:
     """The global path's next waypoint in the odometry base_link frame."""
     a = arena_half_size_m
 
     def read(r: Readings) -> tuple[float, float]:
-        odom, (x, y) = r.odometry, r.extra[WAYPOINT_KEY]
-        dx, dy = x - odom.x, y - odom.y
-        c, s = math.cos(odom.theta), math.sin(odom.theta)
-        return c * dx + s * dy, -s * dx + c * dy
+        odom = r.odometry
+        return to_base_frame(r.extra[WAYPOINT_KEY], odom.x, odom.y, odom.theta)
 
     return Entry("waypoint_base", ("waypoint_x_base", "waypoint_y_base"), -4 * a, 4 * a, "m",
                  "the global path's next waypoint in the odometry base_link frame (ahead, "
@@ -278,7 +284,8 @@ class SmartCarBARNEnv(SmartCarNavEnv):
 
 
 def barn_vector_env(num_envs: int = 1, **kwargs: Any) -> gym.vector.VectorEnv:
-    """SmartCarBARN-v0's ``vector_entry_point``: N single envs in a loop."""
-    from smartcar_gym.envs.vector import SmartCarLoopVectorEnv
+    """SmartCarBARN-v0's ``vector_entry_point``: batched on an engine with a car batch
+    (``SmartCarBatchVectorEnv``, the ``Barn`` part), else N single envs in a loop."""
+    from smartcar_gym.envs.vector import make_vector_env
 
-    return SmartCarLoopVectorEnv("SmartCarBARN-v0", num_envs=num_envs, **kwargs)
+    return make_vector_env("SmartCarBARN-v0", num_envs, **kwargs)

@@ -1,4 +1,4 @@
-"""SmartCar-v0, SmartCarNav-v0 and SmartCarGoal-v0 for N cars on any engine with a car batch.
+"""SmartCar-, SmartCarNav-, SmartCarGoal- and SmartCarBARN-v0, N cars on an engine with a car batch.
 
 One class, engine-neutral: the clocks, events, batched ArbotiX boards, autoreset and ``park``
 are here; the physics is the engine's ``CarBatch`` (``sim.batch``), made by the registered
@@ -17,6 +17,7 @@ from gymnasium.vector import AutoresetMode
 from smartcar_gym.controller import HARDWARE
 from smartcar_gym.controller.batched import BatchedArbotix
 from smartcar_gym.envs.smartcar_env import SmartCarEnv
+from smartcar_gym.envs.vector import barn_part  # noqa: F401  (adds SmartCarBARN-v0's parts)
 from smartcar_gym.envs.vector.base import CarsVectorEnv
 from smartcar_gym.envs.vector.common import (
     CannotBatch,
@@ -42,7 +43,7 @@ def _last_with(parts: tuple[TaskPart, ...], hook: str) -> TaskPart:
 class SmartCarBatchVectorEnv(CarsVectorEnv):
     """## Description
 
-    ``env_id`` (SmartCar-v0, SmartCarNav-v0 or SmartCarGoal-v0) for ``num_envs`` cars at once
+    ``env_id`` (an id of ``parts.TASKS``: Nav, Goal, BARN, ...) for ``num_envs`` cars at once
     on ``engine``, any registered engine with a car batch (``Engine.car_batch``: MuJoCo's
     worlds stepped in C, the planar engine's arrays). Per car it is ``gym.make(env_id,
     engine=...)`` bit for bit (tested): the single env is made, reset (spawn and settle) and
@@ -54,7 +55,7 @@ class SmartCarBatchVectorEnv(CarsVectorEnv):
     substeps no longer than ``max_substep_s``. After autoresets cars are at different points
     of the 35 ms frame cycle, so no common schedule is assumed. The task is the id's parts
     (``parts.TASKS``): reaching a goal; Nav's obstacles and laser; Goal's ``Dict``
-    observation and ``compute_reward``.
+    observation and ``compute_reward``; BARN's worlds, waypoint, outcome and scores.
 
     Made by ``gym.make_vec(env_id, num_envs=N, vectorization_mode="vector_entry_point",
     engine=..., **kwargs)`` with the single env's kwargs, plus ``max_episode_steps``,

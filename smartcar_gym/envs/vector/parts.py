@@ -77,6 +77,12 @@ class TaskPart:
         that has this hook starts the cars)."""
         raise NotImplementedError
 
+    def build_options(self, i: int, options: dict[str, Any]) -> None:
+        """Add the part's options to car ``i``'s reset of the builder (``Navigation``)."""
+
+    def from_builder(self, env: Any, i: int, builder: SmartCarEnv) -> None:
+        """Take car ``i``'s share of the episode the builder has just started."""
+
     def after_reset(self, env: Any, mask: np.ndarray, idx: np.ndarray) -> None:
         """After the masked cars (``idx``) were reset, their controllers started and poses
         read."""
@@ -262,6 +268,8 @@ class Navigation(TaskPart):
                 options["goal"] = goals[i]
             if layout is not None:
                 options["obstacles"] = layout
+            for part in env.parts:
+                part.build_options(i, options)
             b.np_random = env._rng(i)
             _, info = b.reset(options=options or None)
             env.goal[i] = b.goal
@@ -271,6 +279,8 @@ class Navigation(TaskPart):
             self.clearance[i], self.collision[i] = info["clearance"], False
             self.obstacles[i] = b.obstacles
             env.cars.load(i, b)
+            for part in env.parts:
+                part.from_builder(env, i, b)
 
     def score(self, env: Any, a: np.ndarray, previous: Score | None) -> Score:
         """``SmartCarNavEnv.step``'s collision and proximity terms from each car's
@@ -389,4 +399,4 @@ TASKS: dict[str, tuple[type[SmartCarEnv], tuple[type[TaskPart], ...]]] = {
     "SmartCar-v0": (SmartCarEnv, (Reach,)),
     "SmartCarNav-v0": (SmartCarNavEnv, (Reach, Navigation)),
     "SmartCarGoal-v0": (SmartCarGoalEnv, (Reach, GoalConditioned)),
-}
+}  # SmartCarBARN-v0's: envs.vector.barn_part adds them

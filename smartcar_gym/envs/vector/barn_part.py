@@ -1,0 +1,160 @@
+"""SmartCarBARN-v0's part of the batched env: the BARN protocol on top of ``Navigation``.
+
+``TASKS["SmartCarBARN-v0"]`` is ``(Reach, Navigation, Barn)``: ``Navigation`` builds each car's
+episode through the kept single env (here a ``SmartCarBARNEnv``: the world's cylinders, the
+goal the protocol sets, the global path) and runs its laser and clearance; ``Barn`` picks the
+world (``reset(options={"world": i})``, one index or one per car), follows each car's global
+path (``PathTracker``, the waypoint row of the observation), times its run (``RunClock``),
+ends it (collision, success, failure, the scaled timeout) and reports the outcome and the
+challenge's scores in ``info``: the single env's arithmetic, per car, in its order.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from smartcar_gym.envs.barn_env import SmartCarBARNEnv, to_base_frame
+from smartcar_gym.envs.tasks.barn import (
+    COLLISION,
+    FAILURE,
+    SUCCESS,
+    TIMEOUT,
+    PathTracker,
+    RunClock,
+    barn_score,
+)
+from smartcar_gym.envs.vector.parts import TASKS, Navigation, Reach, Score, TaskPart
+from smartcar_gym.sim.clock import NS_PER_S
+
+ENV_ID = "SmartCarBARN-v0"
+
+
+class Barn(TaskPart):
+    """The BARN worlds and protocol for every car (after ``Reach`` and ``Navigation``)."""
+
+    exports = ("worlds", "protocol", "timeout_steps", "global_paths", "planned_paths",
+               "waypoints")
+    #: ``goal`` is taken only to be refused: the protocol sets the goal
+    option_keys = ("world", "goal")
+    bytes_per_car = 16 * 1024  # its global path and tracker
+
+    def attach(self, env: Any, single: SmartCarBARNEnv) -> None:
+        n = env.num_envs
+        self.builder = single
+        self.worlds, self.protocol = single.worlds, single.protocol
+        self.timeout_steps = single.timeout_steps
+        self.lookahead_m = single.lookahead_m
+        #: each car's world index, its OT and its global path (odom frame)
+        self.world = np.zeros(n, dtype=np.int64)
+        self.optimal = np.zeros(n)
+        self.global_paths: list[np.ndarray] = [np.zeros((0, 2))] * n
+        #: each car's next waypoint in its odometry base_link frame, (N, 2)
+        self.waypoints = np.zeros((n, 2))
+        self._trackers: list[PathTracker | None] = [None] * n
+        self._clocks = [RunClock(np.zeros(2), self.protocol.moved_m) for _ in range(n)]
+        self.outcome = np.full(n, None, dtype=object)
+        self._timeout = np.zeros(n, dtype=bool)
+        self._chosen: list[int] | None = None
+
+    @property
+    def planned_paths(self) -> dict[int, np.ndarray]:
+        """The global paths planned so far, by world (the builder's)."""
+        return self.builder.planned_paths
+
+    def check_options(self, env: Any, taken: dict[str, Any]) -> None:
+        """``world``: one index for every reset car, or one per car; ``goal`` refused."""
+        if "goal" in taken:
+            raise ValueError(f"unknown reset option(s) ['goal']; {ENV_ID} takes 'world' (the "
+                             "BARN protocol sets the goal)")
+        if "world" in taken:
+            self._chosen = self._read_worlds(env, taken["world"])
+
+    def _read_worlds(self, env: Any, given: Any) -> list[int]:
+        n = env.num_envs
+        if isinstance(given, list | tuple | np.ndarray):
+            chosen = list(given)
+            if len(chosen) != n:
+                raise ValueError(f"options['world'] must be a world index or {n} of them (one "
+                                 f"per car), got {len(chosen)}")
+        else:
+            chosen = [given] * n
+        for index in chosen:
+            self.worlds.world(index)  # one line naming a world out of range
+        return [int(index) for index in chosen]
+
+    def take_options(self, taken: dict[str, Any]) -> None:
+        if "world" not in taken:
+            self._chosen = None
+
+    def build_options(self, i: int, options: dict[str, Any]) -> None:
+        if self._chosen is not None:
+            options["world"] = self._chosen[i]
+
+    def from_builder(self, env: Any, i: int, builder: SmartCarBARNEnv) -> None:
+        """Car ``i``'s world, OT and global path, as its single env has them."""
+        world = builder.world
+        assert world is not None
+        self.world[i] = world.index
+        self.optimal[i] = self.protocol.optimal_time_s(world.path_length_m * self.protocol.scale)
+        self.global_paths[i] = builder.global_path
+
+    def after_reset(self, env: Any, mask: np.ndarray, idx: np.ndarray) -> None:
+        """A fresh run: its clock, no outcome, the path followed from its start."""
+        self._chosen = None  # an autoreset draws its world
+        for i in idx.tolist():
+            self._clocks[i] = RunClock(np.zeros(2), self.protocol.moved_m)
+            self._trackers[i] = PathTracker(self.global_paths[i], self.lookahead_m)
+            self._follow(env, i)
+        self.outcome[idx] = None
+        self._timeout[idx] = False
+
+    def _follow(self, env: Any, i: int) -> None:
+        """Car ``i``'s next waypoint from its odometry (``SmartCarBARNEnv.readings``)."""
+        b = env.base
+        x, y, theta = float(b.x[i]), float(b.y[i]), float(b.theta[i])
+        tracker = self._trackers[i]
+        assert tracker is not None
+        self.waypoints[i] = to_base_frame(tracker.waypoint(np.array([x, y])), x, y, theta)
+
+    def score(self, env: Any, a: np.ndarray, previous: Score | None) -> Score:
+        """``SmartCarBARNEnv.step``: the run's clock and outcome, the timeout, the waypoint."""
+        assert previous is not None
+        _, success, failure = previous
+        collision = env.collision
+        pose, now = env._pose, env._now
+        for i in range(env.num_envs):
+            self._clocks[i].update(pose[i, :2], int(now[i]) / NS_PER_S)
+            self._follow(env, i)
+        ended = collision | success | failure
+        self._timeout = ~ended & (env._steps >= self.timeout_steps)
+        for outcome, mask in ((TIMEOUT, self._timeout), (FAILURE, failure),
+                              (SUCCESS, success), (COLLISION, collision)):
+            self.outcome[mask] = outcome  # the last one written wins, as the single env's elif
+        return previous
+
+    def cut_short(self, env: Any, truncated: np.ndarray) -> np.ndarray:
+        return truncated | self._timeout
+
+    def columns(self, env: Any, columns: dict[str, Any]) -> None:
+        columns["waypoint_base"] = (self.waypoints[:, 0], self.waypoints[:, 1])
+
+    def info_values(self, env: Any, values: dict[str, np.ndarray],
+                    success: np.ndarray) -> None:
+        """``SmartCarBARNEnv._barn_info``: world, outcome, AT, OT and both scores."""
+        now = env._now
+        n = env.num_envs
+        run_time = np.array([self._clocks[i].elapsed_s(int(now[i]) / NS_PER_S)
+                             for i in range(n)])
+        won = self.outcome == SUCCESS
+        values.update(
+            world=self.world.copy(), outcome=self.outcome.copy(), run_time_s=run_time,
+            optimal_time_s=self.optimal.copy(),
+            score=np.array([barn_score(bool(won[i]), run_time[i], self.optimal[i])
+                            for i in range(n)]),
+            score_025=np.array([barn_score(bool(won[i]), run_time[i], self.optimal[i],
+                                           floor=4.0) for i in range(n)]))
+
+
+TASKS[ENV_ID] = (SmartCarBARNEnv, (Reach, Navigation, Barn))

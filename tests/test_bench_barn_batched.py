@@ -1,0 +1,43 @@
+"""``smartcar-bench barn`` on a batched env: the same records as the row of single envs."""
+
+from __future__ import annotations
+
+import json
+
+import gymnasium as gym
+import numpy as np
+
+import smartcar_gym  # noqa: F401
+from smartcar_gym.bench.batched import run_barn_vector
+from smartcar_gym.bench.cli import main
+from smartcar_gym.bench.runner import barn_jobs, run_barn
+from smartcar_gym.envs.vector import SmartCarBatchVectorEnv
+from smartcar_gym.navigation.dwa_driver import DWADriver
+
+
+def test_dwa_on_a_batch_gives_the_single_envs_records_bit_for_bit():
+    """Three runs on two cars: the third job goes to the car that ends first, the other car
+    is parked; every record (outcome, times, scores, way) is the single envs' row's."""
+    jobs = barn_jobs((0, 6), runs=2, seed=3)[:3]
+    singles = [gym.make("SmartCarBARN-v0", engine="planar") for _ in range(2)]
+    batch = SmartCarBatchVectorEnv("SmartCarBARN-v0", num_envs=2, engine="planar")
+    try:
+        want = run_barn(singles, DWADriver(), jobs, keep=lambda job: True)
+        got = run_barn_vector(batch, DWADriver(), jobs, keep=lambda job: True)
+    finally:
+        batch.close()
+        for env in singles:
+            env.close()
+    assert [r.outcome for r in want] == ["success"] * 3
+    for g, w in zip(got, want, strict=True):
+        assert g.to_dict() == w.to_dict()
+        assert np.array_equal(g.trajectory, w.trajectory)
+
+
+def test_the_command_runs_batched_where_the_engine_batches(tmp_path, capsys):
+    out_json = tmp_path / "dwa.json"
+    assert main(["barn", "--engine", "planar", "--worlds", "0", "--n-envs", "2", "--quiet",
+                 "--json", str(out_json)]) == 0
+    assert "| dwa | 1 | 1.000 |" in capsys.readouterr().out
+    data = json.loads(out_json.read_text())
+    assert data["vectorization"] == "batched" and data["engine"] == "planar"

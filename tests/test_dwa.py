@@ -9,7 +9,13 @@ import pytest
 
 import smartcar_gym  # noqa: F401
 from smartcar_gym.navigation.dwa import DWAConfig, DWAPlanner
-from smartcar_gym.navigation.dwa_driver import DWADriver, scan_points, turn_command
+from smartcar_gym.navigation.dwa_driver import (
+    DWADriver,
+    ObstacleMemory,
+    scan_points,
+    turn_command,
+)
+from smartcar_gym.navigation.footprint import COMPILED, footprint_check, to_nearest
 from smartcar_gym.navigation.grid_planner import distance_grid, plan_path
 
 SCALE = 0.18 / 0.43
@@ -70,6 +76,48 @@ def test_a_batch_plans_each_robot_as_alone():
     alone = [planner.plan(velocity[i:i + 1], obstacles[i:i + 1], _path_ahead(), goals[i:i + 1])
              for i in range(3)]
     assert np.array_equal(batch, np.vstack(alone))
+
+
+@pytest.mark.skipif(not COMPILED, reason="numba (the fast extra) is off or not installed")
+def test_the_compiled_footprint_check_is_numpys_bit_for_bit():
+    rng = np.random.default_rng(1)
+    n, c, t, p = 5, 30, 12, 60
+    poses = rng.uniform(-0.5, 0.5, (n, c, t, 3))
+    points = rng.uniform(-0.8, 0.8, (n, p, 2))
+    counts = np.array([0, 1, 20, 60, 35])
+    points[np.arange(p) >= counts[:, None]] = rng.uniform(-0.8, 0.8, 2)  # padding: anything
+    cos, sin = np.cos(poses[..., 2]), np.sin(poses[..., 2])
+    args = (poses, cos, sin, points, counts, 0.1, 0.06, 0.25)
+    valid, nearest = footprint_check(*args, compiled=False)
+    valid_c, nearest_c = footprint_check(*args, compiled=True)
+    assert np.array_equal(valid, valid_c)
+    assert 0 < valid.sum() < valid.size  # some touch, some do not
+    assert np.array_equal(nearest[valid], nearest_c[valid])
+    # by hand: robot 1's one point, and nothing for robot 0
+    d = np.hypot(points[1, 0, 0] - poses[1, ..., 0], points[1, 0, 1] - poses[1, ..., 1])
+    free = valid[1]
+    assert np.allclose(nearest[1][free], np.minimum(d.min(axis=1), 0.25)[free])
+    assert valid[0].all() and (nearest[0] == 0.25).all()
+    with pytest.raises(ValueError, match="circumscribed"):
+        footprint_check(*args[:7], 0.05)
+    ends, path = poses[:, :, -1, :2], points
+    assert np.array_equal(to_nearest(ends, path, compiled=False),
+                          to_nearest(ends, path, compiled=True))
+    assert to_nearest(ends, path, compiled=False)[2, 3] == pytest.approx(
+        np.hypot(*(ends[2, 3] - path[2]).T).min())
+
+
+def test_the_obstacle_memory_keeps_a_cell_for_its_scans_then_forgets_it():
+    memory = ObstacleMemory(scans=3, cell_m=0.01)
+    memory.add(np.array([[1.0, 0.0], [1.001, 0.002], [0.0, 0.5]]))  # two in one cell
+    assert len(memory.points) == 2
+    pose = np.array([1.0, 0.0, np.pi / 2])
+    near = memory.near(pose, 0.1)  # in the base frame of a pose on the point, facing +y
+    assert len(near) == 1 and np.allclose(near, [[0.0, 0.0]], atol=0.003)
+    memory.add(np.array([[0.0, 0.504]]))  # the cell at (0, 0.5) seen again
+    memory.add(np.zeros((0, 2)))
+    memory.add(np.zeros((0, 2)))  # (1, 0) not seen for 3 scans: forgotten
+    assert np.allclose(memory.points, [[0.0, 0.504]])
 
 
 def test_scan_points_and_the_turn_response():

@@ -2,7 +2,8 @@
 
 ``run_barn_vector`` is ``runner.run_barn`` for a batch: the same jobs to the same cars in the
 same order (a car whose run ends takes the next job by a partial reset with its seed and
-world), ``driver.act`` for the cars with a run (``ACT_CHUNK`` at a time), idle cars parked.
+world), ``driver.act`` for the cars with a run (``driver.act_chunk`` at a time, None: all at
+once), idle cars parked.
 ``BatchCar`` shows the driver car i as it sees a single env (odometry, scan, global path, the
 car's settings). Per car the batch is its single env bit for bit, so the records are the
 single envs' row's.
@@ -19,8 +20,6 @@ import numpy as np
 
 from smartcar_gym.bench.runner import Job, RunRecord, record_of
 
-#: cars per ``driver.act`` call: DWA's arrays grow with the cars times their scans' points
-ACT_CHUNK = 4
 #: the ``info`` keys a run's record reads
 RECORD_KEYS = ("outcome", "run_time_s", "score", "score_025", "optimal_time_s", "distance")
 
@@ -95,8 +94,9 @@ def run_barn_vector(envs: gym.vector.VectorEnv, driver: Any, jobs: Sequence[Job]
     while any(slot is not None for slot in slots):
         active = [i for i, slot in enumerate(slots) if slot is not None]
         actions = np.zeros((n, 2), dtype=np.float32)
-        for j in range(0, len(active), ACT_CHUNK):
-            chunk = active[j:j + ACT_CHUNK]
+        size = getattr(driver, "act_chunk", None) or max(len(active), 1)
+        for j in range(0, len(active), size):
+            chunk = active[j:j + size]
             actions[chunk] = driver.act([cars[i] for i in chunk], obs[chunk], chunk)
         obs[:], _, terminated, truncated, info = envs.step(actions)
         ended = []

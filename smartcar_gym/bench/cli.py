@@ -161,11 +161,22 @@ def _driver(args: argparse.Namespace) -> tuple[Any, str]:
     except PolicyError as err:
         raise DriverError(str(err)) from None
     name = f"pretrained:{args.pretrained}" if args.model is None else str(args.model)
+    if policy.env_id == ENV_ID:
+        args.policy_env_kwargs = dict(policy.env_kwargs)
     return PolicyDriver(policy, name), name
 
 
+#: a policy's env kwargs the benchmark does not take: the protocol sets the episode's length,
+#: ``--engine`` the engine
+NOT_FROM_POLICY = ("max_episode_steps", "engine", "world_file", "render_mode")
+
+
 def _env_kwargs(args: argparse.Namespace) -> dict[str, Any]:
-    kwargs: dict[str, Any] = {"world_file": args.world_file}
+    """The env's kwargs: a policy's own (what it was trained with: its laser, lookahead,
+    model), the world file and the engine."""
+    kwargs: dict[str, Any] = {k: v for k, v in getattr(args, "policy_env_kwargs", {}).items()
+                              if k not in NOT_FROM_POLICY}
+    kwargs["world_file"] = args.world_file
     if args.engine is not None:
         kwargs["engine"] = args.engine
     return kwargs

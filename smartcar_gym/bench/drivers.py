@@ -32,7 +32,8 @@ def make_driver(name: str) -> Any:
 
 
 class PolicyDriver:
-    """A trained policy, one observation at a time (``Policy.act``)."""
+    """A trained policy: every car's action from one ``predict`` call (``act_batch``: the
+    policy's normaliser on the batch, as ``Policy.act`` on each)."""
 
     def __init__(self, policy: Any, name: str, deterministic: bool = True) -> None:
         self.policy = policy
@@ -54,5 +55,7 @@ class PolicyDriver:
 
     def act(self, envs: Sequence[Any], obs: np.ndarray,
             indices: Sequence[int] | None = None) -> np.ndarray:
-        """One action per observation."""
-        return np.stack([self.policy.act(o, deterministic=self.deterministic) for o in obs])
+        """One action per observation (``(N, 2)`` for ``obs`` ``(N, ...)``)."""
+        from smartcar_gym.agents.episodes import act_batch
+
+        return act_batch(self.policy, obs, deterministic=self.deterministic)

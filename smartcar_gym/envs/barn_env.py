@@ -145,6 +145,7 @@ class SmartCarBARNEnv(SmartCarNavEnv):
 
     reset_options = ("world",)
     env_name = "SmartCarBARN-v0"
+    pillars = True  # 0.3 m cylinders: on pybullet capsules, their scans 2.6x faster
 
     def __init__(self, model: str | os.PathLike | RobotModel | None = None, *,
                  model_args: Mapping[str, Any] | None = None,

@@ -157,6 +157,9 @@ class SmartCarNavEnv(SmartCarEnv):
 
     reset_options = ("goal", "obstacles")
     env_name = "SmartCarNav-v0"
+    #: the obstacles' cylinders are pillars (``sim.obstacles.add_obstacle``): not Nav's, whose
+    #: tops a car may reach; BARN's
+    pillars = False
 
     def __init__(
         self,
@@ -269,7 +272,7 @@ class SmartCarNavEnv(SmartCarEnv):
         self.obstacles = layout
         self._obstacle_bodies = [
             add_obstacle(self.sim, f"obstacle_{i}", o.shape, o.size, o.position, o.yaw,
-                         OBSTACLE_HEIGHT_M) for i, o in enumerate(layout)
+                         OBSTACLE_HEIGHT_M, pillar=self.pillars) for i, o in enumerate(layout)
         ]
         rng = np.random.default_rng(self.np_random.integers(2**63))  # the laser's noise
         self.laser = SimulatedLaser(self.laser_config, self.mount)

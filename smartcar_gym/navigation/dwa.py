@@ -26,6 +26,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from smartcar_gym.navigation.footprint import footprint_check, to_nearest
+
 FAR_M = 1e3  # where padding points lie
 LETHAL_COST = 252.0
 
@@ -116,8 +118,14 @@ def rollouts(v: np.ndarray, w: np.ndarray, duration: float, steps: int) -> np.nd
 class DWAPlanner:
     """Chooses cmd_vel (v, w) for N robots at once (``plan``)."""
 
-    def __init__(self, config: DWAConfig) -> None:
+    def __init__(self, config: DWAConfig, compiled: bool | None = None) -> None:
         self.config = config
+        self.compiled = compiled  # the footprint check: None, numba where installed
+        c = config
+        # beyond this, a point neither touches a footprint nor costs (inflation_cost's 0)
+        self.cutoff_m = max(c.inflation_radius, math.hypot(c.half_length + c.footprint_padding,
+                                                           c.half_width + c.footprint_padding)
+                            ) * (1.0 + 1e-9)
 
     def candidates(self, velocity: np.ndarray) -> np.ndarray:
         """(N, C, 2) velocity samples: the dynamic window's (vx_samples x vtheta_samples), the
@@ -143,28 +151,29 @@ class DWAPlanner:
                                np.broadcast_to(escape, (n, 1, 2))], axis=1)
 
     def plan(self, velocity: np.ndarray, obstacles: np.ndarray, path: np.ndarray,
-             goal: np.ndarray) -> np.ndarray:
+             goal: np.ndarray, counts: np.ndarray | None = None) -> np.ndarray:
         """cmd_vel (N, 2) for N robots with ``velocity`` (N, 2) (v, w), scan ``obstacles``
-        (N, P, 2), a window of the global ``path`` (N, Q, 2) and the local ``goal`` (N, 2), all
-        in each robot's base frame (pad with points far away). (0, 0) where nothing is free."""
+        (N, P, 2) of which the first ``counts[n]`` are robot n's (None: all; padding may lie
+        anywhere), a window of the global ``path`` (N, Q, 2) (pad with far points) and the
+        local ``goal`` (N, 2), all in each robot's base frame. (0, 0) where nothing is free."""
         c = self.config
         cand = self.candidates(np.asarray(velocity, dtype=float))  # (N, C, 2)
         n, count = cand.shape[:2]
         poses = rollouts(cand[..., 0], cand[..., 1], c.sim_time, c.sim_steps)  # (N, C, T, 3)
-        obstacles = np.asarray(obstacles, dtype=float)
-        # every obstacle point in every pose's frame: (N, C, T, P)
-        dx = obstacles[:, None, None, :, 0] - poses[..., 0, None]
-        dy = obstacles[:, None, None, :, 1] - poses[..., 1, None]
-        cos, sin = np.cos(poses[..., 2, None]), np.sin(poses[..., 2, None])
-        lx, ly = cos * dx + sin * dy, -sin * dx + cos * dy
+        obstacles = np.asarray(obstacles, dtype=float).reshape(n, -1, 2)
+        if counts is None:
+            counts = np.full(n, obstacles.shape[1])
+        # does a footprint on the way touch a point, and how near does the way pass: the
+        # inflation cost falls with distance, so the way's highest is its nearest pass's
         pad = c.footprint_padding
-        hit = (np.abs(lx) < c.half_length + pad) & (np.abs(ly) < c.half_width + pad)
-        valid = ~np.any(hit, axis=(2, 3))  # (N, C)
-        nearest = np.sqrt(np.min(dx * dx + dy * dy, axis=3))  # (N, C, T)
-        occ = np.max(self.inflation_cost(nearest), axis=2)  # (N, C)
+        valid, nearest = footprint_check(
+            poses, np.cos(poses[..., 2]), np.sin(poses[..., 2]), obstacles,
+            np.asarray(counts), c.half_length + pad, c.half_width + pad, self.cutoff_m,
+            compiled=self.compiled)
+        occ = self.inflation_cost(nearest)  # (N, C)
         end = poses[:, :, -1, :2]
         path = np.asarray(path, dtype=float)
-        path_dist = np.sqrt(np.min(np.sum((end[:, :, None, :] - path[:, None]) ** 2, -1), -1))
+        path_dist = to_nearest(end, path, compiled=self.compiled)
         goal_dist = np.linalg.norm(end - np.asarray(goal, dtype=float)[:, None], axis=-1)
         unit = 1.0 if c.meter_scoring else c.resolution
         cost = (c.pdist_scale * path_dist / unit + c.gdist_scale * goal_dist / unit

@@ -9,7 +9,6 @@ ArbotiX controller as a policy's.
 
 from __future__ import annotations
 
-from collections import deque
 from collections.abc import Sequence
 from typing import Any
 
@@ -18,8 +17,10 @@ import numpy as np
 from smartcar_gym.envs.barn_env import car_width, footprint_half_extents
 from smartcar_gym.envs.tasks.barn import PathTracker
 from smartcar_gym.navigation.dwa import FAR_M, DWAConfig, DWAPlanner
+from smartcar_gym.navigation.footprint import COMPILED as FOOTPRINT_COMPILED
 from smartcar_gym.worlds.barn import JACKAL_TOP_SPEED_M_S, JACKAL_WIDTH_M
 
+CELL_OFFSET = 1 << 30  # makes cell indices positive for the memory's keys
 PATH_BEHIND_M = 0.2  # the path's window starts this far behind the nearest point
 #: The shipped car's turn rate (rad/s, steady) for a commanded angular.z, driving (v > 0) and
 #: in place, measured on the planar and MuJoCo engines (pybullet alike): a skid-steer base
@@ -43,25 +44,43 @@ def scan_points(ranges: np.ndarray, angles: np.ndarray, mount: np.ndarray) -> np
 
 
 class ObstacleMemory:
-    """The local costmap's obstacle layer, marking only: the returns of the last ``scans``
-    scans, kept in the odom frame, so that an obstacle stays in the map when it comes closer
-    than the laser's range_min (or behind what the laser sees). Points within ``cell_m`` of
-    each other are kept once."""
+    """The local costmap's obstacle layer, marking only, in the odom frame: a square cell of
+    ``cell_m`` is marked by a laser return in it and stays marked for ``scans`` scans after
+    the last one, at that return's point, so that an obstacle stays in the map when it comes
+    closer than the laser's range_min (or behind what the laser sees)."""
 
     def __init__(self, scans: int = 50, cell_m: float = 0.005) -> None:
-        self.scans: deque[np.ndarray] = deque(maxlen=scans)
+        self.scans = scans
         self.cell_m = cell_m
+        self.count = 0  # scans marked so far
+        self.keys = np.zeros(0, dtype=np.int64)  # the marked cells, sorted
+        self.points = np.zeros((0, 2))
+        self.seen = np.zeros(0, dtype=np.int64)  # the scan that last marked each
 
     def add(self, points: np.ndarray) -> None:
-        """Mark ``points`` (K, 2), odom frame."""
-        self.scans.append(np.asarray(points, dtype=float).reshape(-1, 2))
+        """Mark the cells of ``points`` (K, 2), odom frame, and forget the cells no scan of
+        the last ``scans`` marked."""
+        self.count += 1
+        points = np.asarray(points, dtype=float).reshape(-1, 2)
+        cells = np.floor(points / self.cell_m).astype(np.int64) + CELL_OFFSET
+        keys, first = np.unique(cells[:, 0] * (2 * CELL_OFFSET) + cells[:, 1],
+                                return_index=True)
+        at = np.minimum(np.searchsorted(self.keys, keys), max(len(self.keys) - 1, 0))
+        known = (self.keys[at] == keys) if len(self.keys) else np.zeros(len(keys), dtype=bool)
+        self.points[at[known]] = points[first[known]]
+        self.seen[at[known]] = self.count
+        keys = np.concatenate([self.keys, keys[~known]])
+        order = np.argsort(keys, kind="stable")
+        fresh = np.concatenate([self.seen, np.full(int((~known).sum()), self.count)])[order]
+        keep = fresh > self.count - self.scans
+        self.keys = keys[order][keep]
+        self.points = np.concatenate([self.points, points[first[~known]]])[order][keep]
+        self.seen = fresh[keep]
 
     def near(self, pose: np.ndarray, reach_m: float) -> np.ndarray:
         """The marked points within ``reach_m`` of ``pose`` (x, y, theta), in its base frame."""
-        points = to_base(np.vstack(list(self.scans) or [np.zeros((0, 2))]), pose)
-        points = points[np.hypot(points[:, 0], points[:, 1]) < reach_m]
-        _, first = np.unique(np.round(points / self.cell_m), axis=0, return_index=True)
-        return points[np.sort(first)]
+        points = to_base(self.points, pose)
+        return points[points[:, 0] ** 2 + points[:, 1] ** 2 < reach_m * reach_m]
 
 
 def turn_command(v: np.ndarray, w: np.ndarray) -> np.ndarray:
@@ -104,6 +123,9 @@ class DWADriver:
     (``turn_command``), else pass DWA's angular.z as it is."""
 
     name = "dwa"
+    #: cars per ``act`` call in a batched benchmark (None: all at once): numpy's footprint
+    #: check holds (cars, candidates, poses, points) arrays; numba's holds none
+    act_chunk = None if FOOTPRINT_COMPILED else 4
 
     def __init__(self, config: DWAConfig | None = None, compensate_turns: bool = True) -> None:
         self.config = config
@@ -161,7 +183,7 @@ class DWADriver:
                                      + 2.0 * config.local_goal_m, side="right"))
             windows.append(to_base(tracker.path[lo:max(hi, lo + 1)], pose))
         cmd = self.planner.plan(np.array(velocity), pad(obstacles), pad(windows),
-                                np.array(goals))
+                                np.array(goals), counts=np.array([len(o) for o in obstacles]))
         if self.compensate_turns:
             cmd[:, 1] = turn_command(cmd[:, 0], cmd[:, 1])
         scale = np.array([[env.max_linear, env.max_angular] for env in envs])

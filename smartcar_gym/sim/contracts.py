@@ -241,9 +241,14 @@ class Simulator(Protocol):
         ...
 
     def add_static(self, name: str, shape: str, half_extents: Sequence[float],
-                   position: Sequence[float], yaw: float, rgba: Sequence[float]) -> Body:
+                   position: Sequence[float], yaw: float, rgba: Sequence[float],
+                   pillar: bool = False) -> Body:
         """A fixed body that collides: a 'box' (``half_extents``) or an upright 'cylinder'
-        (radius ``half_extents[0]``, height ``2 * half_extents[2]``) centred on ``position``."""
+        (radius ``half_extents[0]``, height ``2 * half_extents[2]``) centred on ``position``.
+        ``pillar``: a cylinder standing on the ground whose top nothing reaches (BARN's): the
+        engine may round its ends beyond its height where that makes contacts and rays
+        cheaper (pybullet's capsules); its side stays the cylinder's. ``sim.obstacles.
+        add_obstacle`` passes it only when true, so an engine may leave it out."""
         ...
 
     def add_visual(self, name: str, shape: str, size: Sequence[float], rgba: Sequence[float],

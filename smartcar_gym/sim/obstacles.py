@@ -26,11 +26,14 @@ def add_obstacle(
     yaw: float = 0.0,
     height: float = 0.3,
     rgba: Sequence[float] = OBSTACLE_COLOR,
+    pillar: bool = False,
 ) -> Body:
     """A static obstacle standing on the ground, centred on ``position`` (x, y), turned by ``yaw``.
 
     ``size`` is (length along x, width along y) of a box before the turn, or (diameter,) of a
-    cylinder; ``height`` in m. Returns its ``Body`` handle (also ``sim.body(name)``).
+    cylinder; ``height`` in m; ``pillar``: a cylinder whose top nothing reaches (the engine
+    may round its ends: ``Simulator.add_static``). Returns its ``Body`` handle (also
+    ``sim.body(name)``).
     """
     if shape not in SHAPES:
         raise ValueError(f"obstacle shape must be one of {SHAPES}, got {shape!r}")
@@ -40,8 +43,9 @@ def add_obstacle(
         half = (size[0] / 2.0, size[1] / 2.0, height / 2.0)
     else:
         half = (size[0] / 2.0, size[0] / 2.0, height / 2.0)
+    extra = {"pillar": True} if pillar and shape == "cylinder" else {}
     return sim.add_static(name, shape, half, (float(position[0]), float(position[1]),
-                                              height / 2.0), yaw, rgba)
+                                              height / 2.0), yaw, rgba, **extra)
 
 
 def nearest_distance(body: Body, others: Sequence[Body], max_distance_m: float) -> float:

@@ -337,8 +337,10 @@ class MujocoSimulator(EventClock):
         return body
 
     def add_static(self, name: str, shape: str, half_extents: Sequence[float],
-                   position: Sequence[float], yaw: float, rgba: Sequence[float]) -> MujocoBody:
-        """A fixed 'box' or upright 'cylinder' that collides (see pybullet's ``add_static``)."""
+                   position: Sequence[float], yaw: float, rgba: Sequence[float],
+                   pillar: bool = False) -> MujocoBody:
+        """A fixed 'box' or upright 'cylinder' that collides (see pybullet's ``add_static``;
+        a ``pillar`` stays a cylinder: MuJoCo's rays and contacts on it are analytic)."""
         self._check_new_name(name)
         spec_body = self.spec.worldbody.add_body(
             name=name, pos=[float(v) for v in position],

@@ -469,8 +469,10 @@ class PlanarSimulator(EventClock):
         return body
 
     def add_static(self, name: str, shape: str, half_extents: Sequence[float],
-                   position: Sequence[float], yaw: float, rgba: Sequence[float]) -> PlanarStatic:
-        """A fixed 'box' or upright 'cylinder' that collides (see pybullet's ``add_static``)."""
+                   position: Sequence[float], yaw: float, rgba: Sequence[float],
+                   pillar: bool = False) -> PlanarStatic:
+        """A fixed 'box' or upright 'cylinder' that collides (see pybullet's ``add_static``;
+        a ``pillar`` is its circle, as every cylinder)."""
         self._check_new_name(name)
         if shape not in ("box", "cylinder"):
             raise ValueError(f"static shape must be 'box' or 'cylinder', got {shape!r}")

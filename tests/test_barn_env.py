@@ -167,3 +167,31 @@ def test_pybullets_pillars_scan_as_its_cylinders(monkeypatch):
     assert not np.array_equal(pillars, cylinders)  # another shape
     hit = both & np.isfinite(exact)
     assert np.percentile(np.abs(pillars[hit] - exact[hit]), 90) < 0.002
+
+
+def test_the_path_progress_reward_is_the_distance_gone_along_the_path():
+    rewards, poses = {}, {}
+    for progress in ("goal", "path"):
+        env = gym.make("SmartCarBARN-v0", engine="planar", progress=progress)
+        try:
+            env.reset(seed=0, options={"world": 6})
+            total = 0.0
+            for _ in range(12):
+                _, reward, _, _, info = env.step(np.array([0.6, 0.3]))
+                total += reward
+            rewards[progress], poses[progress] = total, info["pose"][:2]
+            path = env.unwrapped.global_path
+        finally:
+            env.close()
+    assert np.array_equal(poses["goal"], poses["path"])  # the same drive
+    arc = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(path, axis=0).T))])
+    nearest = np.argmin(np.hypot(*(path - poses["path"]).T))
+    to_go = arc[-1] - arc[nearest] + np.hypot(*(path[nearest] - poses["path"]))
+    gone = arc[-1] + np.hypot(*path[0]) - to_go  # the path starts in the start's grid cell
+    costs = 12 * 0.01 + 12 * 0.01 * (0.6 ** 2 + 0.3 ** 2)  # time and action, 12 steps
+    assert rewards["path"] == pytest.approx(10.0 * gone - costs, abs=0.02)
+    goal = to_car_frame(np.array([[-2.0, 13.0]]), SCALE)[0]  # GOAL_XY in the car's frame
+    closer = np.hypot(*goal) - np.hypot(*(goal - poses["goal"]))
+    assert rewards["goal"] == pytest.approx(10.0 * closer - costs, abs=0.02)
+    with pytest.raises(ValueError, match="progress must be one of goal, path"):
+        gym.make("SmartCarBARN-v0", engine="planar", progress="straight")

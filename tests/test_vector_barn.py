@@ -39,16 +39,20 @@ def _at_end(info: dict, key: str) -> np.ndarray:
 
 
 @pytest.mark.parametrize("engine", ENGINES)
-@pytest.mark.parametrize(("mode", "timeout"), [("NextStep", 25), ("SameStep", None)])
-def test_barn_batch_equals_n_single_envs_bit_for_bit(engine, mode, timeout, monkeypatch):
-    """Each car's observations (waypoint row included), rewards, ends and infos (world,
-    outcome, AT, OT, scores) are its single env's over 60 steps, across autoresets that draw
-    new worlds: ended by the time limit (SameStep) or the protocol's timeout, made short
-    (NextStep), and by collisions."""
+@pytest.mark.parametrize(("mode", "timeout", "progress"), [
+    ("NextStep", 25, "goal"), ("SameStep", None, "goal"), ("SameStep", None, "path")])
+def test_barn_batch_equals_n_single_envs_bit_for_bit(engine, mode, timeout, progress,
+                                                     monkeypatch):
+    """Each car's observations (waypoint row included), rewards (with either progress
+    reward), ends and infos (world, outcome, AT, OT, scores) are its single env's over 60
+    steps, across autoresets that draw new worlds: ended by the time limit (SameStep) or the
+    protocol's timeout, made short (NextStep), and by collisions."""
     if timeout is not None:
         monkeypatch.setattr(BarnProtocol, "timeout_steps", lambda self, period_s: timeout)
-    batched = make(engine, mode, "batch", max_episode_steps=24 if timeout is None else 60)
-    single = make(engine, mode, "sync", max_episode_steps=24 if timeout is None else 60)
+    batched = make(engine, mode, "batch", max_episode_steps=24 if timeout is None else 60,
+                   progress=progress)
+    single = make(engine, mode, "sync", max_episode_steps=24 if timeout is None else 60,
+                  progress=progress)
     assert isinstance(batched, SmartCarBatchVectorEnv)
     try:
         got, want = rollout(batched, 60, 3), rollout(single, 60, 3)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Mapping, Sequence
+from dataclasses import replace
 from typing import Any
 
 import gymnasium as gym
@@ -41,6 +42,7 @@ from smartcar_gym.worlds.barn import (
     to_car_frame,
 )
 
+PROGRESS = ("goal", "path")  # what the progress reward measures
 WAYPOINT_KEY = "waypoint"  # the next waypoint (odom frame) in ``Readings.extra``
 BARN_OBSERVATION_ORDER = (*NAV_OBSERVATION_ORDER, "waypoint_base")
 GRID_RESOLUTION_M = 0.02  # the global planner's map
@@ -140,7 +142,11 @@ class SmartCarBARNEnv(SmartCarNavEnv):
     ## Arguments
 
     SmartCarNav-v0's but those the protocol sets (goal, arena, obstacles), and
-    ``lookahead`` (0.5 m) and ``world_file`` (None: the shipped worlds).
+    ``lookahead`` (0.5 m), ``world_file`` (None: the shipped worlds) and ``progress``:
+    ``"goal"`` (the default) rewards the progress towards the goal as SmartCarNav-v0 does,
+    ``"path"`` the progress along the global path instead (the same weight, on the car's
+    ground-truth distance to go: its distance to the path's nearest point plus the path
+    beyond it), which does not pull the car at the cylinders between it and the goal.
     """
 
     reset_options = ("world",)
@@ -153,7 +159,7 @@ class SmartCarBARNEnv(SmartCarNavEnv):
                  collision_penalty: float = 10.0,
                  laser: Mapping[str, Any] | LaserConfig | None = None,
                  laser_mount: Sequence[float] | None = None, scan_sectors: int = 36,
-                 **kwargs: Any) -> None:
+                 progress: str = "goal", **kwargs: Any) -> None:
         given = [name for name in PROTOCOL_KWARGS if name in kwargs]
         if given:
             raise TypeError(f"SmartCarBARN-v0 takes no {', '.join(given)}: the BARN protocol "
@@ -169,6 +175,9 @@ class SmartCarBARNEnv(SmartCarNavEnv):
         self.protocol = BarnProtocol(car_width(model) / JACKAL_WIDTH_M,
                                      float(kwargs.get("max_linear", 0.5)))
         self.lookahead_m = float(lookahead)
+        if progress not in PROGRESS:
+            raise ValueError(f"progress must be one of {', '.join(PROGRESS)}, got {progress!r}")
+        self.progress = progress
         goal = self.protocol.goal_distance_m
         super().__init__(model, obstacles=0, obstacle_clearance=0.0,
                          collision_penalty=collision_penalty, laser=laser,
@@ -177,6 +186,11 @@ class SmartCarBARNEnv(SmartCarNavEnv):
                          goal_tolerance=self.protocol.success_radius_m,
                          arena_size=2.5 * goal, **kwargs)
         self.timeout_steps = self.protocol.timeout_steps(self.robot.update_period_ns * 1e-9)
+        #: the weight of the progress along the global path (0: the progress to the goal)
+        self.path_progress_weight = 0.0
+        if progress == "path":
+            self.path_progress_weight = self.task.progress_weight
+            self.task = replace(self.task, progress_weight=0.0)
         self.world: BarnWorld | None = None
         self.global_path = np.zeros((0, 2))
         self._paths: dict[int, np.ndarray] = {}
@@ -210,6 +224,8 @@ class SmartCarBARNEnv(SmartCarNavEnv):
         super()._build_world()
         self.global_path = self._global_path()
         self.tracker = PathTracker(self.global_path, self.lookahead_m)
+        self._reward_tracker = PathTracker(self.global_path, 0.0)  # ground truth, for rewards
+        self._to_go = self._reward_tracker.to_go(np.zeros(2))
         self._clock = RunClock(np.zeros(2), self.protocol.moved_m)
         self._steps = 0
         self.outcome = None
@@ -240,6 +256,10 @@ class SmartCarBARNEnv(SmartCarNavEnv):
     # -- step ----------------------------------------------------------------------------------
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         obs, reward, terminated, truncated, info = super().step(action)
+        if self.path_progress_weight:
+            to_go = self._reward_tracker.to_go(info["pose"][:2])
+            reward = float(reward + self.path_progress_weight * (self._to_go - to_go))
+            self._to_go = to_go
         self._steps += 1
         self._clock.update(info["pose"][:2], self.sim.time_s)
         if info["collision"]:
@@ -281,6 +301,7 @@ class SmartCarBARNEnv(SmartCarNavEnv):
     def __getstate__(self) -> dict[str, Any]:
         state = super().__getstate__()
         state.pop("tracker", None)
+        state.pop("_reward_tracker", None)
         return state
 
 

@@ -130,10 +130,22 @@ class PathTracker:
 
     def waypoint(self, xy: np.ndarray) -> np.ndarray:
         """The next waypoint (x, y) for a robot at ``xy``; advances the nearest point."""
+        self._advance(xy)
+        return self.point_at(self.arc[self.index] + self.lookahead_m)
+
+    def to_go(self, xy: np.ndarray) -> float:
+        """How far a robot at ``xy`` is from the path's end along it: its distance to the
+        nearest point (advanced as ``waypoint`` does) plus the path beyond that point."""
+        d = self._advance(xy)
+        return float(self.length_m - self.arc[self.index]) + d
+
+    def _advance(self, xy: np.ndarray) -> float:
+        """Move the nearest point on (within ``window_m``); the robot's distance to it."""
         end = int(np.searchsorted(self.arc, self.arc[self.index] + self.window_m, side="right"))
         d = np.linalg.norm(self.path[self.index:end] - np.asarray(xy, dtype=float), axis=1)
-        self.index += int(np.argmin(d))
-        return self.point_at(self.arc[self.index] + self.lookahead_m)
+        nearest = int(np.argmin(d))
+        self.index += nearest
+        return float(d[nearest])
 
     def point_at(self, s: float) -> np.ndarray:
         """The point ``s`` metres along the path (clipped to its ends)."""

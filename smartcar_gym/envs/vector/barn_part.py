@@ -46,6 +46,10 @@ class Barn(TaskPart):
         self.worlds, self.protocol = single.worlds, single.protocol
         self.timeout_steps = single.timeout_steps
         self.lookahead_m = single.lookahead_m
+        self.path_progress_weight = single.path_progress_weight
+        #: each car's ground-truth distance to go along its path (``progress="path"``)
+        self._to_go = np.zeros(n)
+        self._reward_trackers: list[PathTracker | None] = [None] * n
         #: each car's world index, its OT and its global path (odom frame)
         self.world = np.zeros(n, dtype=np.int64)
         self.optimal = np.zeros(n)
@@ -106,6 +110,8 @@ class Barn(TaskPart):
         for i in idx.tolist():
             self._clocks[i] = RunClock(np.zeros(2), self.protocol.moved_m)
             self._trackers[i] = PathTracker(self.global_paths[i], self.lookahead_m)
+            self._reward_trackers[i] = PathTracker(self.global_paths[i], 0.0)
+            self._to_go[i] = self._reward_trackers[i].to_go(np.zeros(2))
             self._follow(env, i)
         self.outcome[idx] = None
         self._timeout[idx] = False
@@ -121,9 +127,14 @@ class Barn(TaskPart):
     def score(self, env: Any, a: np.ndarray, previous: Score | None) -> Score:
         """``SmartCarBARNEnv.step``: the run's clock and outcome, the timeout, the waypoint."""
         assert previous is not None
-        _, success, failure = previous
+        reward, success, failure = previous
         collision = env.collision
         pose, now = env._pose, env._now
+        if self.path_progress_weight:
+            to_go = np.array([self._reward_trackers[i].to_go(pose[i, :2])
+                              for i in range(env.num_envs)])
+            reward = reward + self.path_progress_weight * (self._to_go - to_go)
+            self._to_go = to_go
         for i in range(env.num_envs):
             self._clocks[i].update(pose[i, :2], int(now[i]) / NS_PER_S)
             self._follow(env, i)
@@ -132,7 +143,7 @@ class Barn(TaskPart):
         for outcome, mask in ((TIMEOUT, self._timeout), (FAILURE, failure),
                               (SUCCESS, success), (COLLISION, collision)):
             self.outcome[mask] = outcome  # the last one written wins, as the single env's elif
-        return previous
+        return reward, success, failure
 
     def cut_short(self, env: Any, truncated: np.ndarray) -> np.ndarray:
         return truncated | self._timeout

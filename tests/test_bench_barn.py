@@ -52,8 +52,8 @@ def test_dwa_on_two_worlds_prints_the_table_writes_json_and_misses_a_mark(tmp_pa
 @pytest.mark.parametrize(("argv", "line"), [
     (["--worlds", "0", "300"], "BARN world 300 is out of range: the worlds are 0 to 299 ("),
     (["--driver", "teb"], "--driver: unknown driver 'teb'; the drivers are dwa"),
-    (["--pretrained", "barn"], "--pretrained: no shipped policy 'barn'; the shipped ones are "
-                               "default, robust, nav, ros, mujoco (none for BARN yet)"),
+    (["--pretrained", "jackal"], "--pretrained: no shipped policy 'jackal'; the shipped ones "
+                                 "are default, robust, nav, ros, mujoco, barn"),
 ])
 def test_bad_input_is_one_line(argv, line, capsys):
     code, _, err = _run(["barn", "--engine", "mujoco", *argv], capsys)
@@ -93,3 +93,16 @@ def test_jobs_and_the_summary():
     assert summary["mean_time_s"] == 30.0  # of the successful runs
     assert summary["mean_score"] == pytest.approx(0.2) and summary["n_worlds"] == 2
     assert "trajectory" not in records[2].to_dict()
+
+
+def test_the_shipped_barn_policy_drives_two_test_worlds_at_the_top_score(tmp_path, capsys):
+    """--pretrained barn on the planar batch: both runs succeed in about 10 s (100 steps) and
+    score the challenge's maximum, 0.5 (AT within 2 OT); the policy's env kwargs come along."""
+    out = tmp_path / "barn.json"
+    code = main(["barn", "--pretrained", "barn", "--engine", "planar", "--worlds", "0", "6",
+                 "--n-envs", "2", "--fail-under", "100", "--json", str(out), "--quiet"])
+    assert code == 0, capsys.readouterr().err
+    result = json.loads(out.read_text())
+    assert result["driver"] == "pretrained:barn" and result["vectorization"] == "batched"
+    assert [r["outcome"] for r in result["records"]] == ["success", "success"]
+    assert all(80 <= r["steps"] <= 140 and r["score"] == 0.5 for r in result["records"])

@@ -90,8 +90,9 @@ def build_parser() -> argparse.ArgumentParser:
     source.add_argument("--pretrained", nargs="?", const="default", metavar="NAME",
                         choices=tuple(PRETRAINED_POLICIES), help="a policy shipped with the "
                         "package: default (the one --pretrained alone names), robust "
-                        "(trained with randomize=default), nav (SAC on SmartCarNav-v0) or "
-                        "mujoco (trained with engine=mujoco)")
+                        "(trained with randomize=default), nav (SAC on SmartCarNav-v0), ros "
+                        "(SmartCarArrive-v0), mujoco (trained with engine=mujoco) or barn (PPO "
+                        "on SmartCarBARN-v0; smartcar-bench barn runs its benchmark)")
     source.add_argument("--random", action="store_true", help="uniform random actions, seeded "
                         "with --seed (a baseline)")
     parser.add_argument("--algo", choices=ALGOS, help="algorithm of --model (default: from the "

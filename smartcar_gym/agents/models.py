@@ -36,9 +36,10 @@ PRETRAINED_MODEL = "policy.zip"
 #: the shipped policies: name -> folder under smartcar_gym/pretrained ("": the folder itself);
 #: ``robust`` was trained with ``randomize="default"`` (docs/sim2real.md), ``ros`` on
 #: SmartCarArrive-v0 to drive to 2D Nav Goals and stop there (docs/ros.md),
-#: ``mujoco`` with ``engine="mujoco"`` (docs/engines.md)
+#: ``mujoco`` with ``engine="mujoco"`` (docs/engines.md), ``barn`` on SmartCarBARN-v0's
+#: training worlds on the planar engine (docs/barn.md)
 PRETRAINED_POLICIES = {"default": "", "robust": "robust", "nav": "nav", "ros": "ros",
-                       "mujoco": "mujoco"}
+                       "mujoco": "mujoco", "barn": "barn"}
 # What smartcar_gym.agents.export writes in provenance.json (the keys that identify it).
 PROVENANCE_KEYS = ("algo", "env", "source", "evaluation", "exported")
 # Places of a model (ModelFiles.place).

@@ -154,7 +154,7 @@ def _driver(args: argparse.Namespace) -> tuple[Any, str]:
 
     if args.pretrained is not None and args.pretrained not in PRETRAINED_POLICIES:
         raise DriverError(f"--pretrained: no shipped policy {args.pretrained!r}; the shipped "
-                          f"ones are {', '.join(PRETRAINED_POLICIES)} (none for BARN yet)")
+                          f"ones are {', '.join(PRETRAINED_POLICIES)}")
     source = args.model if args.model is not None else args.pretrained
     try:
         policy = Policy.load(source, device=args.device)

@@ -36,7 +36,7 @@ from smartcar_gym.bench.drivers import DRIVERS, DriverError, PolicyDriver, make_
 from smartcar_gym.bench.report import plot_runs, summarize, table
 from smartcar_gym.bench.runner import RunRecord, barn_jobs, run_barn
 from smartcar_gym.envs.vector import CannotBatch, SmartCarBatchVectorEnv
-from smartcar_gym.sim.engines import DEFAULT_ENGINE, add_engine_argument
+from smartcar_gym.sim.engines import DEFAULT_ENGINE, add_engine_argument, on_engine
 from smartcar_gym.worlds.barn import TEST_WORLDS, BarnWorldError, load_worlds
 
 ENV_ID = "SmartCarBARN-v0"
@@ -96,9 +96,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         chosen = TEST_WORLDS if args.worlds is None else tuple(args.worlds)
         for index in chosen:
             worlds.world(index)
-        driver, name = _driver(args)
-        batch = _make_batch(args)
-        envs = [_make_env(args) for _ in range(args.n_envs)] if batch is None else [batch]
+        driver, name, trained_with = _driver(args)
+        kwargs = _env_kwargs(args, trained_with)
+        batch = _make_batch(args, kwargs)
+        envs = ([gym.make(ENV_ID, **kwargs) for _ in range(args.n_envs)] if batch is None
+                else [batch])
     except (BarnWorldError, DriverError) as err:
         parser.error(str(err))
     barn = envs[0].unwrapped
@@ -144,11 +146,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     return 0 if all(m["held"] for m in marks) else 1
 
 
-def _driver(args: argparse.Namespace) -> tuple[Any, str]:
-    """The driver the arguments name, and its name in the table."""
+def _driver(args: argparse.Namespace) -> tuple[Any, str, dict[str, Any]]:
+    """The driver the arguments name, its name in the table, and the env kwargs it was
+    trained with (a policy of SmartCarBARN-v0; else none)."""
     if args.model is None and args.pretrained is None:
         name = args.driver or "dwa"
-        return make_driver(name), name
+        return make_driver(name), name, {}
     from smartcar_gym.agents.models import PRETRAINED_POLICIES
     from smartcar_gym.policy import Policy, PolicyError
 
@@ -161,35 +164,26 @@ def _driver(args: argparse.Namespace) -> tuple[Any, str]:
     except PolicyError as err:
         raise DriverError(str(err)) from None
     name = f"pretrained:{args.pretrained}" if args.model is None else str(args.model)
-    if policy.env_id == ENV_ID:
-        args.policy_env_kwargs = dict(policy.env_kwargs)
-    return PolicyDriver(policy, name), name
+    trained_with = dict(policy.env_kwargs) if policy.env_id == ENV_ID else {}
+    return PolicyDriver(policy, name), name, trained_with
 
 
-#: a policy's env kwargs the benchmark does not take: the protocol sets the episode's length,
-#: ``--engine`` the engine
-NOT_FROM_POLICY = ("max_episode_steps", "engine", "world_file", "render_mode")
+#: a policy's env kwargs the benchmark does not take: the protocol sets the episode's length
+NOT_FROM_POLICY = ("max_episode_steps", "world_file", "render_mode")
 
 
-def _env_kwargs(args: argparse.Namespace) -> dict[str, Any]:
-    """The env's kwargs: a policy's own (what it was trained with: its laser, lookahead,
-    model), the world file and the engine."""
-    kwargs: dict[str, Any] = {k: v for k, v in getattr(args, "policy_env_kwargs", {}).items()
-                              if k not in NOT_FROM_POLICY}
-    kwargs["world_file"] = args.world_file
-    if args.engine is not None:
-        kwargs["engine"] = args.engine
-    return kwargs
+def _env_kwargs(args: argparse.Namespace, trained_with: dict[str, Any]) -> dict[str, Any]:
+    """The env's kwargs: what a policy was trained with (its laser, lookahead, model), moved
+    to ``--engine`` (``on_engine``: another engine's own kwargs left out), and the world
+    file."""
+    kept = {k: v for k, v in trained_with.items() if k not in NOT_FROM_POLICY}
+    return {**on_engine(kept, args.engine or DEFAULT_ENGINE), "world_file": args.world_file}
 
 
-def _make_env(args: argparse.Namespace) -> gym.Env:
-    return gym.make(ENV_ID, **_env_kwargs(args))
-
-
-def _make_batch(args: argparse.Namespace) -> SmartCarBatchVectorEnv | None:
+def _make_batch(args: argparse.Namespace, kwargs: dict[str, Any]
+                ) -> SmartCarBatchVectorEnv | None:
     """The ``--n-envs`` cars as one batched env where the engine batches (None: it does not;
     the row is single envs)."""
-    kwargs = _env_kwargs(args)
     if SmartCarBatchVectorEnv.why_not(ENV_ID, kwargs) is not None:
         return None
     try:

@@ -227,6 +227,8 @@ class SmartCarBARNEnv(SmartCarNavEnv):
         self._reward_tracker = PathTracker(self.global_path, 0.0)  # ground truth, for rewards
         self._to_go = self._reward_tracker.to_go(np.zeros(2))
         self._clock = RunClock(np.zeros(2), self.protocol.moved_m)
+        self._optimal = self.protocol.optimal_time_s(self.world.path_length_m
+                                                     * self.protocol.scale)
         self._steps = 0
         self.outcome = None
 
@@ -282,7 +284,7 @@ class SmartCarBARNEnv(SmartCarNavEnv):
 
     def _barn_info(self, info: dict[str, Any]) -> dict[str, Any]:
         run_time = self._clock.elapsed_s(self.sim.time_s)
-        optimal = self.protocol.optimal_time_s(self.world.path_length_m * self.protocol.scale)
+        optimal = self._optimal
         success = self.outcome == SUCCESS
         info.update(world=self.world.index, outcome=self.outcome, run_time_s=run_time,
                     optimal_time_s=optimal, score=barn_score(success, run_time, optimal),

@@ -28,7 +28,6 @@ import numpy as np
 
 from smartcar_gym.navigation.footprint import footprint_check, to_nearest
 
-FAR_M = 1e3  # where padding points lie
 LETHAL_COST = 252.0
 
 
@@ -178,10 +177,9 @@ class DWAPlanner:
         unit = 1.0 if c.meter_scoring else c.resolution
         cost = (c.pdist_scale * path_dist / unit + c.gdist_scale * goal_dist / unit
                 + c.occdist_scale * occ)
-        cost[:, -1] = np.inf  # the escape: only when nothing else is free
         cost = np.where(valid, cost, np.nan)
         best = np.full(n, -1)
-        free = np.any(valid[:, :-1], axis=1)
+        free = np.any(valid[:, :-1], axis=1)  # the escape, last, only when nothing else is
         best[free] = np.nanargmin(cost[free][:, :-1], axis=1)
         best[~free & valid[:, -1]] = count - 1
         out = np.zeros((n, 2))

@@ -16,8 +16,9 @@ import numpy as np
 
 from smartcar_gym.envs.barn_env import car_width, footprint_half_extents
 from smartcar_gym.envs.tasks.barn import PathTracker
-from smartcar_gym.navigation.dwa import FAR_M, DWAConfig, DWAPlanner
+from smartcar_gym.navigation.dwa import DWAConfig, DWAPlanner
 from smartcar_gym.navigation.footprint import COMPILED as FOOTPRINT_COMPILED
+from smartcar_gym.navigation.footprint import FAR_M
 from smartcar_gym.worlds.barn import JACKAL_TOP_SPEED_M_S, JACKAL_WIDTH_M
 
 CELL_OFFSET = 1 << 30  # makes cell indices positive for the memory's keys

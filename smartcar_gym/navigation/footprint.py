@@ -27,7 +27,7 @@ try:
 except ImportError:  # the fast extra is not installed
     numba = None
 
-FAR_M = 1e6  # where the numpy check puts the padding's points
+FAR_M = 1e3  # where padding points lie (m): beyond any footprint and cutoff
 #: whether the compiled check is used (numba installed and ``SMARTCAR_GYM_NUMBA`` not ``0``)
 COMPILED = numba is not None and os.environ.get("SMARTCAR_GYM_NUMBA", "1") != "0"
 

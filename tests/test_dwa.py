@@ -9,14 +9,10 @@ import pytest
 
 import smartcar_gym  # noqa: F401
 from smartcar_gym.navigation.dwa import DWAConfig, DWAPlanner
-from smartcar_gym.navigation.dwa_driver import (
-    DWADriver,
-    ObstacleMemory,
-    scan_points,
-    turn_command,
-)
+from smartcar_gym.navigation.dwa_driver import DWADriver, turn_command
 from smartcar_gym.navigation.footprint import COMPILED, footprint_check, to_nearest
 from smartcar_gym.navigation.grid_planner import distance_grid, plan_path
+from smartcar_gym.navigation.obstacles import ObstacleLayers, ObstacleMemory, scan_points
 
 SCALE = 0.18 / 0.43
 CONFIG = DWAConfig.challenge(SCALE, 0.25, half_length=0.125, half_width=0.09)
@@ -120,6 +116,69 @@ def test_the_obstacle_memory_keeps_a_cell_for_its_scans_then_forgets_it():
     assert np.allclose(memory.points, [[0.0, 0.504]])
 
 
+@pytest.mark.skipif(not COMPILED, reason="numba (the fast extra) is off or not installed")
+def test_the_compiled_footprint_check_holds_on_a_dense_memory():
+    """Hundreds of points around the robot, as a car stuck among pillars has: the compiled
+    grid search gives numpy's answers for every candidate of a real planner."""
+    rng = np.random.default_rng(5)
+    planner = DWAPlanner(CONFIG)
+    velocity = np.array([[0.05, 0.0], [0.1, 0.5], [0.0, -0.3], [0.12, 0.1]])
+    poses, cos, sin = planner._rollouts(velocity)
+    n = len(velocity)
+    counts = np.array([500, 300, 0, 120])
+    angle = rng.uniform(-np.pi, np.pi, (n, 500))
+    radius = rng.uniform(0.16, 0.6, (n, 500))  # around the footprint: some ways touch
+    points = np.stack([radius * np.cos(angle), radius * np.sin(angle)], -1)
+    c = CONFIG
+    args = (poses, cos, sin, points, counts, c.half_length + c.footprint_padding,
+            c.half_width + c.footprint_padding, planner.cutoff_m)
+    valid, nearest = footprint_check(*args, compiled=False)
+    valid_c, nearest_c = footprint_check(*args, compiled=True)
+    assert np.array_equal(valid, valid_c)
+    assert np.array_equal(nearest[valid], nearest_c[valid])
+    assert valid[2].all() and 0 < valid[[0, 1, 3]].sum() < 3 * valid.shape[1]
+
+
+def test_the_obstacle_layers_are_the_memories_bit_for_bit():
+    """N robots' layers marked from scans, compiled or as a row of ObstacleMemory: the same
+    points near each robot, in the same order, step after step (and after a clear)."""
+    rng = np.random.default_rng(3)
+    angles = np.linspace(-np.pi, np.pi, 90, endpoint=False)
+    mount = np.eye(4)
+    mount[:2, 3] = [0.05, -0.01]
+    mount[:2, :2] = [[np.cos(0.1), -np.sin(0.1)], [np.sin(0.1), np.cos(0.1)]]
+    layers = ObstacleLayers(3, scans=4, compiled=False)
+    compiled = ObstacleLayers(3, scans=4, compiled=True) if COMPILED else None
+    for step in range(12):
+        slots = [0, 2] if step % 3 else [0, 1, 2]
+        ranges = rng.uniform(0.05, 1.0, (len(slots), len(angles)))
+        ranges[rng.random(ranges.shape) < 0.3] = np.inf
+        ranges[:, :3] = -np.inf
+        poses = np.column_stack([0.01 * step + rng.uniform(0, 0.02, len(slots)),
+                                 rng.uniform(-0.02, 0.02, len(slots)),
+                                 rng.uniform(-3, 3, len(slots))])
+        if step == 6:
+            layers.clear(1)
+            compiled and compiled.clear(1)
+        near, counts = layers.update(slots, ranges, angles, mount, poses, 0.6)
+        for k, i in enumerate(slots):  # each is its memory's near points
+            memory = layers.memories[i]
+            assert np.array_equal(near[k, :counts[k]], memory.near(poses[k], 0.6))
+            assert (near[k, counts[k]:] == 1e3).all()
+        assert counts.min() > 0 and (counts < near.shape[1]).any()
+        if compiled is not None:
+            near_c, counts_c = compiled.update(slots, ranges, angles, mount, poses, 0.6)
+            assert np.array_equal(counts, counts_c) and np.array_equal(near, near_c)
+            for i in range(3):
+                assert np.array_equal(layers.points_of(i), compiled.points_of(i))
+    # by hand: one return straight ahead of a laser 0.05 m ahead of base_link at the origin
+    single = ObstacleLayers(1, compiled=False)
+    ranges = np.full((1, 90), np.inf)
+    ranges[0, 45] = 0.5  # angles[45] == 0
+    near, counts = single.update([0], ranges, angles, np.eye(4), np.zeros((1, 3)), 1.0)
+    assert counts.tolist() == [1] and np.allclose(near[0, 0], [0.5, 0.0])
+
+
 def test_scan_points_and_the_turn_response():
     mount = np.eye(4)
     mount[0, 3] = 0.1
@@ -195,3 +254,30 @@ def test_in_a_dead_end_it_stops_short_of_the_wall_and_turns_without_touching_it(
     assert not info["collision"] and not info["is_success"] and len(way) == 400
     assert 1.1 < way[-1][0] < 1.5 - 0.125 - DIAMETER / 2  # in front of the bottom
     assert np.ptp(way[-100:, 0]) < 0.05  # standing (turning in place)
+
+
+@pytest.mark.skipif(not COMPILED, reason="numba (the fast extra) is off or not installed")
+def test_the_compiled_driver_drives_as_numpys_bit_for_bit():
+    """Three cars of a planar BARN batch, 40 steps among the pillars: DWA with its obstacle
+    layers and footprint check compiled sends exactly numpy's cmd_vel at every step."""
+    from smartcar_gym.bench.batched import BatchCar
+    from smartcar_gym.envs.vector import SmartCarBatchVectorEnv
+
+    actions = {}
+    for compiled in (False, True):
+        env = SmartCarBatchVectorEnv("SmartCarBARN-v0", num_envs=3, engine="planar")
+        try:
+            env.reset(seed=[0, 1, 2], options={"world": [0, 120, 234]})
+            cars = [BatchCar(env, i) for i in range(3)]
+            driver = DWADriver(compiled=compiled)
+            driver.reset(cars)
+            steps = []
+            for _ in range(40):
+                steps.append(driver.act(cars))
+                env.step(steps[-1])
+            actions[compiled] = np.array(steps)
+            assert driver.layers.size.max() > 100 if compiled else True
+        finally:
+            env.close()
+    assert np.array_equal(actions[False], actions[True])
+    assert np.abs(actions[True][-10:, :, 0]).max() > 0.1  # they drive

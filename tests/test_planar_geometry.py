@@ -26,6 +26,7 @@ from smartcar_gym.sim.planar.geometry import (
     ray_hits,
 )
 from smartcar_gym.sim.planar.mesh_bounds import mesh_bounds
+from smartcar_gym.sim.planar.raycast_jit import COMPILED as CAST_COMPILED
 from smartcar_gym.sim.rays import cast_rays
 
 FIXTURES = Path(__file__).parent / "fixtures"
@@ -430,3 +431,33 @@ def test_bad_input_is_refused_naming_the_argument():
         clearance(car, np.zeros((1, 3)), shapes, 0.3, box_margin=-1.0)
     with pytest.raises(ValueError, match="robot"):
         footprint(42)
+
+
+@pytest.mark.skipif(not CAST_COMPILED, reason="numba (the fast extra) is off or not installed")
+def test_the_compiled_cast_is_numpys_bit_for_bit():
+    """Random worlds of boxes and circles (padding, origins inside shapes, rays that end
+    short, beams shared or per car, angles past +-pi, a fan as a laser's): numba's loops
+    give numpy's distances and shapes exactly, ties to the lower shape included."""
+    rng = np.random.default_rng(7)
+    for trial in range(60):
+        n, m, b = int(rng.integers(1, 5)), int(rng.integers(1, 30)), int(rng.integers(1, 200))
+        kind = rng.integers(0, 2, (n, m)).astype(np.int8)
+        half = rng.uniform(0.01, 0.5, (n, m, 2))
+        half[kind == CIRCLE, 1] = half[kind == CIRCLE, 0]
+        if trial == 0:  # two equal circles on one spot: every hit is a tie
+            kind[:] = CIRCLE
+            half[:] = 0.2
+        shapes = Shapes2D.from_arrays(kind, rng.uniform(-3, 3, (n, m, 2)) * (trial > 0),
+                                      rng.uniform(-4, 4, (n, m)), half,
+                                      (rng.random((n, m)) < 0.9) | (trial == 0))
+        origins = rng.uniform(-3, 3, (n, 2)) + 0.7 * (trial == 0)
+        directions = (rng.uniform(-np.pi, np.pi, b) if trial % 3 == 0
+                      else rng.uniform(-7, 7, (n, b)) if trial % 3 == 1
+                      else np.linspace(-np.pi, np.pi, b))
+        reach = rng.uniform(0.5, 6) if trial % 2 else rng.uniform(0.1, 6, (n, b))
+        numpy_cast = cast(origins, directions, reach, shapes, compiled=False)
+        loops = cast(origins, directions, reach, shapes, compiled=True)
+        assert np.array_equal(numpy_cast.distance, loops.distance)
+        assert np.array_equal(numpy_cast.shape, loops.shape)
+        if trial == 0:
+            assert (numpy_cast.shape[numpy_cast.hit] == 0).all() and numpy_cast.hit.any()

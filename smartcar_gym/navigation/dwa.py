@@ -104,14 +104,26 @@ class DWAConfig:
 def rollouts(v: np.ndarray, w: np.ndarray, duration: float, steps: int) -> np.ndarray:
     """Poses (..., steps, 3) of constant-velocity arcs from the origin, at ``duration / steps``
     to ``duration``."""
+    return arcs(v, w, duration, steps)[0]
+
+
+def arcs(v: np.ndarray, w: np.ndarray, duration: float, steps: int
+         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``rollouts`` of ``v`` and ``w`` broadcast together, with the cosine and sine of each
+    pose's heading (``(..., steps)``). The heading depends on ``w`` alone: the sines and
+    cosines are taken over ``w``'s shape, not the broadcast one (a dynamic window's
+    ``vx_samples`` speeds share each turn rate)."""
     t = duration * np.arange(1, steps + 1) / steps
     v, w = np.asarray(v, dtype=float)[..., None], np.asarray(w, dtype=float)[..., None]
     theta = w * t
+    sin, cos = np.sin(theta), np.cos(theta)
     straight = np.abs(w) < 1e-9
     safe_w = np.where(straight, 1.0, w)
-    x = np.where(straight, v * t, v / safe_w * np.sin(theta))
-    y = np.where(straight, 0.0, v / safe_w * (1.0 - np.cos(theta)))
-    return np.stack([x, y, theta * np.ones_like(x)], axis=-1)
+    x = np.where(straight, v * t, v / safe_w * sin)
+    y = np.where(straight, 0.0, v / safe_w * (1.0 - cos))
+    shape = x.shape
+    return (np.stack([x, y, theta * np.ones_like(x)], axis=-1), np.broadcast_to(cos, shape),
+            np.broadcast_to(sin, shape))
 
 
 class DWAPlanner:
@@ -125,10 +137,11 @@ class DWAPlanner:
         self.cutoff_m = max(c.inflation_radius, math.hypot(c.half_length + c.footprint_padding,
                                                            c.half_width + c.footprint_padding)
                             ) * (1.0 + 1e-9)
+        self._fixed_arcs: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
 
-    def candidates(self, velocity: np.ndarray) -> np.ndarray:
-        """(N, C, 2) velocity samples: the dynamic window's (vx_samples x vtheta_samples), the
-        in-place turns, and last the escape (backing up)."""
+    def window(self, velocity: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The dynamic window's samples for N robots at ``velocity`` (N, 2): speeds
+        (N, vx_samples) and turn rates (N, vtheta_samples)."""
         c = self.config
         v, w = velocity[:, 0], velocity[:, 1]
         v_lo = np.clip(v - c.acc_lim_x * c.sim_period, c.min_vel_x, c.max_vel_x)
@@ -139,15 +152,40 @@ class DWAPlanner:
         b = np.linspace(0.0, 1.0, c.vtheta_samples)
         vs = v_lo[:, None] + (v_hi - v_lo)[:, None] * a  # (N, vx)
         ws = w_lo[:, None] + (w_hi - w_lo)[:, None] * b  # (N, vth)
-        moving = np.stack(np.broadcast_arrays(vs[:, :, None], ws[:, None, :]), -1)
+        return vs, ws
+
+    def fixed(self) -> np.ndarray:
+        """(F, 2) the samples every robot has: the in-place turns, and last the escape."""
+        c = self.config
         turns = np.linspace(c.min_in_place_vel_theta, c.max_vel_theta, c.vtheta_samples // 2)
         turns = np.concatenate([-turns, turns])
-        in_place = np.stack([np.zeros_like(turns), turns], -1)
+        return np.concatenate([np.stack([np.zeros_like(turns), turns], -1),
+                               [[c.escape_vel, 0.0]]])
+
+    def candidates(self, velocity: np.ndarray) -> np.ndarray:
+        """(N, C, 2) velocity samples: the dynamic window's (vx_samples x vtheta_samples), the
+        in-place turns, and last the escape (backing up)."""
+        vs, ws = self.window(velocity)
+        moving = np.stack(np.broadcast_arrays(vs[:, :, None], ws[:, None, :]), -1)
         n = len(velocity)
-        escape = np.array([[c.escape_vel, 0.0]])
+        fixed = self.fixed()
         return np.concatenate([moving.reshape(n, -1, 2),
-                               np.broadcast_to(in_place, (n, *in_place.shape)),
-                               np.broadcast_to(escape, (n, 1, 2))], axis=1)
+                               np.broadcast_to(fixed, (n, *fixed.shape))], axis=1)
+
+    def _rollouts(self, velocity: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``rollouts`` of ``candidates(velocity)``, (N, C, T, 3), with their headings' cosines
+        and sines (N, C, T): the window's from its turn rates, the fixed samples' once."""
+        c = self.config
+        n = len(velocity)
+        vs, ws = self.window(velocity)
+        moving = [a.reshape(n, vs.shape[1] * ws.shape[1], *a.shape[3:])
+                  for a in arcs(vs[:, :, None], ws[:, None, :], c.sim_time, c.sim_steps)]
+        if self._fixed_arcs is None:
+            fixed = self.fixed()
+            self._fixed_arcs = arcs(fixed[:, 0], fixed[:, 1], c.sim_time, c.sim_steps)
+        return tuple(np.concatenate([m, np.broadcast_to(f, (n, *f.shape))], axis=1)
+                     for m, f in zip(moving, self._fixed_arcs, strict=True))
 
     def plan(self, velocity: np.ndarray, obstacles: np.ndarray, path: np.ndarray,
              goal: np.ndarray, counts: np.ndarray | None = None) -> np.ndarray:
@@ -156,9 +194,10 @@ class DWAPlanner:
         anywhere), a window of the global ``path`` (N, Q, 2) (pad with far points) and the
         local ``goal`` (N, 2), all in each robot's base frame. (0, 0) where nothing is free."""
         c = self.config
-        cand = self.candidates(np.asarray(velocity, dtype=float))  # (N, C, 2)
+        velocity = np.asarray(velocity, dtype=float)
+        cand = self.candidates(velocity)  # (N, C, 2)
         n, count = cand.shape[:2]
-        poses = rollouts(cand[..., 0], cand[..., 1], c.sim_time, c.sim_steps)  # (N, C, T, 3)
+        poses, cos, sin = self._rollouts(velocity)  # (N, C, T, 3), (N, C, T) twice
         obstacles = np.asarray(obstacles, dtype=float).reshape(n, -1, 2)
         if counts is None:
             counts = np.full(n, obstacles.shape[1])
@@ -166,7 +205,7 @@ class DWAPlanner:
         # inflation cost falls with distance, so the way's highest is its nearest pass's
         pad = c.footprint_padding
         valid, nearest = footprint_check(
-            poses, np.cos(poses[..., 2]), np.sin(poses[..., 2]), obstacles,
+            poses, cos, sin, obstacles,
             np.asarray(counts), c.half_length + pad, c.half_width + pad, self.cutoff_m,
             compiled=self.compiled)
         occ = self.inflation_cost(nearest)  # (N, C)

@@ -50,6 +50,7 @@ class PlanarCars:
         self._body = body
         #: per car, its obstacles' outlines (SmartCarNav-v0; ``load``)
         self._shapes: list[Any] = [None] * self.batch.n
+        self._stacked: Shapes2D | None = None  # every car's, stacked (``_world_shapes``)
 
     def reset(self, idx: np.ndarray) -> None:
         self.batch.reset(idx)
@@ -98,21 +99,19 @@ class PlanarCars:
     def load(self, car: int, env: Any) -> None:
         """Car ``car``'s obstacles (``env``'s statics), its car back at the spawn."""
         self._shapes[car] = obstacle_shapes(env.sim.statics())
+        self._stacked = None
         self.batch.reset(np.array([car]))
 
     def _world_shapes(self, idx: np.ndarray) -> Shapes2D:
-        """The listed cars' obstacles as one ``Shapes2D`` (padded to the most obstacles)."""
-        parts = [self._shapes[i] for i in idx.tolist()]
-        m = max(p.num_shapes for p in parts)
-        k = len(parts)
-        kind = np.zeros((k, m), dtype=np.int8)
-        centre, rotation = np.zeros((k, m, 2)), np.tile([1.0, 0.0], (k, m, 1))
-        half, valid = np.ones((k, m, 2)), np.zeros((k, m), dtype=bool)
-        for row, p in enumerate(parts):
-            j = p.num_shapes
-            kind[row, :j], centre[row, :j] = p.kind[0], p.centre[0]
-            rotation[row, :j], half[row, :j], valid[row, :j] = p.rotation[0], p.half[0], True
-        return Shapes2D(kind, centre, rotation, half, valid)
+        """The listed cars' obstacles as one ``Shapes2D`` (padded to the most obstacles): rows
+        of every car's, stacked once per ``load``."""
+        if self._stacked is None:
+            self._stacked = _stack([self._shapes[i] for i in range(self.batch.n)])
+        all_ = self._stacked
+        if len(idx) == self.batch.n and (idx == np.arange(self.batch.n)).all():
+            return all_
+        m = max(self._shapes[i].num_shapes for i in idx.tolist())
+        return all_.take(idx, m)
 
     def cast(self, idx: np.ndarray, laser: Any) -> tuple[np.ndarray, np.ndarray]:
         """``geometry.ray_hits``' arithmetic over cars, every car against its own obstacles."""
@@ -142,3 +141,18 @@ class PlanarCars:
         return clearance(footprint_of(self._body), pose,
                          self._world_shapes(np.arange(self.batch.n)), max_distance_m,
                          height=OBSTACLE_HEIGHT_M)
+
+
+def _stack(parts: list[Shapes2D]) -> Shapes2D:
+    """One car's ``Shapes2D`` each as one, padded to the most obstacles (padding: invalid
+    unit boxes at the origin)."""
+    m = max(p.num_shapes for p in parts)
+    k = len(parts)
+    kind = np.zeros((k, m), dtype=np.int8)
+    centre, rotation = np.zeros((k, m, 2)), np.tile([1.0, 0.0], (k, m, 1))
+    half, valid = np.ones((k, m, 2)), np.zeros((k, m), dtype=bool)
+    for row, p in enumerate(parts):
+        j = p.num_shapes
+        kind[row, :j], centre[row, :j] = p.kind[0], p.centre[0]
+        rotation[row, :j], half[row, :j], valid[row, :j] = p.rotation[0], p.half[0], True
+    return Shapes2D(kind, centre, rotation, half, valid)

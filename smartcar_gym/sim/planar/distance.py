@@ -73,6 +73,18 @@ def _columns(shapes: Shapes2D, margin: float) -> np.ndarray:
                      shapes.rotation[..., 1], core[..., 0], core[..., 1], grown])
 
 
+def _kept(shapes: Shapes2D, what: str, margin: float) -> np.ndarray:
+    """``shapes``' bounding radii (``"radius"``) or ``_columns`` with ``margin``, computed
+    once per ``Shapes2D`` (a batch's obstacles stay the same from step to step)."""
+    kept = shapes.__dict__.setdefault("_kept", {})
+    key = (what, margin)
+    if key not in kept:
+        kept[key] = (shapes.bounding_radius() if what == "radius"
+                     else _columns(shapes, margin))
+        kept[key].setflags(write=False)
+    return kept[key]
+
+
 def _signed(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Signed distances between shapes given as ``_columns`` ``(7, L)`` pairwise (``(L,)``): the
     cores' (separating axes where they overlap, nearest corners where apart) less the radii."""
@@ -146,14 +158,14 @@ def clearance(footprint: Footprint, poses: Any, shapes: Shapes2D, max_distance: 
     nearest = np.full(n, float(max_distance))
     # broad phase: the (car, obstacle) pairs whose bounding circles are within max_distance
     offset = shapes.centre - poses[:, None, :2]
-    apart = np.hypot(offset[..., 0], offset[..., 1]) - shapes.bounding_radius()
+    apart = np.hypot(offset[..., 0], offset[..., 1]) - _kept(shapes, "radius", 0.0)
     pair_car, pair_shape = np.nonzero(shapes.valid & (apart < footprint.radius + max_distance))
     if len(pair_car) == 0:
         return nearest
     # exact: each pair's obstacle against every part of its car's footprint, (pair, part)
     k = footprint.shapes.num_shapes
     parts = np.take(_columns(footprint.place(poses), box_margin), pair_car, axis=1)
-    obstacles = _columns(shapes, box_margin)[:, pair_car, pair_shape]
+    obstacles = _kept(shapes, "columns", box_margin)[:, pair_car, pair_shape]
     signed = _signed(parts.reshape(7, -1), np.repeat(obstacles, k, axis=1)).reshape(-1, k)
     if height is not None:
         low, high = footprint.z_range[:, 0], footprint.z_range[:, 1]

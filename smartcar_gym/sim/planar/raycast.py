@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from smartcar_gym.sim.planar.raycast_jit import COMPILED, cast_loops
 from smartcar_gym.sim.planar.shapes import CIRCLE, OBSTACLE_HEIGHT_M, Shapes2D, checked_points
 from smartcar_gym.sim.rays import RayHits
 
@@ -51,7 +52,8 @@ class RayCast:
                             1.0)
 
 
-def cast(origins: Any, directions: Any, max_range: Any, shapes: Shapes2D) -> RayCast:
+def cast(origins: Any, directions: Any, max_range: Any, shapes: Shapes2D,
+         compiled: bool | None = None) -> RayCast:
     """Cast B rays from each of N cars' ``origins`` (``(N, 2)``, m) against ``shapes``.
 
     ``directions``: world-frame angles (rad) ``(B,)`` or ``(N, B)``, or unit vectors
@@ -67,6 +69,9 @@ def cast(origins: Any, directions: Any, max_range: Any, shapes: Shapes2D) -> Ray
     alone. A laser's scans are fastest in each car's laser frame, the beams shared:
     ``cast(np.zeros((N, 2)), beam_angles, range_max, shapes.relative_to(laser_poses))``
     (no ``(N, B)`` sines and cosines; benchmarks/planar_geometry.py).
+
+    ``compiled``: None, numba's loops where installed (``raycast_jit``: the same answers bit
+    for bit, found by angle instead of by blocks); False, numpy.
     """
     origins = checked_points("origins", origins)
     n = len(origins)
@@ -90,6 +95,10 @@ def cast(origins: Any, directions: Any, max_range: Any, shapes: Shapes2D) -> Ray
     if n == 0 or b == 0 or m == 0:
         return RayCast(distance, np.full((n, b), -1, dtype=np.int64), reach)
 
+    if COMPILED if compiled is None else compiled:
+        cast_loops(origins, beams, reach_nb, shapes, distance, hit_shape)
+        hit_shape[hit_shape == m] = -1
+        return RayCast(distance, hit_shape, reach)
     table, cone, cos = _pair_table(origins, shapes, reach_nb.max(axis=1))
     flat_beams = beams.reshape(-1)
     shared = len(beams) == 1

@@ -137,6 +137,13 @@ def test_the_compiled_footprint_check_holds_on_a_dense_memory():
     assert np.array_equal(valid, valid_c)
     assert np.array_equal(nearest[valid], nearest_c[valid])
     assert valid[2].all() and 0 < valid[[0, 1, 3]].sum() < 3 * valid.shape[1]
+    # the planner's compiled check makes the same rollouts inside the loops (window_check)
+    numpy_planner = DWAPlanner(CONFIG, compiled=False)
+    expected = numpy_planner._check(velocity, points, counts)
+    got = DWAPlanner(CONFIG, compiled=True, threads=2)._check(velocity, points, counts)
+    assert np.array_equal(expected[0], got[0]) and np.array_equal(expected[2], got[2])
+    assert np.array_equal(expected[1][expected[0]], got[1][got[0]])
+    assert np.array_equal(got[2], poses[:, :, -1, :2])
 
 
 def test_the_obstacle_layers_are_the_memories_bit_for_bit():

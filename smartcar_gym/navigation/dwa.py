@@ -26,7 +26,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from smartcar_gym.navigation.footprint import footprint_check, to_nearest
+from smartcar_gym.navigation.footprint import COMPILED as FOOTPRINT_COMPILED
+from smartcar_gym.navigation.footprint import footprint_check, to_nearest, window_check
 
 LETHAL_COST = 252.0
 
@@ -129,9 +130,11 @@ def arcs(v: np.ndarray, w: np.ndarray, duration: float, steps: int
 class DWAPlanner:
     """Chooses cmd_vel (v, w) for N robots at once (``plan``)."""
 
-    def __init__(self, config: DWAConfig, compiled: bool | None = None) -> None:
+    def __init__(self, config: DWAConfig, compiled: bool | None = None,
+                 threads: int = 1) -> None:
         self.config = config
         self.compiled = compiled  # the footprint check: None, numba where installed
+        self.threads = threads  # the compiled check's robots split over these
         c = config
         # beyond this, a point neither touches a footprint nor costs (inflation_cost's 0)
         self.cutoff_m = max(c.inflation_radius, math.hypot(c.half_length + c.footprint_padding,
@@ -181,11 +184,35 @@ class DWAPlanner:
         vs, ws = self.window(velocity)
         moving = [a.reshape(n, vs.shape[1] * ws.shape[1], *a.shape[3:])
                   for a in arcs(vs[:, :, None], ws[:, None, :], c.sim_time, c.sim_steps)]
-        if self._fixed_arcs is None:
-            fixed = self.fixed()
-            self._fixed_arcs = arcs(fixed[:, 0], fixed[:, 1], c.sim_time, c.sim_steps)
         return tuple(np.concatenate([m, np.broadcast_to(f, (n, *f.shape))], axis=1)
-                     for m, f in zip(moving, self._fixed_arcs, strict=True))
+                     for m, f in zip(moving, self._fixed_rollouts(), strict=True))
+
+    def _fixed_rollouts(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``arcs`` of ``fixed()``, made once."""
+        if self._fixed_arcs is None:
+            c, fixed = self.config, self.fixed()
+            self._fixed_arcs = arcs(fixed[:, 0], fixed[:, 1], c.sim_time, c.sim_steps)
+        return self._fixed_arcs
+
+    def _check(self, velocity: np.ndarray, obstacles: np.ndarray, counts: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``footprint_check`` of every candidate's rollout, and the rollouts' end points
+        (N, C, 2). Compiled, the window's rollouts are made inside the check
+        (``window_check``), the same numbers without the (N, C, T) arrays."""
+        c = self.config
+        half_x, half_y = c.half_length + c.footprint_padding, c.half_width + c.footprint_padding
+        if not (FOOTPRINT_COMPILED if self.compiled is None else self.compiled):
+            poses, cos, sin = self._rollouts(velocity)  # (N, C, T, 3), (N, C, T) twice
+            valid, nearest = footprint_check(poses, cos, sin, obstacles, counts, half_x,
+                                             half_y, self.cutoff_m, compiled=self.compiled)
+            return valid, nearest, poses[:, :, -1, :2]
+        vs, ws = self.window(velocity)
+        t = c.sim_time * np.arange(1, c.sim_steps + 1) / c.sim_steps  # as arcs
+        theta = ws[:, :, None] * t
+        poses, cos, sin = self._fixed_rollouts()
+        fixed = np.concatenate([poses[..., :2], cos[..., None], sin[..., None]], -1)
+        return window_check(vs, ws, np.cos(theta), np.sin(theta), t, fixed, obstacles,
+                            counts, half_x, half_y, self.cutoff_m, threads=self.threads)
 
     def plan(self, velocity: np.ndarray, obstacles: np.ndarray, path: np.ndarray,
              goal: np.ndarray, counts: np.ndarray | None = None) -> np.ndarray:
@@ -197,19 +224,13 @@ class DWAPlanner:
         velocity = np.asarray(velocity, dtype=float)
         cand = self.candidates(velocity)  # (N, C, 2)
         n, count = cand.shape[:2]
-        poses, cos, sin = self._rollouts(velocity)  # (N, C, T, 3), (N, C, T) twice
         obstacles = np.asarray(obstacles, dtype=float).reshape(n, -1, 2)
         if counts is None:
             counts = np.full(n, obstacles.shape[1])
         # does a footprint on the way touch a point, and how near does the way pass: the
         # inflation cost falls with distance, so the way's highest is its nearest pass's
-        pad = c.footprint_padding
-        valid, nearest = footprint_check(
-            poses, cos, sin, obstacles,
-            np.asarray(counts), c.half_length + pad, c.half_width + pad, self.cutoff_m,
-            compiled=self.compiled)
+        valid, nearest, end = self._check(velocity, obstacles, np.asarray(counts))
         occ = self.inflation_cost(nearest)  # (N, C)
-        end = poses[:, :, -1, :2]
         path = np.asarray(path, dtype=float)
         path_dist = to_nearest(end, path, compiled=self.compiled)
         goal_dist = np.linalg.norm(end - np.asarray(goal, dtype=float)[:, None], axis=-1)

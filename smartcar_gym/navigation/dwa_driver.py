@@ -15,10 +15,11 @@ from typing import Any
 import numpy as np
 
 from smartcar_gym.envs.barn_env import car_width, footprint_half_extents
-from smartcar_gym.envs.tasks.barn import PathTracker
+from smartcar_gym.envs.tasks.path_trackers import PathTrackers
+from smartcar_gym.envs.vector.common import check_num_threads
 from smartcar_gym.navigation.dwa import DWAConfig, DWAPlanner
 from smartcar_gym.navigation.footprint import COMPILED as FOOTPRINT_COMPILED
-from smartcar_gym.navigation.obstacles import ObstacleLayers, pad, to_base
+from smartcar_gym.navigation.obstacles import ObstacleLayers
 from smartcar_gym.worlds.barn import JACKAL_TOP_SPEED_M_S, JACKAL_WIDTH_M
 
 PATH_BEHIND_M = 0.2  # the path's window starts this far behind the nearest point
@@ -53,12 +54,14 @@ class DWADriver:
     act_chunk = None if FOOTPRINT_COMPILED else 4
 
     def __init__(self, config: DWAConfig | None = None, compensate_turns: bool = True,
-                 compiled: bool | None = None) -> None:
+                 compiled: bool | None = None, threads: int | None = None) -> None:
         self.config = config
         self.compensate_turns = compensate_turns
         self.compiled = compiled  # the obstacle layers and the planner: None, numba if there
+        #: the compiled passes' robots split over these (None: every core); the same answers
+        self.threads = check_num_threads(threads)
         self.planner: DWAPlanner | None = None
-        self.trackers: list[PathTracker | None] = []
+        self.trackers: PathTrackers | None = None  # the global paths' local goals, windows
         self.layers: ObstacleLayers | None = None  # the local costmaps' obstacle layers
 
     def config_for(self, env: Any) -> DWAConfig:
@@ -78,14 +81,14 @@ class DWADriver:
         envs = [getattr(env, "unwrapped", env) for env in envs]
         if self.planner is None:
             self.planner = DWAPlanner(self.config or self.config_for(envs[0]),
-                                      compiled=self.compiled)
-        if len(self.trackers) != len(envs):
-            self.trackers = [None] * len(envs)
-            self.layers = ObstacleLayers(len(envs), compiled=self.compiled)
+                                      compiled=self.compiled, threads=self.threads)
         config = self.planner.config
+        if self.layers is None or len(self.layers.size) != len(envs):
+            self.trackers = PathTrackers(len(envs), config.local_goal_m,
+                                         2.0 * config.local_goal_m, compiled=self.compiled)
+            self.layers = ObstacleLayers(len(envs), compiled=self.compiled)
         for i in range(len(envs)) if indices is None else indices:
-            path = envs[i].global_path if paths is None else paths[i]
-            self.trackers[i] = PathTracker(path, config.local_goal_m, 2.0 * config.local_goal_m)
+            self.trackers.start(i, envs[i].global_path if paths is None else paths[i])
             self.layers.clear(i)
 
     def act(self, envs: Sequence[Any], obs: Any = None,
@@ -103,16 +106,12 @@ class DWADriver:
         obstacles, counts = self.layers.update(
             list(slots), np.array([env.laser.latest.ranges for env in envs], dtype=float),
             laser.config.angles, laser.mount, poses, config.reach_m)
-        windows, goals = [], []
-        for pose, i in zip(poses, slots, strict=True):
-            tracker = self.trackers[i]
-            goals.append(to_base(tracker.waypoint(pose[:2]), pose))
-            lo = int(np.searchsorted(tracker.arc, tracker.arc[tracker.index] - PATH_BEHIND_M))
-            hi = int(np.searchsorted(tracker.arc, tracker.arc[tracker.index]
-                                     + 2.0 * config.local_goal_m, side="right"))
-            windows.append(to_base(tracker.path[lo:max(hi, lo + 1)], pose))
-        cmd = self.planner.plan(velocity, obstacles, pad(windows), np.array(goals),
-                                counts=counts)
+        cos, sin = np.cos(poses[:, 2]), np.sin(poses[:, 2])
+        d = self.trackers.waypoints(list(slots), poses[:, :2]) - poses[:, :2]
+        goals = np.stack([cos * d[:, 0] + sin * d[:, 1], -sin * d[:, 0] + cos * d[:, 1]], -1)
+        windows = self.trackers.windows(list(slots), poses, cos, sin, PATH_BEHIND_M,
+                                        2.0 * config.local_goal_m)
+        cmd = self.planner.plan(velocity, obstacles, windows, goals, counts=counts)
         if self.compensate_turns:
             cmd[:, 1] = turn_command(cmd[:, 0], cmd[:, 1])
         scale = np.array([[env.max_linear, env.max_angular] for env in envs])

@@ -29,6 +29,8 @@ try:
 except ImportError:  # the fast extra is not installed
     numba = None
 
+from smartcar_gym.parallel import run_chunks
+
 FAR_M = 1e3  # where padding points lie (m): beyond any footprint and cutoff
 GRID_DIVISIONS = 8  # the compiled check's grid cells per cutoff (measured: 2x faster than 1)
 #: whether the compiled check is used (numba installed and ``SMARTCAR_GYM_NUMBA`` not ``0``)
@@ -61,84 +63,122 @@ def footprint_check_numpy(poses: np.ndarray, cos: np.ndarray, sin: np.ndarray,
     return valid, nearest
 
 
-def _check_loops(poses, cos, sin, points, counts, half_x, half_y, cutoff, valid, nearest):
-    """The compiled check, into ``valid`` and ``nearest`` (see ``footprint_check_numpy``).
+def _grid(points, k, g):
+    """Robot's first ``k`` points sorted into a grid of ``g``-sized cells, row by row (a row's
+    cells lie together): (xs, ys, start, gx, gy, lo_x, lo_y), cell q's points
+    ``start[q]:start[q + 1]`` (a counting sort)."""
+    lo_x, lo_y = points[0, 0], points[0, 1]
+    hi_x, hi_y = lo_x, lo_y
+    for j in range(1, k):
+        lo_x = min(lo_x, points[j, 0])
+        lo_y = min(lo_y, points[j, 1])
+        hi_x = max(hi_x, points[j, 0])
+        hi_y = max(hi_y, points[j, 1])
+    gx = int((hi_x - lo_x) / g) + 1
+    gy = int((hi_y - lo_y) / g) + 1
+    start = np.zeros(gx * gy + 1, dtype=np.int64)
+    cell = np.empty(k, dtype=np.int64)
+    for j in range(k):
+        cell[j] = int((points[j, 1] - lo_y) / g) * gx + int((points[j, 0] - lo_x) / g)
+        start[cell[j] + 1] += 1
+    for q in range(gx * gy):
+        start[q + 1] += start[q]
+    fill = start[:-1].copy()
+    xs = np.empty(k)
+    ys = np.empty(k)
+    for j in range(k):
+        slot = fill[cell[j]]
+        xs[slot] = points[j, 0]
+        ys[slot] = points[j, 1]
+        fill[cell[j]] += 1
+    return xs, ys, start, gx, gy, lo_x, lo_y
 
-    Per robot its points are sorted into a grid of ``cutoff / GRID_DIVISIONS`` cells, row by
-    row (a row's cells lie together). Per pose only the rows and columns within ``r`` of it
-    are read, ``r`` the larger of the footprint's circumscribed radius and the nearest
-    distance found so far for the candidate: a point beyond it can neither touch the
-    footprint nor be nearer. Every point within ``r`` is tested as numpy tests it."""
-    n, c, t = poses.shape[0], poses.shape[1], poses.shape[2]
+
+def _candidate(way, xs, ys, start, gx, gy, lo_x, lo_y, g, half_x, half_y, cutoff):
+    """One rollout ``way`` (T, 4: x, y, cos, sin of the heading) against a ``_grid``: (valid,
+    nearest). Per pose only the rows and columns within ``r`` of it are read, ``r`` the
+    larger of the footprint's circumscribed radius and the nearest distance found so far: a
+    point beyond it can neither touch the footprint nor be nearer. Every point within ``r``
+    is tested as numpy tests it; the first touching pose ends the search."""
     cut2 = cutoff * cutoff
-    g = cutoff / GRID_DIVISIONS
-    # the footprint within this of the pose (the margin: rounding of the rotated offsets)
+    # the footprint lies within this of its pose (the margin: the rotated offsets' rounding)
     reach2 = (half_x * half_x + half_y * half_y) * (1.0 + 1e-9)
+    best = cut2
+    for s in range(way.shape[0]):
+        px, py, co, si = way[s, 0], way[s, 1], way[s, 2], way[s, 3]
+        r2 = max(best, reach2)
+        r = math.sqrt(r2)
+        # the rows and columns within r, one cell more each way (rounding)
+        y0 = max(math.floor((py - r - lo_y) / g) - 1, 0)
+        y1 = min(math.floor((py + r - lo_y) / g) + 1, gy - 1)
+        x0 = max(math.floor((px - r - lo_x) / g) - 1, 0)
+        x1 = min(math.floor((px + r - lo_x) / g) + 1, gx - 1)
+        if y0 > y1 or x0 > x1:
+            continue  # no point within r of this pose
+        for row in range(y0, y1 + 1):
+            for j in range(start[row * gx + x0], start[row * gx + x1 + 1]):
+                dx = xs[j] - px
+                dy = ys[j] - py
+                d2 = dx * dx + dy * dy
+                if d2 >= r2:
+                    continue
+                lx = co * dx + si * dy
+                ly = co * dy - si * dx
+                if abs(lx) < half_x and abs(ly) < half_y:
+                    return False, cutoff
+                if d2 < best:
+                    best = d2
+                    r2 = max(best, reach2)
+    return True, (np.sqrt(best) if best < cut2 else cutoff)
+
+
+def _check_loops(poses, cos, sin, points, counts, half_x, half_y, cutoff, valid, nearest):
+    """The compiled check, into ``valid`` and ``nearest`` (see ``footprint_check_numpy``):
+    per robot its points in a grid of ``cutoff / GRID_DIVISIONS`` cells (``_grid``), each
+    candidate's way against it (``_candidate``)."""
+    n, c, t = poses.shape[0], poses.shape[1], poses.shape[2]
+    g = cutoff / GRID_DIVISIONS
+    way = np.empty((t, 4))
     for i in range(n):
         k = counts[i]
         if k == 0:
             continue
-        lo_x, lo_y = points[i, 0, 0], points[i, 0, 1]
-        hi_x, hi_y = lo_x, lo_y
-        for j in range(1, k):
-            lo_x = min(lo_x, points[i, j, 0])
-            lo_y = min(lo_y, points[i, j, 1])
-            hi_x = max(hi_x, points[i, j, 0])
-            hi_y = max(hi_y, points[i, j, 1])
-        gx = int((hi_x - lo_x) / g) + 1
-        gy = int((hi_y - lo_y) / g) + 1
-        start = np.zeros(gx * gy + 1, dtype=np.int64)  # the points sorted by cell (counting)
-        cell = np.empty(k, dtype=np.int64)
-        for j in range(k):
-            cell[j] = int((points[i, j, 1] - lo_y) / g) * gx + int((points[i, j, 0] - lo_x) / g)
-            start[cell[j] + 1] += 1
-        for q in range(gx * gy):
-            start[q + 1] += start[q]
-        fill = start[:-1].copy()
-        xs = np.empty(k)
-        ys = np.empty(k)
-        for j in range(k):
-            slot = fill[cell[j]]
-            xs[slot] = points[i, j, 0]
-            ys[slot] = points[i, j, 1]
-            fill[cell[j]] += 1
+        xs, ys, start, gx, gy, lo_x, lo_y = _grid(points[i], k, g)
         for m in range(c):
-            best = cut2
-            ok = True
             for s in range(t):
-                px, py = poses[i, m, s, 0], poses[i, m, s, 1]
-                co, si = cos[i, m, s], sin[i, m, s]
-                r2 = max(best, reach2)
-                r = math.sqrt(r2)
-                # the rows and columns within r, one cell more each way (rounding)
-                y0 = max(math.floor((py - r - lo_y) / g) - 1, 0)
-                y1 = min(math.floor((py + r - lo_y) / g) + 1, gy - 1)
-                x0 = max(math.floor((px - r - lo_x) / g) - 1, 0)
-                x1 = min(math.floor((px + r - lo_x) / g) + 1, gx - 1)
-                if y0 > y1 or x0 > x1:
-                    continue  # no point within r of this pose
-                for row in range(y0, y1 + 1):
-                    for j in range(start[row * gx + x0], start[row * gx + x1 + 1]):
-                        dx = xs[j] - px
-                        dy = ys[j] - py
-                        d2 = dx * dx + dy * dy
-                        if d2 >= r2:
-                            continue
-                        lx = co * dx + si * dy
-                        ly = co * dy - si * dx
-                        if abs(lx) < half_x and abs(ly) < half_y:
-                            ok = False
-                            break
-                        if d2 < best:
-                            best = d2
-                            r2 = max(best, reach2)
-                    if not ok:
-                        break
-                if not ok:
-                    break
-            valid[i, m] = ok
-            if best < cut2:
-                nearest[i, m] = np.sqrt(best)
+                way[s, 0], way[s, 1] = poses[i, m, s, 0], poses[i, m, s, 1]
+                way[s, 2], way[s, 3] = cos[i, m, s], sin[i, m, s]
+            valid[i, m], nearest[i, m] = _candidate(way, xs, ys, start, gx, gy, lo_x, lo_y, g,
+                                                    half_x, half_y, cutoff)
+
+
+def _window_loops(vs, ws, cos_w, sin_w, t, fixed, points, counts, half_x, half_y, cutoff,
+                  valid, nearest, end):
+    """``_check_loops`` for a dynamic window's rollouts made on the fly (``window_check``),
+    and each way's end point into ``end``."""
+    n, nv, nw, steps = vs.shape[0], vs.shape[1], ws.shape[1], t.shape[0]
+    g = cutoff / GRID_DIVISIONS
+    way = np.empty((steps, 4))
+    for i in range(n):
+        k = counts[i]
+        grid = _grid(points[i], k, g) if k > 0 else None
+        for m in range(nv * nw + fixed.shape[0]):
+            if m < nv * nw:  # dwa.arcs' arithmetic, pose by pose
+                v, w = vs[i, m // nw], ws[i, m % nw]
+                straight = abs(w) < 1e-9
+                ratio = v / (1.0 if straight else w)
+                for s in range(steps):
+                    co, si = cos_w[i, m % nw, s], sin_w[i, m % nw, s]
+                    way[s, 0] = v * t[s] if straight else ratio * si
+                    way[s, 1] = 0.0 if straight else ratio * (1.0 - co)
+                    way[s, 2], way[s, 3] = co, si
+            else:
+                way[:, :] = fixed[m - nv * nw]
+            end[i, m, 0], end[i, m, 1] = way[steps - 1, 0], way[steps - 1, 1]
+            if grid is not None:
+                xs, ys, start, gx, gy, lo_x, lo_y = grid
+                valid[i, m], nearest[i, m] = _candidate(way, xs, ys, start, gx, gy, lo_x,
+                                                        lo_y, g, half_x, half_y, cutoff)
 
 
 def nearest_numpy(points: np.ndarray, targets: np.ndarray) -> np.ndarray:
@@ -163,7 +203,10 @@ def _nearest_loops(points, targets, out):
 
 
 if COMPILED:
-    _compiled = numba.njit(cache=True)(_check_loops)
+    _grid = numba.njit(cache=True, nogil=True)(_grid)
+    _candidate = numba.njit(cache=True, nogil=True)(_candidate)
+    _compiled = numba.njit(cache=True, nogil=True)(_check_loops)
+    _compiled_window = numba.njit(cache=True, nogil=True)(_window_loops)
     _compiled_nearest = numba.njit(cache=True)(_nearest_loops)
 
 
@@ -180,10 +223,12 @@ def to_nearest(points: np.ndarray, targets: np.ndarray, compiled: bool | None = 
 
 def footprint_check(poses: np.ndarray, cos: np.ndarray, sin: np.ndarray, points: np.ndarray,
                     counts: np.ndarray, half_x: float, half_y: float, cutoff: float,
-                    compiled: bool | None = None) -> tuple[np.ndarray, np.ndarray]:
+                    compiled: bool | None = None, threads: int = 1
+                    ) -> tuple[np.ndarray, np.ndarray]:
     """``footprint_check_numpy``'s answer, compiled where numba is (``compiled``: None, where
-    it is; False: numpy). ``cutoff`` must hold the footprint: at least its circumscribed
-    radius, so that a point beyond it cannot touch."""
+    it is; False: numpy), the robots split over ``threads`` (``parallel.run_chunks``).
+    ``cutoff`` must hold the footprint: at least its circumscribed radius, so that a point
+    beyond it cannot touch."""
     if cutoff < float(np.hypot(half_x, half_y)):
         raise ValueError(f"cutoff {cutoff} m is inside the footprint's circumscribed radius")
     if not (COMPILED if compiled is None else compiled):
@@ -194,8 +239,43 @@ def footprint_check(poses: np.ndarray, cos: np.ndarray, sin: np.ndarray, points:
     n, c = poses.shape[:2]
     valid = np.ones((n, c), dtype=np.bool_)
     nearest = np.full((n, c), float(cutoff))
-    _compiled(np.ascontiguousarray(poses, dtype=float), np.ascontiguousarray(cos, dtype=float),
-              np.ascontiguousarray(sin, dtype=float), np.ascontiguousarray(points, dtype=float),
-              np.ascontiguousarray(counts, dtype=np.int64), float(half_x), float(half_y),
-              float(cutoff), valid, nearest)
+    poses, cos, sin, points = (np.ascontiguousarray(a, dtype=float)
+                               for a in (poses, cos, sin, points))
+    counts = np.ascontiguousarray(counts, dtype=np.int64)
+
+    def work(a: int, b: int) -> None:
+        _compiled(poses[a:b], cos[a:b], sin[a:b], points[a:b], counts[a:b], float(half_x),
+                  float(half_y), float(cutoff), valid[a:b], nearest[a:b])
+
+    run_chunks(work, n, threads)
     return valid, nearest
+
+
+def window_check(vs: np.ndarray, ws: np.ndarray, cos_w: np.ndarray, sin_w: np.ndarray,
+                 t: np.ndarray, fixed: np.ndarray, points: np.ndarray, counts: np.ndarray,
+                 half_x: float, half_y: float, cutoff: float, threads: int = 1
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``footprint_check`` of a dynamic window's rollouts without making them first
+    (compiled only): candidates ``vs`` (N, V) x ``ws`` (N, W) (``dwa.arcs``' arcs, their
+    headings' cosines and sines ``cos_w``, ``sin_w`` (N, W, T) at times ``t`` (T,)), then
+    ``fixed`` (F, T, 4) ways every robot has (x, y, cos, sin). ``(valid, nearest, end)``:
+    (N, V W + F) twice and each way's end point (N, V W + F, 2), bit for bit what
+    ``footprint_check`` and ``arcs`` give."""
+    if not COMPILED:
+        raise RuntimeError("window_check is compiled only: pip install "
+                           '"smartcar-gym[fast]"')
+    n, c = len(vs), vs.shape[1] * ws.shape[1] + len(fixed)
+    valid = np.ones((n, c), dtype=np.bool_)
+    nearest = np.full((n, c), float(cutoff))
+    end = np.empty((n, c, 2))
+    vs, ws, cos_w, sin_w, t, fixed, points = (np.ascontiguousarray(a, dtype=float) for a in (
+        vs, ws, cos_w, sin_w, t, fixed, points))
+    counts = np.ascontiguousarray(counts, dtype=np.int64)
+
+    def work(a: int, b: int) -> None:
+        _compiled_window(vs[a:b], ws[a:b], cos_w[a:b], sin_w[a:b], t, fixed, points[a:b],
+                         counts[a:b], float(half_x), float(half_y), float(cutoff),
+                         valid[a:b], nearest[a:b], end[a:b])
+
+    run_chunks(work, n, threads)
+    return valid, nearest, end

@@ -4,7 +4,7 @@
 episode through the kept single env (here a ``SmartCarBARNEnv``: the world's cylinders, the
 goal the protocol sets, the global path) and runs its laser and clearance; ``Barn`` picks the
 world (``reset(options={"world": i})``, one index or one per car), follows each car's global
-path (``PathTracker``, the waypoint row of the observation), times its run (``RunClock``),
+path (``PathTrackers``, the waypoint row of the observation), times its run (``RunClock``),
 ends it (collision, success, failure, the scaled timeout) and reports the outcome and the
 challenge's scores in ``info``: the single env's arithmetic, per car, in its order.
 """
@@ -15,16 +15,16 @@ from typing import Any
 
 import numpy as np
 
-from smartcar_gym.envs.barn_env import SmartCarBARNEnv, to_base_frame
+from smartcar_gym.envs.barn_env import SmartCarBARNEnv
 from smartcar_gym.envs.tasks.barn import (
     COLLISION,
     FAILURE,
     SUCCESS,
     TIMEOUT,
-    PathTracker,
     RunClock,
     barn_score,
 )
+from smartcar_gym.envs.tasks.path_trackers import PathTrackers
 from smartcar_gym.envs.vector.parts import TASKS, Navigation, Reach, Score, TaskPart
 from smartcar_gym.sim.clock import NS_PER_S
 
@@ -49,14 +49,14 @@ class Barn(TaskPart):
         self.path_progress_weight = single.path_progress_weight
         #: each car's ground-truth distance to go along its path (``progress="path"``)
         self._to_go = np.zeros(n)
-        self._reward_trackers: list[PathTracker | None] = [None] * n
+        self._reward_trackers = PathTrackers(n, 0.0)
         #: each car's world index, its OT and its global path (odom frame)
         self.world = np.zeros(n, dtype=np.int64)
         self.optimal = np.zeros(n)
         self.global_paths: list[np.ndarray] = [np.zeros((0, 2))] * n
         #: each car's next waypoint in its odometry base_link frame, (N, 2)
         self.waypoints = np.zeros((n, 2))
-        self._trackers: list[PathTracker | None] = [None] * n
+        self._trackers = PathTrackers(n, self.lookahead_m)
         self._clocks = [RunClock(np.zeros(2), self.protocol.moved_m) for _ in range(n)]
         self.outcome = np.full(n, None, dtype=object)
         self._timeout = np.zeros(n, dtype=bool)
@@ -109,20 +109,19 @@ class Barn(TaskPart):
         self._chosen = None  # an autoreset draws its world
         for i in idx.tolist():
             self._clocks[i] = RunClock(np.zeros(2), self.protocol.moved_m)
-            self._trackers[i] = PathTracker(self.global_paths[i], self.lookahead_m)
-            self._reward_trackers[i] = PathTracker(self.global_paths[i], 0.0)
-            self._to_go[i] = self._reward_trackers[i].to_go(np.zeros(2))
-            self._follow(env, i)
+            self._trackers.start(i, self.global_paths[i])
+            self._reward_trackers.start(i, self.global_paths[i])
+            self._to_go[i] = self._reward_trackers.to_go([i], np.zeros((1, 2)))[0]
+        if len(idx):
+            self._follow(env, idx)
         self.outcome[idx] = None
         self._timeout[idx] = False
 
-    def _follow(self, env: Any, i: int) -> None:
-        """Car ``i``'s next waypoint from its odometry (``SmartCarBARNEnv.readings``)."""
+    def _follow(self, env: Any, idx: np.ndarray) -> None:
+        """Cars ``idx``' next waypoints from their odometry (``SmartCarBARNEnv.readings``)."""
         b = env.base
-        x, y, theta = float(b.x[i]), float(b.y[i]), float(b.theta[i])
-        tracker = self._trackers[i]
-        assert tracker is not None
-        self.waypoints[i] = to_base_frame(tracker.waypoint(np.array([x, y])), x, y, theta)
+        poses = np.column_stack([b.x[idx], b.y[idx], b.theta[idx]]).astype(float)
+        self.waypoints[idx] = self._trackers.waypoints_in_base(idx, poses)
 
     def score(self, env: Any, a: np.ndarray, previous: Score | None) -> Score:
         """``SmartCarBARNEnv.step``: the run's clock and outcome, the timeout, the waypoint."""
@@ -131,13 +130,12 @@ class Barn(TaskPart):
         collision = env.collision
         pose, now = env._pose, env._now
         if self.path_progress_weight:
-            to_go = np.array([self._reward_trackers[i].to_go(pose[i, :2])
-                              for i in range(env.num_envs)])
+            to_go = self._reward_trackers.to_go(np.arange(env.num_envs), pose[:, :2])
             reward = reward + self.path_progress_weight * (self._to_go - to_go)
             self._to_go = to_go
         for i in range(env.num_envs):
             self._clocks[i].update(pose[i, :2], int(now[i]) / NS_PER_S)
-            self._follow(env, i)
+        self._follow(env, np.arange(env.num_envs))
         ended = collision | success | failure
         self._timeout = ~ended & (env._steps >= self.timeout_steps)
         for outcome, mask in ((TIMEOUT, self._timeout), (FAILURE, failure),

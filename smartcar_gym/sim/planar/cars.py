@@ -48,6 +48,8 @@ class PlanarCars:
                                for j in body._damping if j in of]
         self._upright = np.ones(self.batch.n)  # a planar car never tips over
         self._body = body
+        #: threads the laser's compiled ray cast splits the cars over
+        self.threads = threads
         #: per car, its obstacles' outlines (SmartCarNav-v0; ``load``)
         self._shapes: list[Any] = [None] * self.batch.n
         self._stacked: Shapes2D | None = None  # every car's, stacked (``_world_shapes``)
@@ -130,7 +132,8 @@ class PlanarCars:
         moving = length > 0
         units = np.where(moving[..., None],
                          vec[..., :2] / np.where(moving, length, 1.0)[..., None], [1.0, 0.0])
-        found = cast(origin[:, :2], units, length, self._world_shapes(idx))
+        found = cast(origin[:, :2], units, length, self._world_shapes(idx),
+                     threads=self.threads)
         within = moving & (starts[..., 2] >= 0.0) & (starts[..., 2] <= OBSTACLE_HEIGHT_M)
         hit = within & (found.shape >= 0)
         fraction = np.where(hit, found.distance / np.where(moving, length, 1.0), 1.0)

@@ -53,7 +53,7 @@ class RayCast:
 
 
 def cast(origins: Any, directions: Any, max_range: Any, shapes: Shapes2D,
-         compiled: bool | None = None) -> RayCast:
+         compiled: bool | None = None, threads: int = 1) -> RayCast:
     """Cast B rays from each of N cars' ``origins`` (``(N, 2)``, m) against ``shapes``.
 
     ``directions``: world-frame angles (rad) ``(B,)`` or ``(N, B)``, or unit vectors
@@ -71,7 +71,8 @@ def cast(origins: Any, directions: Any, max_range: Any, shapes: Shapes2D,
     (no ``(N, B)`` sines and cosines; benchmarks/planar_geometry.py).
 
     ``compiled``: None, numba's loops where installed (``raycast_jit``: the same answers bit
-    for bit, found by angle instead of by blocks); False, numpy.
+    for bit, found by angle instead of by blocks), the cars split over ``threads``; False,
+    numpy.
     """
     origins = checked_points("origins", origins)
     n = len(origins)
@@ -96,7 +97,7 @@ def cast(origins: Any, directions: Any, max_range: Any, shapes: Shapes2D,
         return RayCast(distance, np.full((n, b), -1, dtype=np.int64), reach)
 
     if COMPILED if compiled is None else compiled:
-        cast_loops(origins, beams, reach_nb, shapes, distance, hit_shape)
+        cast_loops(origins, beams, reach_nb, shapes, distance, hit_shape, threads)
         hit_shape[hit_shape == m] = -1
         return RayCast(distance, hit_shape, reach)
     table, cone, cos = _pair_table(origins, shapes, reach_nb.max(axis=1))

@@ -20,6 +20,8 @@ import os
 
 import numpy as np
 
+from smartcar_gym.parallel import run_chunks
+
 try:
     import numba
 except ImportError:  # the fast extra is not installed
@@ -137,14 +139,24 @@ def _cast_loops(origins, beams, reach, kind, centre, rotation, half, valid, radi
 if COMPILED:
     _fmin = numba.njit(cache=True)(_fmin)
     _fmax = numba.njit(cache=True)(_fmax)
-    _compiled = numba.njit(cache=True)(_cast_loops)
+    _compiled = numba.njit(cache=True, nogil=True)(_cast_loops)
 
 
 def cast_loops(origins: np.ndarray, beams: np.ndarray, reach: np.ndarray, shapes: object,
-               distance: np.ndarray, hit_shape: np.ndarray) -> None:
-    """Run the compiled loops (``raycast.cast`` checks the arguments and calls this)."""
-    _compiled(np.ascontiguousarray(origins, dtype=float), np.ascontiguousarray(beams),
-              np.ascontiguousarray(reach, dtype=float), np.ascontiguousarray(shapes.kind),
-              np.ascontiguousarray(shapes.centre), np.ascontiguousarray(shapes.rotation),
-              np.ascontiguousarray(shapes.half), np.ascontiguousarray(shapes.valid),
-              np.ascontiguousarray(shapes.bounding_radius()), distance, hit_shape)
+               distance: np.ndarray, hit_shape: np.ndarray, threads: int = 1) -> None:
+    """Run the compiled loops (``raycast.cast`` checks the arguments and calls this), the
+    cars split over ``threads`` (``parallel.run_chunks``)."""
+    origins = np.ascontiguousarray(origins, dtype=float)
+    beams = np.ascontiguousarray(beams)
+    reach = np.ascontiguousarray(reach, dtype=float)
+    kind, centre, rotation, half, valid, radius = (
+        np.ascontiguousarray(a) for a in (shapes.kind, shapes.centre, shapes.rotation,
+                                          shapes.half, shapes.valid, shapes.bounding_radius()))
+    shared = beams.shape[0] == 1
+
+    def work(a: int, b: int) -> None:
+        _compiled(origins[a:b], beams if shared else beams[a:b], reach[a:b], kind[a:b],
+                  centre[a:b], rotation[a:b], half[a:b], valid[a:b], radius[a:b],
+                  distance[a:b], hit_shape[a:b])
+
+    run_chunks(work, len(origins), threads)

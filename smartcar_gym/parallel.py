@@ -1,0 +1,42 @@
+"""Compiled loops over robots, split across threads: ``run_chunks(work, n, threads)`` calls
+``work(start, stop)`` on consecutive chunks of ``range(n)`` at once and waits for them all.
+
+The loops are numba's with ``nogil=True``, each robot's work independent of the others' and
+written to its own rows, so a split run gives the numbers of one call bit for bit; numba's own
+``parallel=True`` is not used (its default threading layer aborts when two Python threads
+enter it at once). One pool serves the process; a thread count of 1, or fewer than
+``MIN_CHUNK`` robots per thread, runs in the calling thread.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
+
+MIN_CHUNK = 4  # robots per thread below which splitting costs more than it saves
+_POOL: ThreadPoolExecutor | None = None
+_POOL_LOCK = threading.Lock()
+
+
+def run_chunks(work: Callable[[int, int], None], n: int, threads: int) -> None:
+    """``work(start, stop)`` over ``range(n)`` in at most ``threads`` chunks, in parallel."""
+    parts = max(1, min(threads, n // MIN_CHUNK))
+    if parts == 1:
+        work(0, n)
+        return
+    bounds = [n * k // parts for k in range(parts + 1)]
+    futures = [_pool().submit(work, bounds[k], bounds[k + 1]) for k in range(1, parts)]
+    work(bounds[0], bounds[1])  # the calling thread takes the first chunk
+    for future in futures:
+        future.result()
+
+
+def _pool() -> ThreadPoolExecutor:
+    global _POOL
+    with _POOL_LOCK:
+        if _POOL is None:
+            _POOL = ThreadPoolExecutor(max_workers=max(1, (os.cpu_count() or 1) - 1),
+                                       thread_name_prefix="smartcar-gym-loops")
+        return _POOL

@@ -1,0 +1,53 @@
+"""``parallel.run_chunks``: compiled loops over robots split across threads give one call's
+numbers, every robot once, and a chunk's error reaches the caller."""
+
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+import pytest
+
+from smartcar_gym.navigation.footprint import COMPILED, footprint_check
+from smartcar_gym.parallel import MIN_CHUNK, run_chunks
+
+
+@pytest.mark.parametrize("n, threads, parts", [(0, 2, 1), (7, 2, 1), (8, 2, 2), (23, 3, 3),
+                                              (9, 1, 1), (100, 4, 4)])
+def test_every_robot_is_worked_once_in_at_most_threads_chunks(n, threads, parts):
+    seen = np.zeros(n, dtype=int)
+    chunks, names = [], set()
+
+    def work(a: int, b: int) -> None:
+        seen[a:b] += 1
+        chunks.append((a, b))
+        names.add(threading.current_thread().name)
+
+    run_chunks(work, n, threads)
+    assert (seen == 1).all() and len(chunks) == parts
+    assert all(b - a >= min(n, MIN_CHUNK) for a, b in chunks)
+    assert (len(names) > 1) == (parts > 1)  # the pool took the other chunks
+
+
+def test_a_chunks_error_reaches_the_caller():
+    def work(a: int, b: int) -> None:
+        if a > 0:
+            raise ValueError(f"robot {a} has no scan")
+
+    with pytest.raises(ValueError, match="robot 4 has no scan"):
+        run_chunks(work, 8, 2)
+
+
+@pytest.mark.skipif(not COMPILED, reason="numba (the fast extra) is off or not installed")
+def test_the_footprint_check_split_over_threads_is_one_calls():
+    rng = np.random.default_rng(2)
+    n, c, t, p = 12, 20, 10, 80
+    poses = rng.uniform(-0.5, 0.5, (n, c, t, 3))
+    points = rng.uniform(-0.8, 0.8, (n, p, 2))
+    counts = rng.integers(0, p + 1, n)
+    args = (poses, np.cos(poses[..., 2]), np.sin(poses[..., 2]), points, counts, 0.1, 0.06,
+            0.25)
+    one = footprint_check(*args, compiled=True, threads=1)
+    split = footprint_check(*args, compiled=True, threads=3)
+    assert np.array_equal(one[0], split[0]) and np.array_equal(one[1], split[1])
+    assert 0 < one[0].sum() < one[0].size

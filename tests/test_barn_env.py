@@ -7,8 +7,10 @@ import numpy as np
 import pytest
 
 import smartcar_gym  # noqa: F401
-from smartcar_gym.envs.barn_env import SmartCarBARNEnv, car_width
-from smartcar_gym.envs.tasks.barn import SHIPPED_CAR_WIDTH_M, barn_score
+from smartcar_gym.envs.barn_env import SmartCarBARNEnv, car_width, to_base_frame
+from smartcar_gym.envs.tasks.barn import SHIPPED_CAR_WIDTH_M, PathTracker, barn_score
+from smartcar_gym.envs.tasks.path_trackers import COMPILED as PATHS_COMPILED
+from smartcar_gym.envs.tasks.path_trackers import PathTrackers
 from smartcar_gym.navigation.dwa_driver import DWADriver
 from smartcar_gym.registration import SPECS
 from smartcar_gym.worlds.barn import TRAIN_WORLDS, load_worlds, to_car_frame
@@ -195,3 +197,50 @@ def test_the_path_progress_reward_is_the_distance_gone_along_the_path():
     assert rewards["goal"] == pytest.approx(10.0 * closer - costs, abs=0.02)
     with pytest.raises(ValueError, match="progress must be one of goal, path"):
         gym.make("SmartCarBARN-v0", engine="planar", progress="straight")
+
+
+@pytest.mark.parametrize("compiled", [False, pytest.param(True, marks=pytest.mark.skipif(
+    not PATHS_COMPILED, reason="numba (the fast extra) is off or not installed"))])
+def test_the_batched_path_trackers_are_path_trackers_bit_for_bit(compiled):
+    """Robots on paths of different lengths (one of a single point, one with a repeated
+    point), driven along noisy ways: waypoints (odom and base frame), distances to go and
+    path windows are each robot's ``PathTracker``'s, step by step."""
+    rng = np.random.default_rng(4)
+    paths = [np.cumsum(rng.uniform(0.0, 0.05, (m, 2)), axis=0) for m in (40, 7, 120)]
+    paths.append(np.array([[0.3, 0.2]]))
+    paths.append(np.array([[0.0, 0.0], [0.1, 0.0], [0.1, 0.0], [0.2, 0.1]]))
+    n = len(paths)
+    trackers = PathTrackers(n, 0.12, 0.5, compiled=compiled)
+    alone = [PathTracker(p, 0.12, 0.5) for p in paths]
+    to_go_alone = [PathTracker(p, 0.0, 0.5) for p in paths]
+    to_go_trackers = PathTrackers(n, 0.0, 0.5, compiled=compiled)
+    for i, path in enumerate(paths):
+        trackers.start(i, path)
+        to_go_trackers.start(i, path)
+    for step in range(30):
+        slots = [0, 2, 3, 4] if step % 2 else list(range(n))
+        xy = np.array([paths[i][min(step, len(paths[i]) - 1)] for i in slots])
+        xy += rng.normal(0, 0.01, xy.shape)
+        poses = np.column_stack([xy, rng.uniform(-3, 3, len(slots))])
+        got = trackers.waypoints_in_base(slots, poses)
+        for k, i in enumerate(slots):
+            x, y, theta = poses[k]
+            assert tuple(got[k]) == to_base_frame(alone[i].waypoint(xy[k]), x, y, theta)
+            assert trackers.index(i) == alone[i].index
+        assert np.array_equal(to_go_trackers.to_go(slots, xy),
+                              [to_go_alone[i].to_go(p)
+                               for i, p in zip(slots, xy, strict=True)])
+        cos, sin = np.cos(poses[:, 2]), np.sin(poses[:, 2])
+        windows = trackers.windows(slots, poses, cos, sin, 0.05, 0.2)
+        for k, i in enumerate(slots):
+            t = alone[i]
+            lo = int(np.searchsorted(t.arc, t.arc[t.index] - 0.05))
+            hi = max(int(np.searchsorted(t.arc, t.arc[t.index] + 0.2, side="right")), lo + 1)
+            d = t.path[lo:hi] - poses[k, :2]
+            expected = np.stack([cos[k] * d[:, 0] + sin[k] * d[:, 1],
+                                 -sin[k] * d[:, 0] + cos[k] * d[:, 1]], -1)
+            assert np.array_equal(windows[k, :hi - lo], expected)
+            assert (windows[k, hi - lo:] == 1e3).all()
+    assert trackers.index(2) > 20  # it followed the long path
+    with pytest.raises(ValueError, match="robot 1 has no path"):
+        PathTrackers(2, 0.1, compiled=compiled).waypoints([1], np.zeros((1, 2)))

@@ -68,19 +68,24 @@ class PathTrackers:
         return self.trackers[i].index if not self.compiled else int(self.nearest[i])
 
     def _rows(self, slots: Sequence[int]) -> np.ndarray:
+        """``slots`` as an index array; ValueError naming a robot not started."""
         slots = np.asarray(slots, dtype=np.int64)
-        if (self.size[slots] == 0).any():
-            raise ValueError("a robot without a path: start(i, path) first")
+        started = (self.size[slots] > 0 if self.compiled
+                   else np.array([self.trackers[i] is not None for i in slots.tolist()]))
+        if len(slots) and not started.all():
+            raise ValueError(f"robot {int(slots[~started][0])} has no path: start(i, path) "
+                             "first")
         return slots
 
     def waypoints(self, slots: Sequence[int], xy: np.ndarray) -> np.ndarray:
         """(K, 2): each robot's next waypoint (odom frame) from ``xy`` (K, 2) (``waypoint``)."""
         xy = np.asarray(xy, dtype=float).reshape(-1, 2)
+        slots = self._rows(slots)
         if not self.compiled:
-            return np.array([self.trackers[i].waypoint(p) for i, p in zip(slots, xy,
+            return np.array([self.trackers[i].waypoint(p) for i, p in zip(slots.tolist(), xy,
                                                                            strict=True)])
         out = np.empty((len(xy), 2))
-        _waypoints(self._rows(slots), xy, self.path, self.arc, self.size, self.nearest,
+        _waypoints(slots, xy, self.path, self.arc, self.size, self.nearest,
                    self.lookahead_m, self.window_m, out)
         return out
 
@@ -88,12 +93,14 @@ class PathTrackers:
         """(K, 2): each robot's next waypoint in the base frame of ``poses`` (K, 3), as
         ``barn_env.to_base_frame`` turns it (``math.cos``)."""
         poses = np.asarray(poses, dtype=float).reshape(-1, 3)
+        slots = self._rows(slots)
         if not self.compiled:
             from smartcar_gym.envs.barn_env import to_base_frame
             return np.array([to_base_frame(self.trackers[i].waypoint(p[:2]), *map(float, p))
-                             for i, p in zip(slots, poses, strict=True)]).reshape(-1, 2)
+                             for i, p in zip(slots.tolist(), poses, strict=True)]
+                            ).reshape(-1, 2)
         out = np.empty((len(poses), 2))
-        _waypoints(self._rows(slots), np.ascontiguousarray(poses[:, :2]), self.path, self.arc,
+        _waypoints(slots, np.ascontiguousarray(poses[:, :2]), self.path, self.arc,
                    self.size, self.nearest, self.lookahead_m, self.window_m, out)
         _to_base_frame(out, poses)
         return out
@@ -101,11 +108,12 @@ class PathTrackers:
     def to_go(self, slots: Sequence[int], xy: np.ndarray) -> np.ndarray:
         """(K,): each robot's distance to its path's end along it (``to_go``)."""
         xy = np.asarray(xy, dtype=float).reshape(-1, 2)
+        slots = self._rows(slots)
         if not self.compiled:
-            return np.array([self.trackers[i].to_go(p) for i, p in zip(slots, xy,
+            return np.array([self.trackers[i].to_go(p) for i, p in zip(slots.tolist(), xy,
                                                                        strict=True)])
         out = np.empty(len(xy))
-        _to_go(self._rows(slots), xy, self.path, self.arc, self.size, self.nearest,
+        _to_go(slots, xy, self.path, self.arc, self.size, self.nearest,
                self.window_m, out)
         return out
 
@@ -115,8 +123,9 @@ class PathTrackers:
         ``ahead_m`` ahead (at least that point), in the base frame of ``poses`` (K, 3) whose
         headings' cosines and sines are given; padded ``FAR_M`` away."""
         rows = []
+        slots = self._rows(slots)
         if not self.compiled:
-            for i, pose, c, s in zip(slots, poses, cos, sin, strict=True):
+            for i, pose, c, s in zip(slots.tolist(), poses, cos, sin, strict=True):
                 t = self.trackers[i]
                 lo = int(np.searchsorted(t.arc, t.arc[t.index] - behind_m))
                 hi = int(np.searchsorted(t.arc, t.arc[t.index] + ahead_m, side="right"))
@@ -127,7 +136,6 @@ class PathTrackers:
             for k, r in enumerate(rows):
                 out[k, :len(r)] = r
             return out
-        slots = self._rows(slots)
         out = np.full((len(slots), max(1, int(self.size[slots].max())), 2), FAR_M)
         counts = np.zeros(len(slots), dtype=np.int64)
         _windows(slots, np.asarray(poses, dtype=float), np.asarray(cos, dtype=float),

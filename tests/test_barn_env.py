@@ -244,3 +244,27 @@ def test_the_batched_path_trackers_are_path_trackers_bit_for_bit(compiled):
     assert trackers.index(2) > 20  # it followed the long path
     with pytest.raises(ValueError, match="robot 1 has no path"):
         PathTrackers(2, 0.1, compiled=compiled).waypoints([1], np.zeros((1, 2)))
+
+
+def test_a_pybullet_world_nothing_draws_has_no_visual_shapes_and_the_same_rollout():
+    """render_mode None: the pillars are collision shapes only (a reset 300 visual shapes
+    cheaper: pybullet reports the collision capsule as the visual), with a render mode they
+    are drawn as cylinders. The runs are the same bit for bit."""
+    import pybullet
+    ways = {}
+    for mode in (None, "rgb_array"):
+        env = gym.make("SmartCarBARN-v0", render_mode=mode)
+        try:
+            obs, _ = env.reset(seed=3, options={"world": 6})
+            u = env.unwrapped
+            pillar = u._obstacle_bodies[0].uid
+            drawn_as = u.sim.client.getVisualShapeData(pillar)[0][2]
+            assert drawn_as == (pybullet.GEOM_CAPSULE if mode is None else pybullet.GEOM_CYLINDER)
+            assert u.sim.draws == (mode is not None)
+            steps = [obs]
+            for _ in range(15):
+                steps.append(env.step(np.array([1.0, 0.3], dtype=np.float32))[0])
+            ways[mode] = np.array(steps)
+        finally:
+            env.close()
+    assert np.array_equal(ways[None], ways["rgb_array"])

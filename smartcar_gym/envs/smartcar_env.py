@@ -388,7 +388,8 @@ class SmartCarEnv(gym.Env):
     def _open(self) -> None:
         """Connect a fresh simulator (its own world) with the robot and the markers."""
         self.sim = make_simulator(self.engine, max_substep_s=self.max_substep_s,
-                                  gui=self.render_mode == "human", **self.engine_options)
+                                  gui=self.render_mode == "human",
+                                  draws=self.render_mode is not None, **self.engine_options)
         self.robot = SmartCarRobot(
             self.sim, self.robot_model, self.controller_config, mode=self.controller_mode,
             wheel_contact=self.wheel_contact,

@@ -162,8 +162,9 @@ class Simulator(Protocol):
     Made by the engine's factory (``sim.engines.Engine.simulator``) with the keywords
     ``max_substep_s`` (the longest physics substep, s), ``gui`` (a window; an engine without
     one refuses True), ``gravity_m_s2`` and ``ground_friction``, plus the env keywords only
-    that engine takes (``Engine.kwargs``). ``clock.EventClock`` implements the clock, the
-    event sources and the named bodies; an engine adds the rest.
+    that engine takes (``Engine.kwargs``) and, where ``Engine.skips_drawing``, ``draws``.
+    ``clock.EventClock`` implements the clock, the event sources and the named bodies; an
+    engine adds the rest.
     """
 
     #: the engine's name, as ``engine=`` takes it

@@ -51,6 +51,9 @@ class Engine:
     #: whether making an env spawns its robot once in a scratch world of this engine, so that
     #: a robot the engine cannot run is refused by ``gym.make`` (cheap engines only)
     spawn_check: bool = False
+    #: whether its simulator takes ``draws=False`` (a world nothing will draw: no render mode),
+    #: and then leaves out what is only drawn (pybullet's visual shapes)
+    skips_drawing: bool = False
     car_batch: Callable[..., Any] | None = None
     #: whether ``car_batch`` runs differential-drive models (one drive wheel a side)
     batches_differential: bool = False
@@ -173,13 +176,16 @@ def window_unavailable(engine: str) -> str | None:
     return get_engine(engine).window_unavailable()
 
 
-def make_simulator(engine: str = DEFAULT_ENGINE, **options: Any) -> Any:
+def make_simulator(engine: str = DEFAULT_ENGINE, draws: bool = True, **options: Any) -> Any:
     """A new simulator of ``engine`` with the simulator keywords (``max_substep_s``, ``gui``,
     ``gravity_m_s2``, ``ground_friction``, ...); keywords only another engine takes (a None
-    ``planar_params`` on pybullet) are dropped."""
+    ``planar_params`` on pybullet) are dropped. ``draws=False``: nothing will draw the world,
+    and an engine that can (``Engine.skips_drawing``) leaves out what is only drawn."""
     spec = get_engine(engine)
     for key in engine_kwargs() - set(spec.kwargs):
         options.pop(key, None)
+    if not draws and spec.skips_drawing:
+        options["draws"] = False
     try:
         return spec.simulator(**options)
     except ModuleNotFoundError as exc:

@@ -23,6 +23,7 @@ ENGINE = Engine(
     simulator=_simulator,
     max_substep_s=DEFAULT_MAX_SUBSTEP_S,
     substep_range_s=MAX_SUBSTEP_RANGE_S,
+    skips_drawing=True,
     module="pybullet",
     summary="the default (docs/engines.md)",
 )

@@ -72,8 +72,12 @@ class Simulator(EventClock):
         gravity_m_s2: float = 9.81,
         ground_friction: float = 1.0,
         solver_iterations: int = 10,
+        draws: bool = True,
     ) -> None:
         self.max_substep_s = check_max_substep(max_substep_s)
+        #: whether anything draws this world: False (and no GUI) leaves the visual shapes of
+        #: ``add_static``'s bodies out (a BARN world's 300 pillars: 84 ms less per reset)
+        self.draws = bool(draws) or gui
         self.max_substep_ns = seconds_to_ns(self.max_substep_s)
         self.gui = gui
         if gui and sys.platform.startswith("linux") and not (
@@ -307,14 +311,15 @@ class Simulator(EventClock):
         if shape == "box":
             half = list(half_extents)
             collision = c.createCollisionShape(pybullet.GEOM_BOX, halfExtents=half)
-            visual = c.createVisualShape(pybullet.GEOM_BOX, halfExtents=half, rgbaColor=list(rgba))
+            visual = (c.createVisualShape(pybullet.GEOM_BOX, halfExtents=half,
+                                          rgbaColor=list(rgba)) if self.draws else -1)
         else:
             radius, height = half_extents[0], 2.0 * half_extents[2]
             collision = c.createCollisionShape(
                 pybullet.GEOM_CAPSULE if pillar else pybullet.GEOM_CYLINDER, radius=radius,
                 height=height)
-            visual = c.createVisualShape(pybullet.GEOM_CYLINDER, radius=radius, length=height,
-                                         rgbaColor=list(rgba))
+            visual = (c.createVisualShape(pybullet.GEOM_CYLINDER, radius=radius, length=height,
+                                          rgbaColor=list(rgba)) if self.draws else -1)
         uid = c.createMultiBody(
             baseMass=0.0, baseCollisionShapeIndex=collision, baseVisualShapeIndex=visual,
             basePosition=list(position),

@@ -46,11 +46,17 @@ def _height(statics: list[PlanarStatic]) -> float:
 def cast_world(sim: PlanarSimulator, starts: np.ndarray, ends: np.ndarray) -> RayHits:
     """``cast_rays`` in a planar world: exact 2D casts against the obstacles' outlines; each
     hit reports the obstacle's index among the world's bodies."""
-    statics = [s for s in sim.statics() if not s.hidden_from_rays]
-    names = list(sim._bodies)
-    ids = np.array([names.index(s.name) for s in statics], dtype=int)
-    return ray_hits(starts, ends, obstacle_shapes(statics), ids,
-                             height=_height(statics))
+    statics = tuple(s for s in sim.statics() if not s.hidden_from_rays)
+    kept = getattr(sim, "_ray_world", None)
+    if kept is None or len(kept[0]) != len(statics) or any(
+            a is not b for a, b in zip(kept[0], statics, strict=True)):
+        # the same static bodies (held here, so none is a new one at an old address) keep
+        # their outlines, indices and height from scan to scan
+        where = {name: i for i, name in enumerate(sim._bodies)}
+        ids = np.array([where[s.name] for s in statics], dtype=int)
+        kept = (statics, obstacle_shapes(list(statics)), ids, _height(list(statics)))
+        sim._ray_world = kept
+    return ray_hits(starts, ends, kept[1], kept[2], height=kept[3])
 
 
 def footprint_of(body: PlanarBody) -> Footprint:

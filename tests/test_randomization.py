@@ -198,6 +198,26 @@ def test_the_default_preset_randomises_every_factor_around_its_nominal_value():
         assert low < high and low <= factor.nominal <= high, factor.name
 
 
+def test_the_odometry_preset_takes_the_default_ranges_of_what_makes_odometry_drift():
+    """``randomize="odometry"``: the true wheel radius and track, the encoders' scales and
+    slip, with the default preset's ranges; every other factor stays nominal."""
+    drift = {"wheel_radius", "track", "left_encoder_scale", "right_encoder_scale",
+             "encoder_slip"}
+    spec, default = Randomization.from_spec("odometry"), Randomization.from_spec("default")
+    for factor in FACTORS:
+        if factor.name in drift:
+            assert spec.ranges[factor.name] == default.ranges[factor.name], factor.name
+        else:
+            assert spec.ranges[factor.name] == (factor.nominal, factor.nominal), factor.name
+    env = gym.make("SmartCar-v0", engine="planar", randomize="odometry")
+    try:
+        _, info = env.reset(seed=1)
+        drawn = info["randomization"]
+        assert drawn["wheel_radius"] != 1.0 and drawn["base_mass"] == 1.0
+    finally:
+        env.close()
+
+
 def test_a_yaml_file_and_a_path_object_are_read(tmp_path):
     path = tmp_path / "ranges.yaml"
     path.write_text("# mine\ntrack: [0.9, 1.1]\nlatency: 2\n")
@@ -250,7 +270,7 @@ def test_an_unknown_factor_is_named_with_a_close_match():
 
 
 @pytest.mark.parametrize("spec, error, match", [
-    ("defualt", ValueError, r"randomize='defualt' is neither a preset \('default',\) nor a "
+    ("defualt", ValueError, r"randomize='defualt' is neither a preset \('default', 'odometry'\) nor a "
                             r"YAML file: no such file"),
     (7, TypeError, r"randomize must be None, a preset name .* got int: 7"),
     ([0.9, 1.1], TypeError, r"got list"),

@@ -33,8 +33,11 @@ from smartcar_gym.envs.robots.variation import Variation
 from smartcar_gym.sim.contracts import BASE
 from smartcar_gym.sim.dynamics import set_lateral_friction
 
-PRESETS = ("default",)
-DEFAULT_PRESET = "randomization.yaml"  # in smartcar_gym/config
+#: the shipped presets and their files (in smartcar_gym/config): ``default`` every factor a
+#: real smartcar varies in; ``odometry`` only what makes its odometry drift (the true wheel
+#: radius and track, the encoders' scales and slip), for policies that steer by odometry
+PRESETS = {"default": "randomization.yaml", "odometry": "randomization_odometry.yaml"}
+DEFAULT_PRESET = PRESETS["default"]
 
 
 @dataclass(frozen=True)
@@ -128,20 +131,20 @@ class Randomization:
         if spec is None or isinstance(spec, Randomization):
             return spec
         if isinstance(spec, str) and spec in PRESETS:
-            return cls.from_file(resources.files("smartcar_gym") / "config" / DEFAULT_PRESET,
+            return cls.from_file(resources.files("smartcar_gym") / "config" / PRESETS[spec],
                                  f"randomize preset {spec!r}")
         if isinstance(spec, str | os.PathLike):
             path = Path(spec)
             if not path.is_file():
                 raise ValueError(
-                    f"randomize={os.fspath(spec)!r} is neither a preset {PRESETS} nor a YAML "
+                    f"randomize={os.fspath(spec)!r} is neither a preset {tuple(PRESETS)} nor a YAML "
                     f"file: {'not a file' if path.exists() else 'no such file'}"
                 )
             return cls.from_file(path, f"randomize file {os.fspath(path)}")
         if isinstance(spec, Mapping):
             return cls.from_mapping(spec)
         raise TypeError(
-            f"randomize must be None, a preset name {PRESETS}, a YAML file path or a dict "
+            f"randomize must be None, a preset name {tuple(PRESETS)}, a YAML file path or a dict "
             f"{{factor: [low, high]}}, got {type(spec).__name__}: {spec!r}"
         )
 

@@ -106,3 +106,16 @@ def test_the_shipped_barn_policy_drives_two_test_worlds_at_the_top_score(tmp_pat
     assert result["driver"] == "pretrained:barn" and result["vectorization"] == "batched"
     assert [r["outcome"] for r in result["records"]] == ["success", "success"]
     assert all(80 <= r["steps"] <= 140 and r["score"] == 0.5 for r in result["records"])
+
+
+def test_the_protocol_runs_the_nominal_car_whatever_the_policy_learnt_with():
+    """A policy's own env kwargs come along (its reward, moved to --engine), but not its
+    randomisation, episode length or the other engine's keywords."""
+    from argparse import Namespace
+
+    from smartcar_gym.bench.cli import _env_kwargs
+
+    learnt_with = {"progress": "path", "randomize": "odometry", "max_episode_steps": 400,
+                   "engine": "planar", "planar_params": "mujoco"}
+    kwargs = _env_kwargs(Namespace(engine="pybullet", world_file=None), learnt_with)
+    assert kwargs == {"progress": "path", "engine": "pybullet", "world_file": None}

@@ -277,3 +277,16 @@ def test_nav_runs_the_calibrated_yaml_which_differs_from_the_tutorials_in_base_w
         assert env.unwrapped.controller_config.base_width_m == 0.26
     finally:
         env.close()
+
+
+@pytest.mark.parametrize("engine", ["pybullet", "planar", "mujoco"])
+def test_an_empty_arena_scans_nothing_on_every_engine(engine):
+    """obstacles=0: every beam reads +inf (nothing within range_max), on the planar engine
+    too (its cast once failed on an empty list of bodies)."""
+    env = gym.make("SmartCarNav-v0", obstacles=0, engine=engine)
+    try:
+        env.reset(seed=0)
+        env.step(np.zeros(2, dtype=np.float32))
+        assert np.isposinf(env.unwrapped.laser.latest.ranges).all()
+    finally:
+        env.close()

@@ -270,8 +270,8 @@ def test_an_unknown_factor_is_named_with_a_close_match():
 
 
 @pytest.mark.parametrize("spec, error, match", [
-    ("defualt", ValueError, r"randomize='defualt' is neither a preset \('default', 'odometry'\) nor a "
-                            r"YAML file: no such file"),
+    ("defualt", ValueError, r"randomize='defualt' is neither a preset "
+                            r"\('default', 'odometry'\) nor a YAML file: no such file"),
     (7, TypeError, r"randomize must be None, a preset name .* got int: 7"),
     ([0.9, 1.1], TypeError, r"got list"),
 ])

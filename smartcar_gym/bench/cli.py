@@ -168,8 +168,9 @@ def _driver(args: argparse.Namespace) -> tuple[Any, str, dict[str, Any]]:
     return PolicyDriver(policy, name), name, trained_with
 
 
-#: a policy's env kwargs the benchmark does not take: the protocol sets the episode's length
-NOT_FROM_POLICY = ("max_episode_steps", "world_file", "render_mode")
+#: a policy's env kwargs the benchmark does not take: the protocol sets the episode's length and
+#: runs the nominal car (a policy that learnt with ``randomize`` is measured without it)
+NOT_FROM_POLICY = ("max_episode_steps", "world_file", "render_mode", "randomize")
 
 
 def _env_kwargs(args: argparse.Namespace, trained_with: dict[str, Any]) -> dict[str, Any]:

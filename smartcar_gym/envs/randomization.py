@@ -137,8 +137,8 @@ class Randomization:
             path = Path(spec)
             if not path.is_file():
                 raise ValueError(
-                    f"randomize={os.fspath(spec)!r} is neither a preset {tuple(PRESETS)} nor a YAML "
-                    f"file: {'not a file' if path.exists() else 'no such file'}"
+                    f"randomize={os.fspath(spec)!r} is neither a preset {tuple(PRESETS)} nor a "
+                    f"YAML file: {'not a file' if path.exists() else 'no such file'}"
                 )
             return cls.from_file(path, f"randomize file {os.fspath(path)}")
         if isinstance(spec, Mapping):

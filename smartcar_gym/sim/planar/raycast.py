@@ -219,7 +219,8 @@ def ray_hits(starts: Any, ends: Any, shapes: Shapes2D, bodies: Any,
     shape = np.where(within, found.shape.reshape(-1), -1)
     hit = shape >= 0
     fraction = np.where(hit, found.distance.reshape(-1) / np.where(moving, length, 1.0), 1.0)
-    return RayHits(fraction=fraction, body=np.where(hit, bodies[np.maximum(shape, 0)], -1),
+    body = bodies[np.maximum(shape, 0)] if len(bodies) else np.full(len(shape), -1)
+    return RayHits(fraction=fraction, body=np.where(hit, body, -1),
                    point=starts + vec * fraction[:, None])
 
 

@@ -17,6 +17,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 MIN_CHUNK = 4  # robots per thread below which splitting costs more than it saves
 _POOL: ThreadPoolExecutor | None = None
+_POOL_PID = 0  # the process that made it: a forked child makes its own (it has no threads)
 _POOL_LOCK = threading.Lock()
 
 
@@ -34,9 +35,10 @@ def run_chunks(work: Callable[[int, int], None], n: int, threads: int) -> None:
 
 
 def _pool() -> ThreadPoolExecutor:
-    global _POOL
+    global _POOL, _POOL_PID
     with _POOL_LOCK:
-        if _POOL is None:
+        if _POOL is None or _POOL_PID != os.getpid():
             _POOL = ThreadPoolExecutor(max_workers=max(1, (os.cpu_count() or 1) - 1),
                                        thread_name_prefix="smartcar-gym-loops")
+            _POOL_PID = os.getpid()
         return _POOL

@@ -3,7 +3,9 @@ numbers, every robot once, and a chunk's error reaches the caller."""
 
 from __future__ import annotations
 
+import os
 import threading
+import time
 
 import numpy as np
 import pytest
@@ -51,3 +53,27 @@ def test_the_footprint_check_split_over_threads_is_one_calls():
     split = footprint_check(*args, compiled=True, threads=3)
     assert np.array_equal(one[0], split[0]) and np.array_equal(one[1], split[1])
     assert 0 < one[0].sum() < one[0].size
+
+
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="no fork on this platform")
+def test_a_forked_child_runs_its_chunks_instead_of_waiting_on_the_parents_threads():
+    """A process forked after the pool started (a SubprocVecEnv worker) has none of its
+    threads: it makes a pool of its own instead of hanging on the parent's."""
+    run_chunks(lambda a, b: None, 16, 2)  # the parent's pool is up
+    pid = os.fork()
+    if pid == 0:  # the child: exit 0 only if the split run finishes
+        done = []
+        try:
+            run_chunks(lambda a, b: done.append((a, b)), 16, 2)
+        finally:
+            os._exit(0 if len(done) == 2 else 1)
+    deadline = time.monotonic() + 30
+    while time.monotonic() < deadline:
+        finished, status = os.waitpid(pid, os.WNOHANG)
+        if finished:
+            assert os.waitstatus_to_exitcode(status) == 0
+            return
+        time.sleep(0.05)
+    os.kill(pid, 9)
+    os.waitpid(pid, 0)
+    pytest.fail("the forked child hung on the parent's pool")

@@ -231,7 +231,7 @@ def test_the_batched_path_trackers_are_path_trackers_bit_for_bit(compiled):
                               [to_go_alone[i].to_go(p)
                                for i, p in zip(slots, xy, strict=True)])
         cos, sin = np.cos(poses[:, 2]), np.sin(poses[:, 2])
-        windows = trackers.windows(slots, poses, cos, sin, 0.05, 0.2)
+        windows = trackers.windows(slots, poses, cos, sin, 0.05, 0.2, 1e3)
         for k, i in enumerate(slots):
             t = alone[i]
             lo = int(np.searchsorted(t.arc, t.arc[t.index] - 0.05))

@@ -21,6 +21,7 @@ base frame, in numpy arrays.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, replace
 
@@ -102,15 +103,10 @@ class DWAConfig:
                 + math.hypot(self.half_length, self.half_width) + self.footprint_padding)
 
 
-def rollouts(v: np.ndarray, w: np.ndarray, duration: float, steps: int) -> np.ndarray:
-    """Poses (..., steps, 3) of constant-velocity arcs from the origin, at ``duration / steps``
-    to ``duration``."""
-    return arcs(v, w, duration, steps)[0]
-
-
 def arcs(v: np.ndarray, w: np.ndarray, duration: float, steps: int
          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``rollouts`` of ``v`` and ``w`` broadcast together, with the cosine and sine of each
+    """Poses (..., steps, 3) of constant-velocity arcs from the origin, at ``duration / steps``
+    to ``duration``, for ``v`` and ``w`` broadcast together, with the cosine and sine of each
     pose's heading (``(..., steps)``). The heading depends on ``w`` alone: the sines and
     cosines are taken over ``w``'s shape, not the broadcast one (a dynamic window's
     ``vx_samples`` speeds share each turn rate)."""
@@ -140,7 +136,6 @@ class DWAPlanner:
         self.cutoff_m = max(c.inflation_radius, math.hypot(c.half_length + c.footprint_padding,
                                                            c.half_width + c.footprint_padding)
                             ) * (1.0 + 1e-9)
-        self._fixed_arcs: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
 
     def window(self, velocity: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The dynamic window's samples for N robots at ``velocity`` (N, 2): speeds
@@ -168,51 +163,57 @@ class DWAPlanner:
     def candidates(self, velocity: np.ndarray) -> np.ndarray:
         """(N, C, 2) velocity samples: the dynamic window's (vx_samples x vtheta_samples), the
         in-place turns, and last the escape (backing up)."""
-        vs, ws = self.window(velocity)
+        return self._candidates(*self.window(velocity))
+
+    def _candidates(self, vs: np.ndarray, ws: np.ndarray) -> np.ndarray:
+        """``candidates`` of the window's speeds ``vs`` and turn rates ``ws``."""
         moving = np.stack(np.broadcast_arrays(vs[:, :, None], ws[:, None, :]), -1)
-        n = len(velocity)
+        n = len(vs)
         fixed = self.fixed()
         return np.concatenate([moving.reshape(n, -1, 2),
                                np.broadcast_to(fixed, (n, *fixed.shape))], axis=1)
 
-    def _rollouts(self, velocity: np.ndarray
+    def _rollouts(self, vs: np.ndarray, ws: np.ndarray
                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``rollouts`` of ``candidates(velocity)``, (N, C, T, 3), with their headings' cosines
-        and sines (N, C, T): the window's from its turn rates, the fixed samples' once."""
+        """``arcs`` of the candidates of the window ``vs``, ``ws``: poses (N, C, T, 3) and
+        their headings' cosines and sines (N, C, T); the fixed samples' made once."""
         c = self.config
-        n = len(velocity)
-        vs, ws = self.window(velocity)
+        n = len(vs)
         moving = [a.reshape(n, vs.shape[1] * ws.shape[1], *a.shape[3:])
                   for a in arcs(vs[:, :, None], ws[:, None, :], c.sim_time, c.sim_steps)]
         return tuple(np.concatenate([m, np.broadcast_to(f, (n, *f.shape))], axis=1)
-                     for m, f in zip(moving, self._fixed_rollouts(), strict=True))
+                     for m, f in zip(moving, self._fixed_arcs, strict=True))
 
-    def _fixed_rollouts(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``arcs`` of ``fixed()``, made once."""
-        if self._fixed_arcs is None:
-            c, fixed = self.config, self.fixed()
-            self._fixed_arcs = arcs(fixed[:, 0], fixed[:, 1], c.sim_time, c.sim_steps)
-        return self._fixed_arcs
+    @functools.cached_property
+    def _fixed_arcs(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``arcs`` of ``fixed()``: every robot's, made once."""
+        c, fixed = self.config, self.fixed()
+        return arcs(fixed[:, 0], fixed[:, 1], c.sim_time, c.sim_steps)
 
-    def _check(self, velocity: np.ndarray, obstacles: np.ndarray, counts: np.ndarray
-               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    @functools.cached_property
+    def _fixed_ways(self) -> np.ndarray:
+        """``_fixed_arcs`` as ways (F, T, 4) of x, y, cos, sin, as ``window_check`` takes
+        them."""
+        poses, cos, sin = self._fixed_arcs
+        return np.concatenate([poses[..., :2], cos[..., None], sin[..., None]], -1)
+
+    def _check(self, vs: np.ndarray, ws: np.ndarray, obstacles: np.ndarray,
+               counts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``footprint_check`` of every candidate's rollout, and the rollouts' end points
         (N, C, 2). Compiled, the window's rollouts are made inside the check
         (``window_check``), the same numbers without the (N, C, T) arrays."""
         c = self.config
         half_x, half_y = c.half_length + c.footprint_padding, c.half_width + c.footprint_padding
         if not (FOOTPRINT_COMPILED if self.compiled is None else self.compiled):
-            poses, cos, sin = self._rollouts(velocity)  # (N, C, T, 3), (N, C, T) twice
+            poses, cos, sin = self._rollouts(vs, ws)  # (N, C, T, 3), (N, C, T) twice
             valid, nearest = footprint_check(poses, cos, sin, obstacles, counts, half_x,
                                              half_y, self.cutoff_m, compiled=self.compiled)
             return valid, nearest, poses[:, :, -1, :2]
-        vs, ws = self.window(velocity)
         t = c.sim_time * np.arange(1, c.sim_steps + 1) / c.sim_steps  # as arcs
         theta = ws[:, :, None] * t
-        poses, cos, sin = self._fixed_rollouts()
-        fixed = np.concatenate([poses[..., :2], cos[..., None], sin[..., None]], -1)
-        return window_check(vs, ws, np.cos(theta), np.sin(theta), t, fixed, obstacles,
-                            counts, half_x, half_y, self.cutoff_m, threads=self.threads)
+        return window_check(vs, ws, np.cos(theta), np.sin(theta), t, self._fixed_ways,
+                            obstacles, counts, half_x, half_y, self.cutoff_m,
+                            threads=self.threads)
 
     def plan(self, velocity: np.ndarray, obstacles: np.ndarray, path: np.ndarray,
              goal: np.ndarray, counts: np.ndarray | None = None) -> np.ndarray:
@@ -221,15 +222,15 @@ class DWAPlanner:
         anywhere), a window of the global ``path`` (N, Q, 2) (pad with far points) and the
         local ``goal`` (N, 2), all in each robot's base frame. (0, 0) where nothing is free."""
         c = self.config
-        velocity = np.asarray(velocity, dtype=float)
-        cand = self.candidates(velocity)  # (N, C, 2)
+        vs, ws = self.window(np.asarray(velocity, dtype=float))
+        cand = self._candidates(vs, ws)  # (N, C, 2)
         n, count = cand.shape[:2]
         obstacles = np.asarray(obstacles, dtype=float).reshape(n, -1, 2)
         if counts is None:
             counts = np.full(n, obstacles.shape[1])
         # does a footprint on the way touch a point, and how near does the way pass: the
         # inflation cost falls with distance, so the way's highest is its nearest pass's
-        valid, nearest, end = self._check(velocity, obstacles, np.asarray(counts))
+        valid, nearest, end = self._check(vs, ws, obstacles, np.asarray(counts))
         occ = self.inflation_cost(nearest)  # (N, C)
         path = np.asarray(path, dtype=float)
         path_dist = to_nearest(end, path, compiled=self.compiled)

@@ -19,6 +19,7 @@ from smartcar_gym.envs.tasks.path_trackers import PathTrackers
 from smartcar_gym.envs.vector.common import check_num_threads
 from smartcar_gym.navigation.dwa import DWAConfig, DWAPlanner
 from smartcar_gym.navigation.footprint import COMPILED as FOOTPRINT_COMPILED
+from smartcar_gym.navigation.footprint import FAR_M
 from smartcar_gym.navigation.obstacles import ObstacleLayers
 from smartcar_gym.worlds.barn import JACKAL_TOP_SPEED_M_S, JACKAL_WIDTH_M
 
@@ -58,7 +59,8 @@ class DWADriver:
         self.config = config
         self.compensate_turns = compensate_turns
         self.compiled = compiled  # the obstacle layers and the planner: None, numba if there
-        #: the compiled passes' robots split over these (None: every core); the same answers
+        #: the compiled footprint check's robots split over these (None: every core); the same
+        #: answers
         self.threads = check_num_threads(threads)
         self.planner: DWAPlanner | None = None
         self.trackers: PathTrackers | None = None  # the global paths' local goals, windows
@@ -110,7 +112,7 @@ class DWADriver:
         d = self.trackers.waypoints(list(slots), poses[:, :2]) - poses[:, :2]
         goals = np.stack([cos * d[:, 0] + sin * d[:, 1], -sin * d[:, 0] + cos * d[:, 1]], -1)
         windows = self.trackers.windows(list(slots), poses, cos, sin, PATH_BEHIND_M,
-                                        2.0 * config.local_goal_m)
+                                        2.0 * config.local_goal_m, FAR_M)
         cmd = self.planner.plan(velocity, obstacles, windows, goals, counts=counts)
         if self.compensate_turns:
             cmd[:, 1] = turn_command(cmd[:, 0], cmd[:, 1])

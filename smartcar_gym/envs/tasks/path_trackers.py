@@ -26,7 +26,6 @@ from smartcar_gym.envs.tasks.barn import PathTracker
 
 #: whether the compiled passes are used (numba installed and ``SMARTCAR_GYM_NUMBA`` not ``0``)
 COMPILED = numba is not None and os.environ.get("SMARTCAR_GYM_NUMBA", "1") != "0"
-FAR_M = 1e3  # where a window's padding points lie (navigation.footprint.FAR_M)
 
 
 class PathTrackers:
@@ -118,10 +117,10 @@ class PathTrackers:
         return out
 
     def windows(self, slots: Sequence[int], poses: np.ndarray, cos: np.ndarray,
-                sin: np.ndarray, behind_m: float, ahead_m: float) -> np.ndarray:
+                sin: np.ndarray, behind_m: float, ahead_m: float, pad_m: float) -> np.ndarray:
         """(K, max W, 2): each robot's path from ``behind_m`` behind its nearest point to
         ``ahead_m`` ahead (at least that point), in the base frame of ``poses`` (K, 3) whose
-        headings' cosines and sines are given; padded ``FAR_M`` away."""
+        headings' cosines and sines are given; padded with points at (``pad_m``, ``pad_m``)."""
         rows = []
         slots = self._rows(slots)
         if not self.compiled:
@@ -132,11 +131,11 @@ class PathTrackers:
                 d = t.path[lo:max(hi, lo + 1)] - pose[:2]
                 rows.append(np.stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]],
                                      -1))
-            out = np.full((len(rows), max(1, max(len(r) for r in rows)), 2), FAR_M)
+            out = np.full((len(rows), max(1, max(len(r) for r in rows)), 2), pad_m)
             for k, r in enumerate(rows):
                 out[k, :len(r)] = r
             return out
-        out = np.full((len(slots), max(1, int(self.size[slots].max())), 2), FAR_M)
+        out = np.full((len(slots), max(1, int(self.size[slots].max())), 2), pad_m)
         counts = np.zeros(len(slots), dtype=np.int64)
         _windows(slots, np.asarray(poses, dtype=float), np.asarray(cos, dtype=float),
                  np.asarray(sin, dtype=float), self.path, self.arc, self.size,

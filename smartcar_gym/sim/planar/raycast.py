@@ -92,14 +92,23 @@ def cast(origins: Any, directions: Any, max_range: Any, shapes: Shapes2D,
     m = shapes.num_shapes
     distance = np.array(reach_nb, dtype=float)
     hit_shape = np.full((n, b), m, dtype=np.int64)  # m: none yet
-    flat_distance, flat_shape = distance.reshape(-1), hit_shape.reshape(-1)
     if n == 0 or b == 0 or m == 0:
         return RayCast(distance, np.full((n, b), -1, dtype=np.int64), reach)
-
     if COMPILED if compiled is None else compiled:
         cast_loops(origins, beams, reach_nb, shapes, distance, hit_shape, threads)
-        hit_shape[hit_shape == m] = -1
-        return RayCast(distance, hit_shape, reach)
+    else:
+        _cast_blocks(origins, beams, reach, reach_nb, shapes, distance, hit_shape)
+    hit_shape[hit_shape == m] = -1  # m: none
+    return RayCast(distance, hit_shape, reach)
+
+
+def _cast_blocks(origins: np.ndarray, beams: np.ndarray, reach: np.ndarray,
+                 reach_nb: np.ndarray, shapes: Shapes2D, distance: np.ndarray,
+                 hit_shape: np.ndarray) -> None:
+    """``cast`` in numpy, into ``distance`` (N, B, preset to the reach) and ``hit_shape``
+    (N, B, preset to M): a broad phase per block of cars, the exact tests on what it keeps."""
+    n, b, m = len(origins), beams.shape[2], shapes.num_shapes
+    flat_distance, flat_shape = distance.reshape(-1), hit_shape.reshape(-1)
     table, cone, cos = _pair_table(origins, shapes, reach_nb.max(axis=1))
     flat_beams = beams.reshape(-1)
     shared = len(beams) == 1
@@ -124,8 +133,8 @@ def cast(origins: Any, directions: Any, max_range: Any, shapes: Shapes2D,
         np.minimum.at(flat_distance, ray, t)  # the nearest hit per ray
         won = np.flatnonzero(t == flat_distance[ray])
         np.minimum.at(flat_shape, ray[won], pair[won] - car[won] * m)  # ties: the lower index
-    hit_shape[hit_shape == m] = -1
-    return RayCast(distance, hit_shape, reach)
+
+
 
 
 def _pair_table(origins: np.ndarray, shapes: Shapes2D,

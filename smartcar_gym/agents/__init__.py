@@ -17,8 +17,9 @@ Modules (imported on demand; this package imports nothing heavy), by concern:
   envs of single envs; VecNormalize), ``sb3_vec_env`` (``GymVectorVecEnv``: a Gymnasium
   vector env seen as an SB3 VecEnv).
 * Episodes: ``episodes`` (every evaluation's episodes, sequential, batched and SB3's during
-  training; ``EpisodeRecord``, ``summarize``, ``RandomPolicy``, videos), ``eval_worker``
-  (evaluations in a second process while training goes on).
+  training; ``EpisodeRecord``, ``summarize``, ``RandomPolicy``), ``video`` (episodes
+  rendered to a .gif or .mp4), ``eval_worker`` (evaluations in a second process while
+  training goes on).
 * Training: ``training`` (``train()``: a run with checkpoints and evaluation),
   ``callbacks`` (checkpoints, evaluation by success rate, progress bar, Ctrl-C).
 * Files: ``runs`` (a run's folder: a new run's config, the run to resume, checkpoint

@@ -44,11 +44,11 @@ from smartcar_gym.agents.episodes import (
     RandomPolicy,
     evaluate_batched_episodes,
     evaluate_policy_episodes,
-    record_video,
     summarize,
 )
 from smartcar_gym.agents.hyperparams import ALGOS
 from smartcar_gym.agents.models import PRETRAINED_MODEL, PRETRAINED_POLICIES, load_model
+from smartcar_gym.agents.video import record_video
 from smartcar_gym.checks import distinct_figure
 from smartcar_gym.datasets.eval_options import (
     add_minari_arguments,

@@ -54,6 +54,10 @@ def test_dwa_on_two_worlds_prints_the_table_writes_json_and_misses_a_mark(tmp_pa
     (["--driver", "teb"], "--driver: unknown driver 'teb'; the drivers are dwa"),
     (["--pretrained", "jackal"], "--pretrained: no shipped policy 'jackal'; the shipped ones "
                                  "are default, robust, nav, ros, mujoco, barn"),
+    (["--env-kwargs", "lasr=1"], "cannot make SmartCarBARN-v0 with engine='mujoco', lasr=1, "
+                                 "world_file=None: SmartCarBARNEnv got an unexpected keyword "
+                                 "argument 'lasr' (did you mean 'laser'?)"),
+    (["--env-kwargs", "engine=planar"], "--env-kwargs: engine is set by --engine, not here"),
 ])
 def test_bad_input_is_one_line(argv, line, capsys):
     code, _, err = _run(["barn", "--engine", "mujoco", *argv], capsys)
@@ -117,5 +121,31 @@ def test_the_protocol_runs_the_nominal_car_whatever_the_policy_learnt_with():
 
     learnt_with = {"progress": "path", "randomize": "odometry", "max_episode_steps": 400,
                    "engine": "planar", "planar_params": "mujoco"}
-    kwargs = _env_kwargs(Namespace(engine="pybullet", world_file=None), learnt_with)
+    kwargs = _env_kwargs(Namespace(engine="pybullet", world_file=None, env_kwargs=[]),
+                         learnt_with)
     assert kwargs == {"progress": "path", "engine": "pybullet", "world_file": None}
+    given = [("progress", "goal"), ("randomize", "odometry")]  # --env-kwargs: over them
+    kwargs = _env_kwargs(Namespace(engine="mujoco", world_file=None, env_kwargs=given),
+                         learnt_with)
+    assert kwargs == {"progress": "goal", "engine": "mujoco", "randomize": "odometry",
+                      "world_file": None}
+
+
+def test_laser_noise_makes_a_worlds_runs_differ_and_the_json_says_so(tmp_path, capsys):
+    """Deterministic engines repeat a world's runs; with ``--env-kwargs laser=...`` noise, run
+    k's draws come from seed + k, so the runs differ, and the same command repeats them."""
+    def runs(name, *extra):
+        out = tmp_path / f"{name}.json"
+        code = main(["barn", "--driver", "dwa", "--engine", "planar", "--worlds", "0",
+                     "--runs", "2", "--n-envs", "2", "--json", str(out), "--quiet", *extra])
+        assert code == 0, capsys.readouterr().err
+        result = json.loads(out.read_text())
+        return result, [(r["steps"], r["final_distance_m"]) for r in result["records"]]
+
+    plain, plain_runs = runs("plain")
+    assert plain_runs[0] == plain_runs[1] and plain["env_kwargs"] == {"engine": "planar"}
+    noise = ["--env-kwargs", "laser={noise_std_m: 0.01}"]
+    noisy, noisy_runs = runs("noisy", *noise)
+    assert noisy_runs[0] != noisy_runs[1]
+    assert noisy["env_kwargs"] == {"engine": "planar", "laser": {"noise_std_m": 0.01}}
+    assert runs("again", *noise)[1] == noisy_runs

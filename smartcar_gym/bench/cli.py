@@ -6,9 +6,11 @@
     smartcar-bench barn --model runs/ppo_SmartCarBARN-v0_s0 --runs 10 --fail-under 80
 
 Every test world (0, 6, ..., 294; ``--worlds`` for others) K times (run k seeded
-``--seed + k``); the table says the rates of success, collision and timeout, the mean time of
-the successful runs and the mean score on both scales (docs/barn.md). ``--fail-under`` and
-``--max-final-distance`` are smartcar-eval's pass marks (exit status 1 when one is missed).
+``--seed + k``: the engines are deterministic, so the K runs repeat one another unless
+``--env-kwargs`` adds noise, such as ``laser='{noise_std_m: 0.01}'``); the table says the
+rates of success, collision and timeout, the mean time of the successful runs and the mean
+score on both scales (docs/barn.md). ``--fail-under`` and ``--max-final-distance`` are
+smartcar-eval's pass marks (exit status 1 when one is missed).
 Where the engine batches (planar, MuJoCo) the ``--n-envs`` cars are one batched env
 (``SmartCarBatchVectorEnv``); elsewhere a row of single envs.
 """
@@ -24,8 +26,9 @@ from typing import Any
 
 import gymnasium as gym
 
-from smartcar_gym.agents.cli_args import distance_arg, percent_arg
+from smartcar_gym.agents.cli_args import distance_arg, key_value_arg, percent_arg
 from smartcar_gym.agents.cli_eval import check_marks
+from smartcar_gym.agents.env_factory import EnvSetupError, check_env
 from smartcar_gym.agents.hyperparams import (
     non_negative_int_arg,
     output_path_error,
@@ -65,6 +68,11 @@ def build_parser() -> argparse.ArgumentParser:
                       help="cars stepped side by side (one driver call for all; one "
                            "batched env where the engine batches)")
     barn.add_argument("--seed", type=int, default=0)
+    barn.add_argument("--env-kwargs", nargs="+", default=[], metavar="KEY=VALUE",
+                      type=key_value_arg,
+                      help="SmartCarBARN-v0 keyword arguments (YAML values) over a policy's "
+                           "own, e.g. laser='{noise_std_m: 0.01}' (the noise of run k drawn "
+                           "with seed + k: the K runs differ) or randomize=odometry")
     barn.add_argument("--device", default="cpu", help="torch device of --model")
     barn.add_argument("--json", type=Path, metavar="FILE", help="write the table and every run")
     barn.add_argument("--plot", type=Path, metavar="FILE.png",
@@ -98,10 +106,11 @@ def main(argv: Sequence[str] | None = None) -> int:
             worlds.world(index)
         driver, name, trained_with = _driver(args)
         kwargs = _env_kwargs(args, trained_with)
+        check_env(ENV_ID, kwargs)  # a bad --env-kwargs: one line naming it
         batch = _make_batch(args, kwargs)
         envs = ([gym.make(ENV_ID, **kwargs) for _ in range(args.n_envs)] if batch is None
                 else [batch])
-    except (BarnWorldError, DriverError) as err:
+    except (BarnWorldError, DriverError, EnvSetupError) as err:
         parser.error(str(err))
     barn = envs[0].unwrapped
     try:
@@ -129,7 +138,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.json is not None:
         payload = {"benchmark": "barn", "driver": name, "env": ENV_ID, "engine": engine,
                    "vectorization": "single" if batch is None else "batched",
-                   "runs_per_world": args.runs, "seed": args.seed, "worlds": list(chosen),
+                   "runs_per_world": args.runs, "seed": args.seed,
+                   "env_kwargs": {k: v for k, v in kwargs.items() if k != "world_file"},
+                   "worlds": list(chosen),
                    "scale": barn.protocol.scale, "marks": marks,
                    "passed": all(m["held"] for m in marks), **summary,
                    "records": [r.to_dict() for r in records]}
@@ -175,10 +186,16 @@ NOT_FROM_POLICY = ("max_episode_steps", "world_file", "render_mode", "randomize"
 
 def _env_kwargs(args: argparse.Namespace, trained_with: dict[str, Any]) -> dict[str, Any]:
     """The env's kwargs: what a policy was trained with (its laser, lookahead, model), moved
-    to ``--engine`` (``on_engine``: another engine's own kwargs left out), and the world
-    file."""
+    to ``--engine`` (``on_engine``: another engine's own kwargs left out), ``--env-kwargs``
+    over them, and the world file."""
     kept = {k: v for k, v in trained_with.items() if k not in NOT_FROM_POLICY}
-    return {**on_engine(kept, args.engine or DEFAULT_ENGINE), "world_file": args.world_file}
+    given = dict(args.env_kwargs)
+    for key in ("engine", "world_file"):
+        if key in given:
+            option = "--engine" if key == "engine" else "--world-file"
+            raise EnvSetupError(f"--env-kwargs: {key} is set by {option}, not here")
+    return {**on_engine(kept, args.engine or DEFAULT_ENGINE), **given,
+            "world_file": args.world_file}
 
 
 def _make_batch(args: argparse.Namespace, kwargs: dict[str, Any]

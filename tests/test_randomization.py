@@ -198,15 +198,20 @@ def test_the_default_preset_randomises_every_factor_around_its_nominal_value():
         assert low < high and low <= factor.nominal <= high, factor.name
 
 
-def test_the_odometry_preset_takes_the_default_ranges_of_what_makes_odometry_drift():
+def test_the_odometry_preset_halves_the_default_ranges_of_what_makes_odometry_drift():
     """``randomize="odometry"``: the true wheel radius and track, the encoders' scales and
-    slip, with the default preset's ranges; every other factor stays nominal."""
+    slip, each in half the default preset's range about its nominal value (0.98-1.02 gives
+    0.99-1.01); every other factor stays nominal."""
     drift = {"wheel_radius", "track", "left_encoder_scale", "right_encoder_scale",
              "encoder_slip"}
     spec, default = Randomization.from_spec("odometry"), Randomization.from_spec("default")
     for factor in FACTORS:
         if factor.name in drift:
-            assert spec.ranges[factor.name] == default.ranges[factor.name], factor.name
+            low, high = default.ranges[factor.name]
+            half = (factor.nominal + (low - factor.nominal) / 2,
+                    factor.nominal + (high - factor.nominal) / 2)
+            assert spec.ranges[factor.name] == pytest.approx(half, abs=1e-12), factor.name
+            assert spec.ranges[factor.name][0] < spec.ranges[factor.name][1], factor.name
         else:
             assert spec.ranges[factor.name] == (factor.nominal, factor.nominal), factor.name
     env = gym.make("SmartCar-v0", engine="planar", randomize="odometry")

@@ -192,7 +192,8 @@ class SmartCarEnv(gym.Env):
     |                   |                | model's own collision shapes (cylinders)             |
     | render_width/height | 480, 360     | rgb_array image size (px, at most 4096)              |
     | randomize         | None           | domain randomisation: None (the nominal robot),      |
-    |                   |                | "default" (the shipped preset), a dict               |
+    |                   |                | "default" (the shipped preset), "odometry" (only     |
+    |                   |                | what makes odometry drift), a dict                   |
     |                   |                | ``{factor: [low, high]}`` or a YAML file of one;     |
     |                   |                | drawn per episode (docs/sim2real.md)                 |
     | engine            | "pybullet"     | physics engine: "pybullet", "mujoco" (the ``mujoco`` |

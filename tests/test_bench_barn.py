@@ -149,3 +149,21 @@ def test_laser_noise_makes_a_worlds_runs_differ_and_the_json_says_so(tmp_path, c
     assert noisy_runs[0] != noisy_runs[1]
     assert noisy["env_kwargs"] == {"engine": "planar", "laser": {"noise_std_m": 0.01}}
     assert runs("again", *noise)[1] == noisy_runs
+
+
+def test_the_plot_draws_the_global_path_of_a_world_another_env_of_the_row_ran(tmp_path,
+                                                                               capsys):
+    """pybullet runs a row of single envs: world 6 runs on the second, and its panel still
+    has its global path (plot_runs refuses a kept run without one)."""
+    out = tmp_path / "row.png"
+    code = main(["barn", "--pretrained", "barn", "--engine", "pybullet", "--worlds", "0", "6",
+                 "--n-envs", "2", "--plot", str(out), "--quiet"])
+    assert code == 0, capsys.readouterr().err
+    assert out.stat().st_size > 10_000
+    from smartcar_gym.bench.report import plot_runs
+    from smartcar_gym.worlds.barn import load_worlds
+
+    record = RunRecord(6, 0, 0, "success", 10.0, 0.5, 0.25, 5.0, 0.1, 100,
+                       trajectory=np.zeros((2, 2)))
+    with pytest.raises(ValueError, match=r"no global path for world\(s\) \[6\]"):
+        plot_runs([record], load_worlds(), 0.42, tmp_path / "x.png", "t", {0: np.zeros((2, 2))})

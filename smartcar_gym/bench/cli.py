@@ -126,6 +126,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         records = run(envs if batch is None else batch, driver, jobs,
                       keep=lambda job: job.world in plotted and job.run == 0,
                       report=None if args.quiet else _report)
+        paths = {}  # the global paths every env of the row planned, by world
+        for env in envs:
+            paths.update(env.unwrapped.planned_paths)
     finally:
         for env in envs:
             env.close()
@@ -150,7 +153,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.plot is not None:
         plot_runs(records, worlds, barn.protocol.scale, args.plot,
                   f"{name} on {engine}: {summary['success_rate']:.0%} success (dashed: the "
-                  "global path)", barn.planned_paths)
+                  "global path)", paths)
         print(f"wrote {args.plot}")
     for mark in marks:
         print(f"smartcar-bench: {mark['line']}", file=sys.stderr)

@@ -116,6 +116,35 @@ def test_the_obstacle_memory_keeps_a_cell_for_its_scans_then_forgets_it():
     assert np.allclose(memory.points, [[0.0, 0.504]])
 
 
+def test_a_scan_clears_the_marked_cells_its_beams_pass_through():
+    """costmap_2d's clearing: a marked cell on a beam that returns farther is forgotten; one
+    within a cell of the return or behind it, one off every beam's line (more than half a
+    cell), and one on a beam that returns nothing (+inf) or too close (-inf) stay."""
+    angles = np.linspace(-np.pi, np.pi, 360, endpoint=False)  # 1 degree apart, all round
+    ranges = np.full(360, np.inf)
+    ranges[180:182] = 1.0  # the beams at 0 and 1 degree
+    ranges[270] = -np.inf  # the beam at 90 degrees: closer than range_min
+    half = np.radians(0.5)
+    marked = np.array([[0.5, 0.0], [0.99, 0.0],  # on the 0-degree beam, short of its return
+                       [0.997, 0.0], [1.2, 0.0],  # in the return's cell, behind it
+                       [0.5 * np.cos(half), 0.5 * np.sin(half)],  # 4.4 mm off both beams
+                       [0.0, -0.5], [0.0, 0.5]])  # on the +inf and the -inf beams
+    memory = ObstacleMemory(cell_m=0.005)
+    memory.add(marked)
+    memory.clear_through(ranges, angles, np.eye(4), np.zeros(3))
+    kept = {tuple(np.round(p, 4)) for p in memory.points}
+    assert kept == {tuple(np.round(p, 4)) for p in marked[2:]}
+    # the layers, compiled or not: a return at 0.5 m, then the beam returns at 1.0 m
+    first, second = np.full((1, 360), np.inf), np.full((1, 360), np.inf)
+    first[0, 180], second[0, 180] = 0.5, 1.0
+    for compiled in (False, True) if COMPILED else (False,):
+        for clearing, left in ((True, [[1.0, 0.0]]), (False, [[0.5, 0.0], [1.0, 0.0]])):
+            layers = ObstacleLayers(1, compiled=compiled, clearing=clearing)
+            for scan in (first, second):
+                near, counts = layers.update([0], scan, angles, np.eye(4), np.zeros((1, 3)), 2.0)
+            assert np.allclose(near[0, :counts[0]], left), (compiled, clearing)
+
+
 @pytest.mark.skipif(not COMPILED, reason="numba (the fast extra) is off or not installed")
 def test_the_compiled_footprint_check_holds_on_a_dense_memory():
     """Hundreds of points around the robot, as a car stuck among pillars has: the compiled
@@ -147,16 +176,21 @@ def test_the_compiled_footprint_check_holds_on_a_dense_memory():
     assert np.array_equal(got[2], poses[:, :, -1, :2])
 
 
-def test_the_obstacle_layers_are_the_memories_bit_for_bit():
-    """N robots' layers marked from scans, compiled or as a row of ObstacleMemory: the same
-    points near each robot, in the same order, step after step (and after a clear)."""
+@pytest.mark.parametrize("clearing", [True, False])
+def test_the_obstacle_layers_are_the_memories_bit_for_bit(clearing):
+    """N robots' layers cleared and marked from scans, compiled or as a row of
+    ObstacleMemory: the same points near each robot, in the same order, step after step (and
+    after a clear)."""
     rng = np.random.default_rng(3)
     angles = np.linspace(-np.pi, np.pi, 90, endpoint=False)
     mount = np.eye(4)
     mount[:2, 3] = [0.05, -0.01]
     mount[:2, :2] = [[np.cos(0.1), -np.sin(0.1)], [np.sin(0.1), np.cos(0.1)]]
-    layers = ObstacleLayers(3, scans=4, compiled=False)
-    compiled = ObstacleLayers(3, scans=4, compiled=True) if COMPILED else None
+    layers = ObstacleLayers(3, scans=4, compiled=False, clearing=clearing)
+    compiled = (ObstacleLayers(3, scans=4, compiled=True, clearing=clearing) if COMPILED
+                else None)
+    plain = ObstacleLayers(3, scans=4, compiled=False, clearing=False)
+    padded = cleared = False
     for step in range(12):
         slots = [0, 2] if step % 3 else [0, 1, 2]
         ranges = rng.uniform(0.05, 1.0, (len(slots), len(angles)))
@@ -167,18 +201,26 @@ def test_the_obstacle_layers_are_the_memories_bit_for_bit():
                                  rng.uniform(-3, 3, len(slots))])
         if step == 6:
             layers.clear(1)
+            plain.clear(1)
             compiled and compiled.clear(1)
         near, counts = layers.update(slots, ranges, angles, mount, poses, 0.6)
+        plain.update(slots, ranges, angles, mount, poses, 0.6)
         for k, i in enumerate(slots):  # each is its memory's near points
             memory = layers.memories[i]
             assert np.array_equal(near[k, :counts[k]], memory.near(poses[k], 0.6))
             assert (near[k, counts[k]:] == 1e3).all()
-        assert counts.min() > 0 and (counts < near.shape[1]).any()
+            # clearing only forgets: never more cells than a layer that does not clear
+            kept = len(plain.memories[i].points)
+            assert len(memory.points) <= kept
+            cleared |= len(memory.points) < kept
+        assert counts.min() > 0
+        padded |= bool((counts < near.shape[1]).any())
         if compiled is not None:
             near_c, counts_c = compiled.update(slots, ranges, angles, mount, poses, 0.6)
             assert np.array_equal(counts, counts_c) and np.array_equal(near, near_c)
             for i in range(3):
                 assert np.array_equal(layers.points_of(i), compiled.points_of(i))
+    assert padded and cleared == clearing
     # by hand: one return straight ahead of a laser 0.05 m ahead of base_link at the origin
     single = ObstacleLayers(1, compiled=False)
     ranges = np.full((1, 90), np.inf)

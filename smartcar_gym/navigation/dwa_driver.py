@@ -47,7 +47,10 @@ class DWADriver:
     """DWA on N envs: ``reset(envs, paths)`` once their episodes start, then ``act(envs)`` per
     step. ``config``: None, the challenge's set scaled to the first env's car;
     ``compensate_turns``: command the turn DWA plans through the car's measured response
-    (``turn_command``), else pass DWA's angular.z as it is."""
+    (``turn_command``), else pass DWA's angular.z as it is; ``clearing``: each scan clears
+    the obstacle layer's cells its beams pass through (costmap_2d's ``clearing: true``, as
+    the challenge's Jackal; ``obstacles.ObstacleLayers``), else cells stay marked until they
+    age out."""
 
     name = "dwa"
     #: cars per ``act`` call in a batched benchmark (None: all at once): numpy's footprint
@@ -55,9 +58,11 @@ class DWADriver:
     act_chunk = None if FOOTPRINT_COMPILED else 4
 
     def __init__(self, config: DWAConfig | None = None, compensate_turns: bool = True,
-                 compiled: bool | None = None, threads: int | None = None) -> None:
+                 compiled: bool | None = None, threads: int | None = None,
+                 clearing: bool = True) -> None:
         self.config = config
         self.compensate_turns = compensate_turns
+        self.clearing = clearing
         self.compiled = compiled  # the obstacle layers and the planner: None, numba if there
         #: the compiled footprint check's robots split over these (None: every core); the same
         #: answers
@@ -88,7 +93,8 @@ class DWADriver:
         if self.layers is None or len(self.layers.size) != len(envs):
             self.trackers = PathTrackers(len(envs), config.local_goal_m,
                                          2.0 * config.local_goal_m, compiled=self.compiled)
-            self.layers = ObstacleLayers(len(envs), compiled=self.compiled)
+            self.layers = ObstacleLayers(len(envs), compiled=self.compiled,
+                                         clearing=self.clearing)
         for i in range(len(envs)) if indices is None else indices:
             self.trackers.start(i, envs[i].global_path if paths is None else paths[i])
             self.layers.clear(i)

@@ -4,8 +4,12 @@ kept for a number of scans, read back near the robot in its base frame.
 A square cell of ``cell_m`` is marked by a laser return in it and stays marked for ``scans``
 scans after the last one, at that return's point (the first of the scan's returns in the
 cell), so that an obstacle stays in the map when it comes closer than the laser's range_min
-(or behind what the laser sees). Two ways, the same points bit for bit
-(``tests/test_dwa.py``):
+(or behind what the laser sees). With ``clearing`` (costmap_2d's ``clearing: true``, on by
+default, as the challenge's Jackal sets it) each scan first clears the marked cells its beams
+pass through: a marked point whose nearest beam returns farther than the point's distance plus
+a cell, within half a cell of the beam's line. A beam that returns nothing (``+inf``, as
+costmap_2d's ``inf_is_valid: false``) or too close (``-inf``) clears nothing. Two ways, the
+same points bit for bit (``tests/test_dwa.py``):
 
 * ``ObstacleMemory``: one robot's layer in numpy (sorted cell keys);
 * ``ObstacleLayers``: N robots' layers; with numba (the ``fast`` extra) in arrays, each
@@ -62,6 +66,44 @@ def to_base(points: np.ndarray, pose: np.ndarray) -> np.ndarray:
     return np.stack([c * d[..., 0] + s * d[..., 1], -s * d[..., 0] + c * d[..., 1]], -1)
 
 
+def beam_layout(angles: np.ndarray) -> tuple[float, float, bool]:
+    """The first beam's angle, the step between beams (rad), and whether they go all round
+    (the last beam is then the first's neighbour)."""
+    angles = np.asarray(angles, dtype=float)
+    step = float(angles[1] - angles[0]) if len(angles) > 1 else 2.0 * math.pi
+    return float(angles[0]), step, len(angles) * step >= 2.0 * math.pi - 0.5 * step
+
+
+def passed_through(points: np.ndarray, ranges: np.ndarray, angles: np.ndarray,
+                   mount: np.ndarray, pose: np.ndarray, cell_m: float) -> np.ndarray:
+    """Which ``points`` (M, 2), odom frame, a beam of the scan ``ranges`` (beam ``angles``,
+    the laser at ``mount`` in base_link) taken at ``pose`` passes through (module
+    docstring)."""
+    m00, m01, m03, m10, m11, m13 = mount_frame(mount)
+    first, step, round_ = beam_layout(angles)
+    beam_cos, beam_sin = np.cos(angles), np.sin(angles)
+    c, s = np.cos(pose[2]), np.sin(pose[2])
+    dx, dy = points[:, 0] - pose[0], points[:, 1] - pose[1]
+    bx = c * dx + s * dy - m03
+    by = -s * dx + c * dy - m13
+    lx = m00 * bx + m10 * by
+    ly = m01 * bx + m11 * by
+    j = np.rint((np.arctan2(ly, lx) - first) / step).astype(np.int64)
+    beams = len(ranges)
+    seen = np.ones(len(j), dtype=bool) if round_ else (j >= 0) & (j < beams)
+    j = j % beams
+    r = ranges[j]
+    along = lx * beam_cos[j] + ly * beam_sin[j]
+    across = ly * beam_cos[j] - lx * beam_sin[j]
+    return seen & np.isfinite(r) & (along < r - cell_m) & (np.abs(across) < 0.5 * cell_m)
+
+
+def mount_frame(mount: np.ndarray) -> np.ndarray:
+    """The laser mount's 2D terms (m00, m01, m03, m10, m11, m13) of its 4 x 4 pose."""
+    return np.array([mount[0, 0], mount[0, 1], mount[0, 3], mount[1, 0], mount[1, 1],
+                     mount[1, 3]], dtype=float)
+
+
 def pad(arrays: Sequence[np.ndarray]) -> np.ndarray:
     """(N, max K, 2) of N (K_i, 2) arrays, padded with points ``FAR_M`` away."""
     size = max(1, max(len(a) for a in arrays))
@@ -102,6 +144,15 @@ class ObstacleMemory:
         self.points = np.concatenate([self.points, points[first[~known]]])[order][keep]
         self.seen = fresh[keep]
 
+    def clear_through(self, ranges: np.ndarray, angles: np.ndarray, mount: np.ndarray,
+                      pose: np.ndarray) -> None:
+        """Forget the marked cells the beams of a scan taken at ``pose`` (odom) pass through
+        (``passed_through``)."""
+        if len(self.keys):
+            keep = ~passed_through(self.points, np.asarray(ranges, dtype=float), angles, mount,
+                                   pose, self.cell_m)
+            self.keys, self.points, self.seen = self.keys[keep], self.points[keep], self.seen[keep]
+
     def near(self, pose: np.ndarray, reach_m: float) -> np.ndarray:
         """The marked points within ``reach_m`` of ``pose`` (x, y, theta), in its base frame."""
         points = to_base(self.points, pose)
@@ -110,12 +161,14 @@ class ObstacleMemory:
 
 class ObstacleLayers:
     """N robots' obstacle layers: ``clear(i)`` when robot i starts again, then per step
-    ``update(slots, ranges, poses, ...)``, which marks each listed robot's scan and returns
-    the points near it (padded, with their counts) as ``ObstacleMemory`` does."""
+    ``update(slots, ranges, poses, ...)``, which clears what each listed robot's scan passes
+    through (``clearing``), marks the scan and returns the points near it (padded, with their
+    counts) as ``ObstacleMemory`` does."""
 
     def __init__(self, num: int, scans: int = SCANS, cell_m: float = CELL_M,
-                 compiled: bool | None = None) -> None:
+                 compiled: bool | None = None, clearing: bool = True) -> None:
         self.scans, self.cell_m = scans, cell_m
+        self.clearing = clearing
         self.compiled = COMPILED if compiled is None else compiled
         if self.compiled and not COMPILED:
             raise RuntimeError('the compiled obstacle layers need numba: pip install '
@@ -144,14 +197,17 @@ class ObstacleLayers:
     def update(self, slots: Sequence[int], ranges: np.ndarray, angles: np.ndarray,
                mount: np.ndarray, poses: np.ndarray, reach_m: float
                ) -> tuple[np.ndarray, np.ndarray]:
-        """Mark the scans ``ranges`` (K, B) of robots ``slots`` (beam ``angles``, the laser at
-        ``mount`` in base_link) taken at ``poses`` (K, 3) in odom; the points of each within
-        ``reach_m`` in its base frame, ``(K, max P, 2)`` padded ``FAR_M`` away, and P (K,)."""
+        """Clear (``clearing``) and mark with the scans ``ranges`` (K, B) of robots ``slots``
+        (beam ``angles``, the laser at ``mount`` in base_link) taken at ``poses`` (K, 3) in
+        odom; the points of each within ``reach_m`` in its base frame, ``(K, max P, 2)``
+        padded ``FAR_M`` away, and P (K,)."""
         poses = np.asarray(poses, dtype=float)
         if not self.compiled:
             near = []
             for k, i in enumerate(slots):
                 memory = self.memories[i]
+                if self.clearing:
+                    memory.clear_through(ranges[k], angles, mount, poses[k])
                 memory.add(to_odom(scan_points(ranges[k], angles, mount), poses[k]))
                 near.append(memory.near(poses[k], reach_m))
             return pad(near), np.array([len(p) for p in near], dtype=np.int64)
@@ -161,15 +217,16 @@ class ObstacleLayers:
         if len(slots) and int(self.size[slots].max()) + beams > self.keys.shape[1]:
             self._grow(len(self.size), 2 * (int(self.size.max()) + beams))
         cos, sin = np.cos(poses[:, 2]), np.sin(poses[:, 2])
-        frame = np.array([mount[0, 0], mount[0, 1], mount[0, 3], mount[1, 0], mount[1, 1],
-                          mount[1, 3]], dtype=float)
+        frame = mount_frame(mount)
+        first, step, round_ = beam_layout(angles)
         width = max(1, int(self.size[slots].max(initial=0)) + beams)
         if self._near.shape[0] < len(slots) or self._near.shape[1] < width:
             self._near = np.empty((max(len(slots), self._near.shape[0]), 2 * width, 2))
         counts = np.zeros(len(slots), dtype=np.int64)
         _compiled_update(slots, ranges, np.cos(angles), np.sin(angles), frame, poses, cos, sin,
                          self.keys, self.points, self.seen, self.size, self.count,
-                         self.scans, self.cell_m, reach_m, self._near, counts)
+                         self.scans, self.cell_m, reach_m, self._near, counts,
+                         self.clearing, first, step, round_)
         near = self._near[:len(slots), :max(1, int(counts.max(initial=0)))].copy()
         near[np.arange(near.shape[1]) >= counts[:, None]] = FAR_M
         return near, counts
@@ -182,8 +239,10 @@ class ObstacleLayers:
 
 
 def _update_loops(slots, ranges, beam_cos, beam_sin, frame, poses, cos, sin, keys, points,
-                  seen, size, count, scans, cell_m, reach, near, counts):
-    """``ObstacleMemory.add`` then ``near`` for each robot of ``slots`` (see ``update``)."""
+                  seen, size, count, scans, cell_m, reach, near, counts, clearing, first, step,
+                  round_):
+    """``ObstacleMemory.clear_through`` (with ``clearing``), ``add`` and ``near`` for each
+    robot of ``slots`` (see ``update``)."""
     b = ranges.shape[1]
     m00, m01, m03, m10, m11, m13 = frame[0], frame[1], frame[2], frame[3], frame[4], frame[5]
     new_x = np.empty(b)
@@ -198,6 +257,27 @@ def _update_loops(slots, ranges, beam_cos, beam_sin, frame, poses, cos, sin, key
         count[i] += 1
         now = count[i]
         px, py, c, s = poses[k, 0], poses[k, 1], cos[k], sin[k]
+        if clearing:  # passed_through, the kept cells moved up in place
+            kept = 0
+            for e in range(size[i]):
+                dx, dy = points[i, e, 0] - px, points[i, e, 1] - py
+                bx = c * dx + s * dy - m03
+                by = -s * dx + c * dy - m13
+                lx = m00 * bx + m10 * by
+                ly = m01 * bx + m11 * by
+                j = np.int64(np.rint((math.atan2(ly, lx) - first) / step))
+                through = round_ or (j >= 0 and j < b)
+                j = j % b
+                r = ranges[k, j]
+                along = lx * beam_cos[j] + ly * beam_sin[j]
+                across = ly * beam_cos[j] - lx * beam_sin[j]
+                if (through and math.isfinite(r) and along < r - cell_m
+                        and abs(across) < 0.5 * cell_m):
+                    continue
+                keys[i, kept], seen[i, kept] = keys[i, e], seen[i, e]
+                points[i, kept, 0], points[i, kept, 1] = points[i, e, 0], points[i, e, 1]
+                kept += 1
+            size[i] = kept
         # the scan's returns in odom (scan_points, to_odom) and their cells
         q = 0
         for j in range(b):

@@ -66,6 +66,12 @@ def to_base(points: np.ndarray, pose: np.ndarray) -> np.ndarray:
     return np.stack([c * d[..., 0] + s * d[..., 1], -s * d[..., 0] + c * d[..., 1]], -1)
 
 
+def mount_frame(mount: np.ndarray) -> np.ndarray:
+    """The laser mount's 2D terms (m00, m01, m03, m10, m11, m13) of its 4 x 4 pose."""
+    return np.array([mount[0, 0], mount[0, 1], mount[0, 3], mount[1, 0], mount[1, 1],
+                     mount[1, 3]], dtype=float)
+
+
 def beam_layout(angles: np.ndarray) -> tuple[float, float, bool]:
     """The first beam's angle, the step between beams (rad), and whether they go all round
     (the last beam is then the first's neighbour)."""
@@ -96,12 +102,6 @@ def passed_through(points: np.ndarray, ranges: np.ndarray, angles: np.ndarray,
     along = lx * beam_cos[j] + ly * beam_sin[j]
     across = ly * beam_cos[j] - lx * beam_sin[j]
     return seen & np.isfinite(r) & (along < r - cell_m) & (np.abs(across) < 0.5 * cell_m)
-
-
-def mount_frame(mount: np.ndarray) -> np.ndarray:
-    """The laser mount's 2D terms (m00, m01, m03, m10, m11, m13) of its 4 x 4 pose."""
-    return np.array([mount[0, 0], mount[0, 1], mount[0, 3], mount[1, 0], mount[1, 1],
-                     mount[1, 3]], dtype=float)
 
 
 def pad(arrays: Sequence[np.ndarray]) -> np.ndarray:

@@ -193,9 +193,8 @@ def _env_kwargs(args: argparse.Namespace, trained_with: dict[str, Any]) -> dict[
     over them, and the world file."""
     kept = {k: v for k, v in trained_with.items() if k not in NOT_FROM_POLICY}
     given = dict(args.env_kwargs)
-    for key in ("engine", "world_file"):
+    for key, option in (("engine", "--engine"), ("world_file", "--world-file")):
         if key in given:
-            option = "--engine" if key == "engine" else "--world-file"
             raise EnvSetupError(f"--env-kwargs: {key} is set by {option}, not here")
     return {**on_engine(kept, args.engine or DEFAULT_ENGINE), **given,
             "world_file": args.world_file}

@@ -66,8 +66,7 @@ def plot_runs(records: Sequence[RunRecord], worlds: Any, scale: float, path: Pat
     from smartcar_gym.worlds.barn import GOAL_XY, to_car_frame
 
     kept = [r for r in records if r.trajectory is not None]
-    plotted = {r.world for r in kept}
-    missing = sorted(plotted - set(global_paths or {}))
+    missing = sorted({r.world for r in kept} - set(global_paths or {}))
     if global_paths is not None and missing:
         raise ValueError(f"plot_runs: no global path for world(s) {missing}")
     fig, axes = plt.subplots(1, max(1, len(kept)), figsize=(3.2 * max(1, len(kept)), 2.1),

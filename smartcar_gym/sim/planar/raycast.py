@@ -135,8 +135,6 @@ def _cast_blocks(origins: np.ndarray, beams: np.ndarray, reach: np.ndarray,
         np.minimum.at(flat_shape, ray[won], pair[won] - car[won] * m)  # ties: the lower index
 
 
-
-
 def _pair_table(origins: np.ndarray, shapes: Shapes2D,
                 reach: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per (car, shape), what the exact tests need (``(10, N * M)``: the shape's (cos, sin),

@@ -8,6 +8,7 @@ millisecond both emulations get the same calls and every number of their state i
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -20,6 +21,7 @@ from smartcar_gym.controller._cint import c_div as c_div1
 from smartcar_gym.controller._cint import wrap_int16 as wrap16
 from smartcar_gym.controller._cint import wrap_int32 as wrap32
 from smartcar_gym.controller.batched import BatchedArbotix, c_div, wrap_int16, wrap_int32
+from smartcar_gym.controller.encoder_faults import FaultyEncoder
 
 
 class FakeDrive:
@@ -84,14 +86,41 @@ def assert_same(bases: list[ArbotixBase], drives: list[FakeDrive], batch: Batche
         assert batch.commanded_twist()[1][i] == base.commanded_twist[1]
 
 
-def run_both(seed: int, n: int, mode: str, duration_ms: int) -> None:
+def faulty_pair(rng: np.random.Generator, radius: float, ticks_meter: float,
+                seed: int) -> tuple[FaultyEncoder, FaultyEncoder]:
+    """``Variation.encoders``' pair: off scale, jittered and slipping, one generator."""
+    noise, slip = float(rng.choice([0.0, 1.5])), float(rng.choice([0.0, 0.02]))
+    scales = rng.uniform(0.9, 1.1, 2)
+    shared = np.random.default_rng(seed)
+    return tuple(FaultyEncoder(radius, ticks_meter, float(k), noise, slip, shared)
+                 for k in scales)
+
+
+def run_both(seed: int, n: int, mode: str, duration_ms: int, vary: bool = False) -> None:
+    """``vary``: the batch is made with other configs, and ``vary`` gives half the cars
+    their own (track, motor) and faulty encoders, the scalar bases the same."""
     rng = np.random.default_rng(seed)
     configs = [random_config(rng) for _ in range(n)]
     radius = rng.uniform(0.01, 0.2, n)
     drives = [FakeDrive() for _ in range(n)]
     bases = [ArbotixBase(c, mode, float(r), drive=d)
              for c, r, d in zip(configs, radius, drives, strict=True)]
-    batch = BatchedArbotix(configs, mode, radius)
+    if not vary:
+        batch = BatchedArbotix(configs, mode, radius)
+    else:
+        made = [dataclasses.replace(c, base_width_m=c.base_width_m * 1.3, motor=MotorConfig())
+                for c in configs]
+        batch = BatchedArbotix(made, mode, radius)
+        for i in range(0, n, 2):
+            pair_seed = int(rng.integers(2**31))
+            state = rng.bit_generator.state
+            bases[i].encoders = faulty_pair(rng, float(radius[i]), configs[i].ticks_meter,
+                                             pair_seed)
+            rng.bit_generator.state = state  # the same pair again, for the batch
+            batch.vary(i, configs[i], faulty_pair(rng, float(radius[i]),
+                                                  configs[i].ticks_meter, pair_seed))
+        for i in range(1, n, 2):
+            batch.vary(i, configs[i])
     angles = rng.uniform(-1e3, 1e3, (n, 2))
     period_ns = np.array([round(1e9 / c.rate_hz) for c in configs])
     next_ns = period_ns.copy()
@@ -163,6 +192,24 @@ def test_hardware_mode_matches_the_scalar_emulation_every_frame(path, seed):
 def test_hardware_mode_matches_every_frame_on_both_paths(path, seed):
     """Fixed seeds on every run (the hypothesis test above is marked slow)."""
     run_both(seed, n=5, mode="hardware", duration_ms=400)
+
+
+@pytest.mark.parametrize("seed", [5, 23])
+def test_varied_cars_match_the_scalar_emulation_every_frame(path, seed):
+    """``vary``: a car's own track, motor and faulty encoders (scale, jitter, slip drawn from
+    its generator) are the scalar base's with them, on either path (the batch counts faulty
+    encoders with numpy's arithmetic)."""
+    run_both(seed, n=5, mode="hardware", duration_ms=400, vary=True)
+
+
+def test_vary_refuses_what_a_variation_does_not_change():
+    config = ArbotixConfig(ticks_meter=4100.0, base_width_m=0.2)
+    batch = BatchedArbotix(config, "hardware", 0.03, num_cars=2)
+    with pytest.raises(ValueError, match=r"^car 1: a varied config may change the track and "
+                                         r"motor only, not ticks_meter, max_accel, gains"):
+        batch.vary(1, dataclasses.replace(config, ticks_meter=config.ticks_meter * 2, kp=7))
+    batch.vary(1, dataclasses.replace(config, base_width_m=0.5))
+    assert batch.base_width.tolist() == [config.base_width_m, 0.5] and not batch.faulty
 
 
 @settings(max_examples=4, deadline=None)

@@ -168,8 +168,7 @@ def test_nav_batch_follows_gymnasium_conventions():
 
 
 def test_what_the_nav_batch_cannot_run_falls_back_to_the_loop():
-    for kwargs in ({"randomize": "default"}, {"controller_mode": "sim"},
-                   {"render_mode": "rgb_array"}):
+    for kwargs in ({"controller_mode": "sim"}, {"render_mode": "rgb_array"}):
         envs = make(2, **kwargs)
         assert isinstance(envs, SmartCarLoopVectorEnv), kwargs
         envs.close()

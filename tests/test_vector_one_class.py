@@ -128,5 +128,6 @@ def test_the_old_names_make_the_one_class_with_their_id_and_engine(name, env_id,
             envs.step(np.zeros((2, 2)))
     finally:
         envs.close()
-    with pytest.raises(ValueError, match=rf"^{name} cannot run randomize"):
-        getattr(vector, name)(num_envs=2, randomize="default")
+    if env_id != "SmartCarNav-v0":  # Nav's batch varies each car as its builder draws it
+        with pytest.raises(ValueError, match=rf"^{name} cannot run randomize"):
+            getattr(vector, name)(num_envs=2, randomize="default")

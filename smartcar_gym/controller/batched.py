@@ -7,10 +7,12 @@ the board's ``int``/``long`` as int64 wrapped to 16/32 bits with truncating divi
 AVR. ``tests/test_controller_batched.py`` drives random configurations with random commands and
 encoder streams through both and compares every frame.
 
-Each car may have its own ``ArbotixConfig`` (domain randomisation). Times are per car too (cars
-reset at different instants). Not batched: ``FaultyEncoder`` noise and ``CommandDelay`` latency
-(a batch built from a ``Variation`` with either is refused), and the failed encoder read of
-``DiffController.update(encoders=None)``.
+Each car may have its own ``ArbotixConfig`` (domain randomisation: ``vary`` gives a car the
+track, motor and encoders of a ``Variation``). Times are per car too (cars reset at different
+instants). A car's ``FaultyEncoder`` s (off scale, noise, slip) count in Python, the scalar
+class itself, so their generators draw as the single robot's; the batch then runs numpy's
+arithmetic, not the compiled loop. Not here: ``CommandDelay`` latency (the robot's, kept per
+car by the batched env) and the failed encoder read of ``DiffController.update(encoders=None)``.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ from smartcar_gym.controller import columns, compiled
 from smartcar_gym.controller.board import BOOT_GAINS, MAX_OUTPUT
 from smartcar_gym.controller.config import ArbotixConfig
 from smartcar_gym.controller.diff_controller import FRAMES_PER_S, HARDWARE, KINEMATIC, MODES, Mode
+from smartcar_gym.controller.encoder import WheelEncoder
 from smartcar_gym.controller.motor import MAX_PWM
 
 _I32 = 0x8000_0000
@@ -125,15 +128,15 @@ class BatchedArbotix:
         self._views()
         # the configuration, per car
         self.ticks_meter[:] = ticks_meter
-        self.base_width[:] = col(lambda c: c.base_width_m)
         self.timeout_ns[:] = seconds_to_ns(col(lambda c: c.timeout_s))
         self.max_accel[:] = col(lambda c: c.max_accel, np.int64)
         self.frame_ms[:] = col(lambda c: c.frame_ms, np.int64)
         self.gains[:] = np.array([c.gains for c in configs], dtype=np.int64)  # (N, 4)
-        self.stall[:] = col(lambda c: c.motor.stall_torque_nm)
-        self.back_emf[:] = col(lambda c: c.motor.stall_torque_nm / c.motor.no_load_speed_rad_s)
-        self.coast[:] = col(lambda c: c.motor.pwm_zero == "coast", bool)
+        for i, c in enumerate(configs):
+            self._set_plant(i, c)
         self.wheel_radius[:] = radius
+        #: per car with encoders that do not count exactly: its (left, right) encoders
+        self.faulty: dict[int, tuple[WheelEncoder, WheelEncoder]] = {}
         # the board boots with its own gains (until the driver's setup packet)
         self.board_gains[:] = BOOT_GAINS
         self.ready[:] = self.mode == KINEMATIC
@@ -164,6 +167,46 @@ class BatchedArbotix:
         self.__dict__.update(state)
         self._views()
 
+    def _set_plant(self, i: int, c: ArbotixConfig) -> None:
+        """Car ``i``'s track and motor from ``c``."""
+        self.base_width[i] = c.base_width_m
+        self.stall[i] = c.motor.stall_torque_nm
+        self.back_emf[i] = c.motor.stall_torque_nm / c.motor.no_load_speed_rad_s
+        self.coast[i] = c.motor.pwm_zero == "coast"
+
+    def vary(self, car: int, config: ArbotixConfig,
+             encoders: tuple[WheelEncoder, WheelEncoder] | None = None) -> None:
+        """Car ``car`` becomes a robot's base after ``SmartCarRobot.vary``: its ``config``
+        (``Variation.config``: the track and the true motor; the rest must be the batch's),
+        and its (left, right) ``encoders`` (``Variation.encoders``, taken as they are: their
+        generators go on drawing here) or None for exact ones. Takes effect at the car's next
+        ``reset``."""
+        old = self.configs[car]
+        same = ("ticks_meter", "timeout_s", "max_accel", "frame_ms", "gains")
+        changed = [k for k in same if getattr(config, k) != getattr(old, k)]
+        if changed:
+            raise ValueError(f"car {car}: a varied config may change the track and motor "
+                             f"only, not {', '.join(changed)}")
+        self.configs[car] = config
+        self._set_plant(car, config)
+        if encoders is None:
+            self.faulty.pop(car, None)
+        else:
+            self.faulty[car] = encoders
+
+    def _faulty_in(self, m: np.ndarray | slice) -> list[int]:
+        """The cars with faulty encoders that ``m`` (a mask or every car) selects."""
+        if not self.faulty:
+            return []
+        if isinstance(m, slice):
+            return sorted(self.faulty)
+        return [i for i in sorted(self.faulty) if m[i]]
+
+    @property
+    def _compiled(self) -> bool:
+        """Whether the compiled loops run this batch (none count faulty encoders)."""
+        return compiled.COMPILED and not self.faulty
+
     # -- lifecycle -----------------------------------------------------------------------------
     def reset(self, now_s: np.ndarray | float = 0.0, angles: np.ndarray | None = None,
               mask: np.ndarray | None = None) -> None:
@@ -188,6 +231,10 @@ class BatchedArbotix:
                 zero = zero - self.encoder_phase_ticks / (
                     self.wheel_radius[m, None] * self.ticks_meter[m, None])
             self.zero_angle[m] = zero
+            for i in self._faulty_in(m):  # ArbotixBase.reset's encoder resets
+                for side in (0, 1):
+                    self.faulty[i][side].reset(float(angles[i][side]),
+                                               self.encoder_phase_ticks)
             self.board_gains[m] = self.gains[m]
             self._set_motors(m, np.zeros((self.n, 2), dtype=np.int64))
         self.ready[m] = True
@@ -216,7 +263,7 @@ class BatchedArbotix:
                mask: np.ndarray | None = None) -> None:
         """One controller firing of the masked cars (``ArbotixBase.update``): odometry, timeout,
         ramp and (hardware) the write to the board; ``angles`` (N, 2) in hardware mode."""
-        if compiled.COMPILED and self.mode == HARDWARE and angles is not None:
+        if self._compiled and self.mode == HARDWARE and angles is not None:
             compiled.update(self, now_s, angles, mask)
             return
         m = _sel(mask)
@@ -295,7 +342,7 @@ class BatchedArbotix:
         """``ArbotixBase.board_tick`` of the masked cars; returns which cars ran a frame."""
         if self.mode == KINEMATIC:
             return np.zeros(self.n, dtype=bool)
-        if compiled.COMPILED and angles is not None:
+        if self._compiled and angles is not None:
             return compiled.board_tick(self, now_s, angles, mask)
         now_ms = np.broadcast_to(board_millis(now_s), (self.n,))
         m = _all(mask, self.n) & self.moving & self.pid_mode & (now_ms > self.f_time)
@@ -354,6 +401,9 @@ class BatchedArbotix:
         if not np.all(np.isfinite(travel)):
             raise ValueError("a wheel angle gives no encoder count (not finite)")
         self.ticks[m] = wrap_int32(np.floor(travel).astype(np.int64))
+        for i in self._faulty_in(m):  # ArbotixBase._read_encoders: left, then right
+            left, right = self.faulty[i]
+            self.ticks[i] = (left.count(float(angles[i][0])), right.count(float(angles[i][1])))
         return self.ticks
 
     def _apply_pwm(self, m: np.ndarray) -> None:

@@ -141,9 +141,8 @@ class SmartCarNavEnv(SmartCarEnv):
     with ``engine="mujoco"`` or ``"planar"``, N cars in one ``SmartCarBatchVectorEnv`` with the
     Nav part (each car's world built at its reset as here, then its physics, laser and
     clearance stepped by the engine's car batch: in C on MuJoCo, against each car's obstacle
-    outlines in arrays on planar; bit for bit N of this env); on pybullet, or with
-    ``randomize``, a
-    ``render_mode`` or
+    outlines in arrays on planar; bit for bit N of this env, ``randomize`` too: each car
+    the robot its episode draws); on pybullet, or with a ``render_mode`` or
     ``controller_mode="sim"``, N single envs stepped in a loop (``SmartCarLoopVectorEnv``);
     both with the smartcar vector conventions (docs/vector.md).
 

@@ -24,7 +24,7 @@ from smartcar_gym.controller import (
     load_controller_config,
 )
 from smartcar_gym.envs.observation import Entry, Observation, Readings
-from smartcar_gym.envs.randomization import Randomization
+from smartcar_gym.envs.randomization import Draw, Randomization
 from smartcar_gym.envs.robots.entries import robot_entries
 from smartcar_gym.envs.robots.smartcar import Pose2D, SmartCarRobot
 from smartcar_gym.envs.tasks.reach import GoalReachingTask
@@ -216,8 +216,8 @@ class SmartCarEnv(gym.Env):
     within 1e-6 rad), SmartCar-v0, SmartCarNav-v0 and SmartCarGoal-v0 on an engine with a car
     batch (``SmartCarBatchVectorEnv``, bit for bit N single envs, infos included: MuJoCo's
     worlds in C, the planar engine's cars in arrays, differential-drive robots too on
-    planar), on pybullet or with what the batches lack
-    (``randomize``, ``stop_speed``, the GUI, a differential-drive ``model`` on MuJoCo) as N
+    planar; ``randomize`` on the Nav and BARN ids), on pybullet or with what the batches lack
+    (``randomize`` here, ``stop_speed``, the GUI, a differential-drive ``model`` on MuJoCo) as N
     single envs in a loop (``SmartCarLoopVectorEnv``). Gymnasium 1.x autoreset
     (``"NextStep"``, or ``autoreset_mode="SameStep"``), car i seeded ``s + i``,
     ``info["is_success"]`` per car.
@@ -279,7 +279,8 @@ class SmartCarEnv(gym.Env):
         self.render_mode = render_mode
         self.wheel_contact = check_wheel_contact(wheel_contact)
         self.randomization = Randomization.from_spec(randomize)
-        self._draw = None
+        #: this episode's draw of ``randomize`` (None: the nominal robot)
+        self.draw: Draw | None = None
         self.max_linear = checks.positive_number("max_linear", max_linear)
         self.max_angular = checks.positive_number("max_angular", max_angular)
         half = checks.positive_number("arena_size", arena_size) / 2.0
@@ -433,8 +434,8 @@ class SmartCarEnv(gym.Env):
                 self.sim.reset()
                 start = (0.0, 0.0, 0.0)
                 if self.randomization is not None:
-                    self._draw = self.randomization.apply(self.np_random, self.sim, self.robot)
-                    start = self._draw.start_pose
+                    self.draw = self.randomization.apply(self.np_random, self.sim, self.robot)
+                    start = self.draw.start_pose
                 self.robot.spawn(*start)
                 self.goal = goal
                 self._build_world()
@@ -611,8 +612,8 @@ class SmartCarEnv(gym.Env):
             # numpy (np.hypot and math.hypot differ in the last bit; vector/exact.py)
             "odom_error": math.sqrt(dx * dx + dy * dy),
         }
-        if self._draw is not None:
-            info["randomization"] = self._draw.info
+        if self.draw is not None:
+            info["randomization"] = self.draw.info
         return info
 
 

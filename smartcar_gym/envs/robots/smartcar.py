@@ -178,6 +178,11 @@ class SmartCarRobot:
                            encoder_phase_ticks=self.encoder_phase_ticks)
 
     @property
+    def command_delay(self) -> CommandDelay | None:
+        """The line ``cmd_vel`` waits in (``Variation.latency``; None: no latency)."""
+        return self._delay
+
+    @property
     def wheel_joint_indices(self) -> list[int]:
         """The simulator's joint indices of ``wheels`` (after ``spawn``)."""
         return self._wheel_idx

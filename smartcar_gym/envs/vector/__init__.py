@@ -4,10 +4,11 @@
 the entry point of ``env_id`` here. SmartCarSim-v0 (kinematic, no engine) is batched in numpy
 arrays (``SmartCarSimVectorEnv``); SmartCar-v0, SmartCarNav-v0 and SmartCarGoal-v0 on an
 engine with a car batch (MuJoCo: worlds stepped in C; planar: arrays; any engine registered
-with ``car_batch``) are ``SmartCarBatchVectorEnv``, one class given the id's task parts; the
-pybullet ids, and the options only a single env's world has (``randomize``, the GUI, ...),
-step N single envs in a loop (``SmartCarLoopVectorEnv``). All follow the same conventions
-(docs/vector.md). The names of the batched classes before they were one
+with ``car_batch``) are ``SmartCarBatchVectorEnv``, one class given the id's task parts
+(``randomize`` too on the Nav and BARN ids, whose cars are built by a single env); the
+pybullet ids, and the options only a single env's world has (the GUI, ``randomize`` on the
+others, ...), step N single envs in a loop (``SmartCarLoopVectorEnv``). All follow the same
+conventions (docs/vector.md). The names of the batched classes before they were one
 (``SmartCarMujocoVectorEnv``, ...) still make them (``aliases``).
 """
 

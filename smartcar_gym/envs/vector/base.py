@@ -243,6 +243,12 @@ class CarsVectorEnv(gym.vector.VectorEnv):
     def _info(self, mask: np.ndarray, success: np.ndarray) -> dict[str, Any]:
         values = self._info_values(success)
         if not mask.all():
-            values = {k: np.where(mask.reshape(-1, *([1] * (v.ndim - 1))), v,
-                                  np.zeros_like(v)) for k, v in values.items()}
+            values = _masked(values, mask)
         return vector_info(values, mask)
+
+
+def _masked(values: dict[str, Any], mask: np.ndarray) -> dict[str, Any]:
+    """``values`` (arrays over cars, or dicts of them) with the unmasked cars' zeroed."""
+    return {k: _masked(v, mask) if isinstance(v, dict)
+            else np.where(mask.reshape(-1, *([1] * (v.ndim - 1))), v, np.zeros_like(v))
+            for k, v in values.items()}

@@ -16,6 +16,7 @@ from gymnasium.vector import AutoresetMode
 
 from smartcar_gym.controller import HARDWARE
 from smartcar_gym.controller.batched import BatchedArbotix
+from smartcar_gym.controller.latency import CommandDelay
 from smartcar_gym.envs.smartcar_env import SmartCarEnv
 from smartcar_gym.envs.vector import barn_part  # noqa: F401  (adds SmartCarBARN-v0's parts)
 from smartcar_gym.envs.vector.base import CarsVectorEnv
@@ -61,9 +62,13 @@ class SmartCarBatchVectorEnv(CarsVectorEnv):
     engine=..., **kwargs)`` with the single env's kwargs, plus ``max_episode_steps``,
     ``autoreset_mode`` and ``num_threads`` (worker threads stepping the physics where the
     engine uses them, an integer >= 1; default ``os.cpu_count()``). What no batch runs
-    (``randomize``, ``render_mode="human"``, ``controller_mode="sim"``, ``stop_speed``; any
-    ``render_mode`` on Nav) and differential-drive models on an engine whose batch does not
-    take them (``batches_differential``) fall back to ``SmartCarLoopVectorEnv``.
+    (``render_mode="human"``, ``controller_mode="sim"``, ``stop_speed``; any ``render_mode``
+    on Nav; ``randomize`` on the ids without a part that keeps a single env to build each
+    car's episode) and differential-drive models on an engine whose batch does not take them
+    (``batches_differential``) fall back to ``SmartCarLoopVectorEnv``. With ``randomize``
+    (Nav, BARN) each car's robot is the builder's draw for its episode (``take_robot``: the
+    body through ``CarBatch.load``, the board's track, motor and faulty encoders, the
+    command latency), and ``info["randomization"]`` is every car's draw.
 
     ## Conventions
 
@@ -130,7 +135,14 @@ class SmartCarBatchVectorEnv(CarsVectorEnv):
         if get_engine(name).car_batch is None:
             return f"engine={name!r}: it has no car batch (Engine.car_batch)"
         why = batch_limits(kwargs)
-        for part in TASKS[env_id][1]:
+        parts = TASKS[env_id][1]
+        if why is None and kwargs.get("randomize") is not None \
+                and not any(p.keeps_single for p in parts):
+            batched = ", ".join(i for i, (_, ps) in TASKS.items()
+                                if any(p.keeps_single for p in ps))
+            why = (f"randomize (domain randomisation) on {env_id}: the batch varies a car as "
+                   f"the single env that builds its episode draws it ({batched})")
+        for part in parts:
             why = why or part.limits(kwargs)
         return why
 
@@ -154,6 +166,10 @@ class SmartCarBatchVectorEnv(CarsVectorEnv):
         self._wheels = np.zeros((n, wheels))
         self._wheel_speed = np.zeros((n, wheels))
         self._parked = np.zeros(n, dtype=bool)
+        #: per car whose robot delays its commands (``randomize``'s latency): the delay
+        self._delays: dict[int, CommandDelay] = {}
+        #: per car, its robot's draw (``info["randomization"]``; None: not varied)
+        self._draws: list[dict[str, float | int] | None] = [None] * n
         for part in self.parts:
             part.attach(self, s)
         self._sensors = tuple(p for p in self.parts if p.senses)
@@ -233,6 +249,46 @@ class SmartCarBatchVectorEnv(CarsVectorEnv):
         for part in self.parts:
             part.after_reset(self, mask, idx)
 
+    def take_robot(self, i: int, single: SmartCarEnv) -> None:
+        """Car ``i``'s robot becomes ``single``'s, just reset for the car's episode (the
+        builder's): where that robot varies (``randomize``), its controller's track, motor and
+        encoders (``BatchedArbotix.vary``), its command latency and its draw; the engine's
+        ``CarBatch.load`` takes its body."""
+        robot = single.robot
+        self._draws[i] = None if single.draw is None else single.draw.info
+        encoders = robot.base.encoders
+        exact = all(getattr(e, "scale", 1.0) == 1.0 and not getattr(e, "noise_ticks", 0.0)
+                    and not getattr(e, "slip", 0.0) for e in encoders)
+        self.base.vary(i, robot.config, None if exact else encoders)
+        if robot.command_delay is None:
+            self._delays.pop(i, None)
+        else:
+            self._delays[i] = robot.command_delay
+
+    def _command(self, lx: np.ndarray, az: np.ndarray) -> None:
+        """Every car's ``cmd_vel`` now (``SmartCarRobot.cmd_vel``): a delayed car's into its
+        line, the others' to the boards."""
+        now_s = self._now / NS_PER_S
+        if not self._delays:
+            self.base.cmd_vel(lx, az, now_s)
+            return
+        direct = np.ones(self.num_envs, dtype=bool)
+        for i, delay in self._delays.items():
+            delay.publish(float(lx[i]), float(az[i]), int(self._now[i]))
+            direct[i] = False
+        self.base.cmd_vel(lx, az, now_s, direct)
+
+    def _deliver(self, updated: np.ndarray, now_s: np.ndarray) -> None:
+        """The delayed commands that arrive at the updates just run (``on_event``)."""
+        for i in np.flatnonzero(updated).tolist():
+            delay = self._delays.get(i)
+            if delay is None:
+                continue
+            for linear_x, angular_z in delay.arrivals(int(self._now[i])):
+                one = np.zeros(self.num_envs, dtype=bool)
+                one[i] = True
+                self.base.cmd_vel(linear_x, angular_z, now_s, one)
+
     # -- the model -----------------------------------------------------------------------------
     def _read_pose(self) -> None:
         """Every car's ground-truth x, y, yaw (``_pose``) and up axis' z (``_up_z``)."""
@@ -257,6 +313,8 @@ class SmartCarBatchVectorEnv(CarsVectorEnv):
             update = firing & (now >= self._next_update)
             if update.any():
                 base.update(now_s, angles, update)
+                if self._delays:
+                    self._deliver(update, now_s)
                 self._next_update[update] += self.period_ns
             base.board_tick(now_s, angles, firing)
             cars.set_drive(firing, base.drive_torque, base.damping)
@@ -308,8 +366,7 @@ class SmartCarBatchVectorEnv(CarsVectorEnv):
         """One controller period for every car: SmartCarEnv.step's arithmetic, in arrays,
         then the task's score (each part's, in order)."""
         s = self.settings
-        self.base.cmd_vel(a[:, 0] * s.max_linear, a[:, 1] * s.max_angular,
-                          self._now / NS_PER_S)
+        self._command(a[:, 0] * s.max_linear, a[:, 1] * s.max_angular)
         self._run_period()
         self._steps += 1
         self._read_pose()
@@ -339,8 +396,12 @@ class SmartCarBatchVectorEnv(CarsVectorEnv):
     def _car_obs(self, obs: Any, i: int) -> Any:
         return self._observer.car_obs(obs, i)
 
-    def _info_values(self, success: np.ndarray) -> dict[str, np.ndarray]:
-        values: dict[str, np.ndarray] = {}
+    def _info_values(self, success: np.ndarray) -> dict[str, Any]:
+        values: dict[str, Any] = {}
         for part in self.parts:
             part.info_values(self, values, success)
+        draws = self._draws
+        if draws[0] is not None:  # randomize: every car's, by factor
+            values["randomization"] = {key: np.array([d[key] for d in draws])
+                                       for key in draws[0]}
         return values

@@ -141,20 +141,21 @@ def check_actions(actions: Any, num_envs: int) -> np.ndarray:
     return np.clip(arr, -1.0, 1.0)
 
 
-def vector_info(values: dict[str, np.ndarray], mask: np.ndarray) -> dict[str, Any]:
-    """A Gymnasium vector ``info``: each key's per-car array and its ``_key`` mask."""
+def vector_info(values: dict[str, Any], mask: np.ndarray) -> dict[str, Any]:
+    """A Gymnasium vector ``info``: each key's per-car array and its ``_key`` mask (a dict of
+    them, such as ``randomization``'s, as a vector info of its own)."""
     info: dict[str, Any] = {}
     for key, value in values.items():
-        info[key] = value
+        info[key] = vector_info(value, mask) if isinstance(value, dict) else value
         info[f"_{key}"] = mask.copy()
     return info
 
 
 def batch_limits(kwargs: dict[str, Any]) -> str | None:
     """What no physics batch runs of these single-env kwargs (None: nothing): the batched env
-    (``SmartCarBatchVectorEnv``, whatever its engine) falls back to the loop for them."""
-    if kwargs.get("randomize") is not None:
-        return "randomize (domain randomisation) builds a different car per episode"
+    (``SmartCarBatchVectorEnv``, whatever its engine) falls back to the loop for them.
+    ``randomize`` is the batch's to say: it runs where a single env builds each car's
+    episode (``TaskPart.keeps_single``)."""
     if kwargs.get("render_mode") == "human":
         return "render_mode='human' is a GUI"
     if kwargs.get("stop_speed") is not None:

@@ -208,8 +208,9 @@ class Navigation(TaskPart):
 
     Each episode's obstacles differ, so a car's reset builds its world as its single env
     does: the kept single env (``builder``) is reset with the car's own generator (goal,
-    obstacles, the laser's noise seed, the first scan at t = 0) and the car's slot becomes
-    that world (``CarBatch.load``). From there on nothing goes through a single env: the
+    obstacles, the laser's noise seed, the first scan at t = 0; with ``randomize`` the
+    robot's draw) and the car's slot becomes that world (``CarBatch.load``) with that robot
+    (``take_robot``). From there on nothing goes through a single env: the
     laser is an event source on each car's clock whose beams the engine casts
     (``CarBatch.cast``), the ranges (REP 117, noise from each car's generator) and scan
     sectors are ``SimulatedLaser.ranges`` and ``scan_sectors`` on arrays, and the clearance
@@ -279,6 +280,7 @@ class Navigation(TaskPart):
             self.clearance[i], self.collision[i] = info["clearance"], False
             self.obstacles[i] = b.obstacles
             env.cars.load(i, b)
+            env.take_robot(i, b)
             for part in env.parts:
                 part.from_builder(env, i, b)
 

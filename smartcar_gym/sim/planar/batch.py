@@ -45,8 +45,11 @@ class PlanarBatch:
         self.groups = model.groups
         self.ng = len(model.groups.members)
         self.contact_groups = np.array(model.contact_groups, dtype=np.int64)
-        self.com = model.com
-        self.height = body.height
+        #: each car's centre of mass in base_link's frame, x and y (m)
+        self.com_x = np.full(self.n, float(model.com[0]))
+        self.com_y = np.full(self.n, float(model.com[1]))
+        #: each car's base_link height above the ground (m)
+        self.height = np.full(self.n, float(body.height))
         self.initial = np.array(body.state, dtype=np.float64)
         self.state = _columns(self.initial, self.n)
         self.car = _columns(np.array(model.car, dtype=np.float64), self.n)
@@ -62,13 +65,18 @@ class PlanarBatch:
         self.state[:, idx] = new[:, None] if new.ndim == 1 else new
         self.drive[:, idx] = 0.0
 
-    def set_model(self, idx: Sequence[int] | np.ndarray, model: PlanarCar) -> None:
-        """Give the listed cars another car's parameters and contacts (same layout)."""
+    def set_model(self, idx: Sequence[int] | np.ndarray, model: PlanarCar,
+                  height: float | None = None) -> None:
+        """Give the listed cars another car's parameters, contacts and centre of mass (same
+        layout), and its base_link ``height`` where given (a body of other wheels)."""
         if len(model.contacts) != self.contacts.shape[0] or \
                 len(model.groups.members) != self.ng:
             raise ValueError("a car of the batch must have the template's contacts and groups")
         self.car[:, idx] = np.array(model.car)[:, None]
         self.contacts[:, :, idx] = np.array(model.contacts).reshape(-1, NC)[:, :, None]
+        self.com_x[idx], self.com_y[idx] = float(model.com[0]), float(model.com[1])
+        if height is not None:
+            self.height[idx] = float(height)
         self._rows = None
 
     def rows(self) -> tuple[np.ndarray, np.ndarray]:
@@ -135,7 +143,7 @@ class PlanarBatch:
         """Every car's base link x, y and yaw, with ``PlanarBody.link_pose`` and
         ``pose_from``'s arithmetic (the yaw through the quaternion, by ``math.atan2``)."""
         x, y, c, s = self.state[X], self.state[Y], self.state[COS], self.state[SIN]
-        cx, cy = self.com[0], self.com[1]
+        cx, cy = self.com_x, self.com_y
         px = x - (c * cx - s * cy)
         py = y - (s * cx + c * cy)
         qz, qw = yaw_quaternion_arrays(c, s)

@@ -18,6 +18,7 @@ import numpy as np
 from smartcar_gym.model.kinematics import quaternion_matrix
 from smartcar_gym.sim.planar.batch import PlanarBatch, yaw_quaternion_arrays
 from smartcar_gym.sim.planar.geometry import OBSTACLE_HEIGHT_M, Shapes2D, cast, clearance
+from smartcar_gym.sim.planar.projection import Footprint
 from smartcar_gym.sim.planar.world import footprint_of, obstacle_shapes
 
 
@@ -53,6 +54,12 @@ class PlanarCars:
         #: per car, its obstacles' outlines (SmartCarNav-v0; ``load``)
         self._shapes: list[Any] = [None] * self.batch.n
         self._stacked: Shapes2D | None = None  # every car's, stacked (``_world_shapes``)
+        # a car a ``load`` gave a varied robot (``randomize``) has its own model and
+        # footprint, the others the template's
+        self._template = (body.compiled(), body.height, footprint_of(body))
+        self._varied: set[int] = set()
+        self._footprints: list[Footprint] = [self._template[2]] * self.batch.n
+        self._footprint: Footprint | None = self._template[2]  # every car's (or a stack)
 
     def reset(self, idx: np.ndarray) -> None:
         self.batch.reset(idx)
@@ -99,10 +106,28 @@ class PlanarCars:
 
     # -- SmartCarNav-v0 ------------------------------------------------------------------------
     def load(self, car: int, env: Any) -> None:
-        """Car ``car``'s obstacles (``env``'s statics), its car back at the spawn."""
+        """Car ``car``'s obstacles (``env``'s statics) and its car: ``env``'s robot as it
+        stands where it varies (``randomize``: its parameters, centre of mass, height,
+        footprint and spawned state), else the template's at the spawn."""
         self._shapes[car] = obstacle_shapes(env.sim.statics())
         self._stacked = None
-        self.batch.reset(np.array([car]))
+        idx = np.array([car])
+        if env.robot.variation is None:
+            if car in self._varied:
+                self._varied.discard(car)
+                self._set_car(car, *self._template)
+            self.batch.reset(idx)
+            return
+        body = env.robot.body
+        self._varied.add(car)
+        self._set_car(car, body.compiled(), body.height, footprint_of(body))
+        self.batch.reset(idx, np.array(body.state, dtype=np.float64))
+
+    def _set_car(self, car: int, model: Any, height: float, footprint: Footprint) -> None:
+        """Car ``car``'s parameters, height and footprint."""
+        self.batch.set_model(np.array([car]), model, height)
+        self._footprints[car] = footprint
+        self._footprint = None if self._varied else self._template[2]
 
     def _world_shapes(self, idx: np.ndarray) -> Shapes2D:
         """The listed cars' obstacles as one ``Shapes2D`` (padded to the most obstacles): rows
@@ -121,7 +146,7 @@ class PlanarCars:
         px, py, _ = cars.pose()
         cos_yaw, sin_yaw = cars.heading()
         qz, qw = yaw_quaternion_arrays(cos_yaw[idx], sin_yaw[idx])
-        position = np.stack([px[idx], py[idx], np.full(len(idx), cars.height)], axis=1)
+        position = np.stack([px[idx], py[idx], cars.height[idx]], axis=1)
         zero = np.zeros(len(idx))
         rotation = quaternion_matrix(np.stack([zero, zero, qz, qw], axis=1))
         origin, directions = laser.beams(position, rotation)
@@ -141,7 +166,9 @@ class PlanarCars:
 
     def clearances(self, pose: np.ndarray, max_distance_m: float) -> np.ndarray:
         """Every car's footprint against its obstacles: ``geometry.clearance``."""
-        return clearance(footprint_of(self._body), pose,
+        if self._footprint is None:
+            self._footprint = Footprint.stack(self._footprints)
+        return clearance(self._footprint, pose,
                          self._world_shapes(np.arange(self.batch.n)), max_distance_m,
                          height=OBSTACLE_HEIGHT_M)
 

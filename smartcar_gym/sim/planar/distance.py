@@ -131,6 +131,7 @@ def clearance(footprint: Footprint, poses: Any, shapes: Shapes2D, max_distance: 
     (``(N, 3)``: x, y, yaw) and car i's ``shapes`` (N or 1 worlds), negative (the
     penetration depth) where they overlap, at most ``max_distance``: pybullet's
     ``getClosestPoints`` (``sim.obstacles.nearest_distance``) for the car on the ground.
+    ``footprint``: every car's, or one per car (``Footprint.stack``, N of them).
 
     Exact in 2D (``distances``). ``height``: the obstacles are prisms from the ground up to
     it and base_link is on the ground (z = 0), so each part's ``footprint.z_range`` says how
@@ -168,8 +169,11 @@ def clearance(footprint: Footprint, poses: Any, shapes: Shapes2D, max_distance: 
     obstacles = _kept(shapes, "columns", box_margin)[:, pair_car, pair_shape]
     signed = _signed(parts.reshape(7, -1), np.repeat(obstacles, k, axis=1)).reshape(-1, k)
     if height is not None:
-        low, high = footprint.z_range[:, 0], footprint.z_range[:, 1]
-        gap = np.maximum(np.maximum(low - height, -high), 0.0)  # (K,): a part above or below
+        z_range = footprint.z_range
+        if z_range.ndim == 3:  # a stack: each pair's car's own parts
+            z_range = z_range[pair_car]
+        low, high = z_range[..., 0], z_range[..., 1]
+        gap = np.maximum(np.maximum(low - height, -high), 0.0)  # a part above or below
         signed = np.where(gap > 0.0, np.hypot(np.maximum(signed, 0.0), gap),
                           np.maximum(signed, -np.minimum(high, height - low)))
     np.minimum.at(nearest, pair_car, signed.min(axis=1))

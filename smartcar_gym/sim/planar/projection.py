@@ -14,6 +14,7 @@ The one place where the planar engine turns a URDF's collision shapes into groun
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, NamedTuple
 
@@ -160,7 +161,9 @@ class Footprint:
 
     ``shapes`` (N = 1, K shapes); ``links`` names each shape's link; ``z_range`` (K, 2) is each
     shape's lowest and highest point (m, base_link's z); ``exact`` is False where the
-    projection is a bounding rectangle (a tilted shape, a mesh's bounding box).
+    projection is a bounding rectangle (a tilted shape, a mesh's bounding box). ``stack``
+    makes one of N cars' footprints (their own wheels): ``shapes`` (N, K), ``z_range``
+    (N, K, 2), placed one car per pose.
     """
 
     shapes: Shapes2D
@@ -170,10 +173,25 @@ class Footprint:
 
     @property
     def radius(self) -> float:
-        """Radius (m) of the circle about base_link's origin that holds the footprint."""
+        """Radius (m) of the circle about base_link's origin that holds the footprint (every
+        car's, for a stack)."""
         local = self.shapes
-        return float(np.max(np.hypot(local.centre[0, :, 0], local.centre[0, :, 1])
-                            + local.bounding_radius()[0]))
+        return float(np.max(np.hypot(local.centre[..., 0], local.centre[..., 1])
+                            + local.bounding_radius()))
+
+    @classmethod
+    def stack(cls, footprints: Sequence[Footprint]) -> Footprint:
+        """One footprint per car (each of N = 1, the same links in the same order)."""
+        first = footprints[0]
+        for other in footprints[1:]:
+            if other.links != first.links:
+                raise ValueError(f"footprints of different shapes ({first.links} and "
+                                 f"{other.links}) cannot be stacked")
+        s = [f.shapes for f in footprints]
+        shapes = Shapes2D(*(np.concatenate([getattr(x, name) for x in s]) for name in
+                            ("kind", "centre", "rotation", "half", "valid")))
+        return cls(shapes, first.links, np.stack([f.z_range for f in footprints]),
+                   np.logical_and.reduce([f.exact for f in footprints]))
 
     def place(self, poses: Any) -> Shapes2D:
         """``(N, K)``: the footprint with base_link at each of ``poses`` (``(N, 3)``: x, y, yaw

@@ -53,6 +53,16 @@ class BatchCar:
     def global_path(self) -> np.ndarray:
         return self._env.global_paths[self._i]
 
+    @property
+    def localize(self) -> bool:
+        """Whether the car follows its path from its pose on the map (``localize=True``)."""
+        return self._env.localize
+
+    @property
+    def map_pose(self) -> tuple[float, float, float]:
+        """Base_link on the map (x, y, yaw), as the car's last observation saw it."""
+        return tuple(float(v) for v in self._env.map_poses[self._i])
+
 
 def run_barn_vector(envs: gym.vector.VectorEnv, driver: Any, jobs: Sequence[Job],
                     keep: Callable[[Job], bool] = lambda job: False,

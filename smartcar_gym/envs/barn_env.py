@@ -32,6 +32,13 @@ from smartcar_gym.model import RobotModel, load_model
 from smartcar_gym.model.kinematics import link_frames, transform
 from smartcar_gym.model.urdf import UrdfRobot
 from smartcar_gym.navigation.grid_planner import distance_grid, plan_path
+from smartcar_gym.navigation.localization import (
+    IDENTITY,
+    Pose,
+    ScanMatcher,
+    beam_geometry,
+    compose,
+)
 from smartcar_gym.sim.obstacles import nearest_distance
 from smartcar_gym.worlds.barn import (
     GOAL_XY,
@@ -43,7 +50,8 @@ from smartcar_gym.worlds.barn import (
 )
 
 PROGRESS = ("goal", "path")  # what the progress reward measures
-WAYPOINT_KEY = "waypoint"  # the next waypoint (odom frame) in ``Readings.extra``
+WAYPOINT_KEY = "waypoint"  # the next waypoint (map frame) in ``Readings.extra``
+MAP_POSE_KEY = "map_pose"  # base_link on the map (x, y, yaw) in ``Readings.extra``
 BARN_OBSERVATION_ORDER = (*NAV_OBSERVATION_ORDER, "waypoint_base")
 GRID_RESOLUTION_M = 0.02  # the global planner's map
 MAP_MARGIN_M = 0.3  # free map around the cylinders, the start and the goal
@@ -91,16 +99,18 @@ def to_base_frame(point: Sequence[float], x: float, y: float,
 
 
 def waypoint_entry(arena_half_size_m: float) -> Entry:
-    """The global path's next waypoint in the odometry base_link frame."""
+    """The global path's next waypoint in the base_link frame of the pose on the map
+    (``extra["map_pose"]``: the odometry's, through the localization's correction if any)."""
     a = arena_half_size_m
 
     def read(r: Readings) -> tuple[float, float]:
         odom = r.odometry
-        return to_base_frame(r.extra[WAYPOINT_KEY], odom.x, odom.y, odom.theta)
+        return to_base_frame(r.extra[WAYPOINT_KEY],
+                             *r.extra.get(MAP_POSE_KEY, (odom.x, odom.y, odom.theta)))
 
     return Entry("waypoint_base", ("waypoint_x_base", "waypoint_y_base"), -4 * a, 4 * a, "m",
-                 "the global path's next waypoint in the odometry base_link frame (ahead, "
-                 "left)", read, ("-4A", "4A"))
+                 "the global path's next waypoint in the base_link frame (ahead, left), "
+                 "through odometry (or localize's pose on the map)", read, ("-4A", "4A"))
 
 
 class SmartCarBARNEnv(SmartCarNavEnv):
@@ -124,7 +134,15 @@ class SmartCarBARNEnv(SmartCarNavEnv):
     frame. No ground truth. The global path is planned once per world on its occupancy grid
     (0.02 m cells) with the cylinders inflated by half the simulated car's width (0.105 m: the
     default ``wheel_contact="sphere"`` makes the wheels spheres), Dijkstra as move_base's
-    navfn: ``env.unwrapped.global_path`` (odom frame), the same path the DWA driver follows.
+    navfn: ``env.unwrapped.global_path`` (the map frame, where odometry starts), the same
+    path the DWA driver follows.
+
+    With ``localize=True`` the waypoint is taken from the pose on the map instead, as amcl
+    gives move_base on a known map: each scan is matched to the world's known cylinders
+    (``navigation.localization.ScanMatcher``: its hits brought onto the cylinders' outlines)
+    to correct the map -> odom transform (``env.unwrapped.correction``; the pose on the map
+    ``env.unwrapped.map_pose``), which starts as the identity (the known start). The
+    odometry entries and the goal stay odometry's. DWA follows the path from the same pose.
 
     ## Episodes
 
@@ -147,6 +165,8 @@ class SmartCarBARNEnv(SmartCarNavEnv):
     ``"path"`` the progress along the global path instead (the same weight, on the car's
     ground-truth distance to go: its distance to the path's nearest point plus the path
     beyond it), which does not pull the car at the cylinders between it and the goal.
+    ``localize`` (False) takes the waypoint from the scan-matched pose on the map (above); it
+    needs the laser at the controller's rate (the shipped 10 Hz).
     """
 
     reset_options = ("world",)
@@ -159,7 +179,7 @@ class SmartCarBARNEnv(SmartCarNavEnv):
                  collision_penalty: float = 10.0,
                  laser: Mapping[str, Any] | LaserConfig | None = None,
                  laser_mount: Sequence[float] | None = None, scan_sectors: int = 36,
-                 progress: str = "goal", **kwargs: Any) -> None:
+                 progress: str = "goal", localize: bool = False, **kwargs: Any) -> None:
         given = [name for name in PROTOCOL_KWARGS if name in kwargs]
         if given:
             raise TypeError(f"SmartCarBARN-v0 takes no {', '.join(given)}: the BARN protocol "
@@ -178,6 +198,10 @@ class SmartCarBARNEnv(SmartCarNavEnv):
         if progress not in PROGRESS:
             raise ValueError(f"progress must be one of {', '.join(PROGRESS)}, got {progress!r}")
         self.progress = progress
+        if not isinstance(localize, bool):
+            raise ValueError(f"localize must be True or False, got {localize!r}")
+        #: whether the waypoint follows the pose on the map (scan matching), else odometry
+        self.localize = localize
         goal = self.protocol.goal_distance_m
         super().__init__(model, obstacles=0, obstacle_clearance=0.0,
                          collision_penalty=collision_penalty, laser=laser,
@@ -186,6 +210,16 @@ class SmartCarBARNEnv(SmartCarNavEnv):
                          goal_tolerance=self.protocol.success_radius_m,
                          arena_size=2.5 * goal, **kwargs)
         self.timeout_steps = self.protocol.timeout_steps(self.robot.update_period_ns * 1e-9)
+        if localize and self.laser_config.rate_hz != self.controller_config.rate_hz:
+            raise ValueError(f"localize=True matches each scan with the odometry of its instant: "
+                             f"the laser's rate_hz ({self.laser_config.rate_hz:g}) must be the "
+                             f"controller's ({self.controller_config.rate_hz:g})")
+        #: map -> odom (x, y, yaw): the localization's correction (identity without it)
+        self.correction: Pose = IDENTITY
+        #: base_link on the map (x, y, yaw), as the last observation saw it
+        self.map_pose: Pose = IDENTITY
+        self._matcher: ScanMatcher | None = None
+        self._scan_used: Any = None
         #: the weight of the progress along the global path (0: the progress to the goal)
         self.path_progress_weight = 0.0
         if progress == "path":
@@ -224,6 +258,10 @@ class SmartCarBARNEnv(SmartCarNavEnv):
         super()._build_world()
         self.global_path = self._global_path()
         self.tracker = PathTracker(self.global_path, self.lookahead_m)
+        self.correction, self._scan_used = IDENTITY, None
+        if self.localize:
+            self._matcher = ScanMatcher(self._centres, self._radii)
+            self._beams = beam_geometry(self.laser_config.angles, self.laser.mount)
         self._reward_tracker = PathTracker(self.global_path, 0.0)  # ground truth, for rewards
         self._to_go = self._reward_tracker.to_go(np.zeros(2))
         self._clock = RunClock(np.zeros(2), self.protocol.moved_m)
@@ -295,10 +333,19 @@ class SmartCarBARNEnv(SmartCarNavEnv):
         """SmartCarNav-v0's readings plus the path's next waypoint (``extra["waypoint"]``)."""
         readings = super().readings()
         odom = readings.odometry
-        waypoint = self.tracker.waypoint(np.array([odom.x, odom.y]))
+        pose = (odom.x, odom.y, odom.theta)
+        if self._matcher is not None:
+            scan = self.laser.latest
+            if scan is not self._scan_used:  # each scan corrects once
+                self.correction = self._matcher.correct(self.correction, pose, scan.ranges,
+                                                        *self._beams)
+                self._scan_used = scan
+            pose = compose(self.correction, pose)
+        self.map_pose = pose
+        waypoint = self.tracker.waypoint(np.array(pose[:2]))
         return Readings(readings.odometry, readings.joint_position, readings.joint_velocity,
                         readings.goal, readings.previous_action,
-                        {**readings.extra, WAYPOINT_KEY: waypoint})
+                        {**readings.extra, WAYPOINT_KEY: waypoint, MAP_POSE_KEY: pose})
 
     def __getstate__(self) -> dict[str, Any]:
         state = super().__getstate__()

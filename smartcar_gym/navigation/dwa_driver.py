@@ -2,9 +2,10 @@
 
 ``DWADriver`` drives N laser-carrying envs (SmartCarBARN-v0, or SmartCarNav-v0 with a path
 given) at once: it reads what a ROS robot's move_base reads (the odometry, the latest
-``/scan``, the global path), plans with ``DWAPlanner`` and returns the envs' actions, the
-cmd_vel (v, w) over ``max_linear`` and ``max_angular``, which go through the same emulated
-ArbotiX controller as a policy's.
+``/scan``, the global path; with SmartCarBARN-v0's ``localize=True`` the path is followed
+from the pose on the map, as amcl's transform gives it to move_base), plans with
+``DWAPlanner`` and returns the envs' actions, the cmd_vel (v, w) over ``max_linear`` and
+``max_angular``, which go through the same emulated ArbotiX controller as a policy's.
 """
 
 from __future__ import annotations
@@ -114,6 +115,8 @@ class DWADriver:
         obstacles, counts = self.layers.update(
             list(slots), np.array([env.laser.latest.ranges for env in envs], dtype=float),
             laser.config.angles, laser.mount, poses, config.reach_m)
+        if any(getattr(env, "localize", False) for env in envs):  # the path from the map pose
+            poses = np.array([env.map_pose for env in envs], dtype=float).reshape(-1, 3)
         cos, sin = np.cos(poses[:, 2]), np.sin(poses[:, 2])
         d = self.trackers.waypoints(list(slots), poses[:, :2]) - poses[:, :2]
         goals = np.stack([cos * d[:, 0] + sin * d[:, 1], -sin * d[:, 0] + cos * d[:, 1]], -1)

@@ -26,6 +26,13 @@ from smartcar_gym.envs.tasks.barn import (
 )
 from smartcar_gym.envs.tasks.path_trackers import PathTrackers
 from smartcar_gym.envs.vector.parts import TASKS, Navigation, Reach, Score, TaskPart
+from smartcar_gym.navigation.localization import (
+    IDENTITY,
+    Pose,
+    ScanMatcher,
+    beam_geometry,
+    compose,
+)
 from smartcar_gym.sim.clock import NS_PER_S
 
 ENV_ID = "SmartCarBARN-v0"
@@ -35,7 +42,7 @@ class Barn(TaskPart):
     """The BARN worlds and protocol for every car (after ``Reach`` and ``Navigation``)."""
 
     exports = ("worlds", "protocol", "timeout_steps", "global_paths", "planned_paths",
-               "waypoints")
+               "waypoints", "localize", "corrections", "map_poses")
     #: ``goal`` is taken only to be refused: the protocol sets the goal
     option_keys = ("world", "goal")
     bytes_per_car = 16 * 1024  # its global path and tracker
@@ -61,6 +68,15 @@ class Barn(TaskPart):
         self.outcome = np.full(n, None, dtype=object)
         self._timeout = np.zeros(n, dtype=bool)
         self._chosen: list[int] | None = None
+        #: ``localize``: each car's map -> odom correction (its builder's scan matcher's),
+        #: and its base_link on the map as the last observation saw it, (N, 3)
+        self.localize = single.localize
+        self.corrections: list[Pose] = [IDENTITY] * n
+        self.map_poses = np.zeros((n, 3))
+        self._matchers: list[ScanMatcher | None] = [None] * n
+        self._matched = np.full(n, -1, dtype=np.int64)  # the scan each car's matched last
+        if self.localize:
+            self._beams = beam_geometry(single.laser_config.angles, single.laser.mount)
 
     @property
     def planned_paths(self) -> dict[int, np.ndarray]:
@@ -103,6 +119,7 @@ class Barn(TaskPart):
         self.world[i] = world.index
         self.optimal[i] = self.protocol.optimal_time_s(world.path_length_m * self.protocol.scale)
         self.global_paths[i] = builder.global_path
+        self._matchers[i] = builder._matcher
 
     def after_reset(self, env: Any, mask: np.ndarray, idx: np.ndarray) -> None:
         """A fresh run: its clock, no outcome, the path followed from its start."""
@@ -112,15 +129,29 @@ class Barn(TaskPart):
             self._trackers.start(i, self.global_paths[i])
             self._reward_trackers.start(i, self.global_paths[i])
             self._to_go[i] = self._reward_trackers.to_go([i], np.zeros((1, 2)))[0]
+            self.corrections[i], self._matched[i] = IDENTITY, -1
         if len(idx):
             self._follow(env, idx)
         self.outcome[idx] = None
         self._timeout[idx] = False
 
     def _follow(self, env: Any, idx: np.ndarray) -> None:
-        """Cars ``idx``' next waypoints from their odometry (``SmartCarBARNEnv.readings``)."""
+        """Cars ``idx``' next waypoints from their odometry, or their pose on the map after
+        matching a new scan (``SmartCarBARNEnv.readings``)."""
         b = env.base
         poses = np.column_stack([b.x[idx], b.y[idx], b.theta[idx]]).astype(float)
+        if self.localize:
+            stamps = env.next_scan
+            for k, i in enumerate(idx.tolist()):
+                odom = (float(b.x[i]), float(b.y[i]), float(b.theta[i]))
+                if stamps[i] != self._matched[i]:  # each scan corrects once
+                    matcher = self._matchers[i]
+                    assert matcher is not None
+                    self.corrections[i] = matcher.correct(self.corrections[i], odom,
+                                                          env.latest_ranges[i], *self._beams)
+                    self._matched[i] = stamps[i]
+                poses[k] = compose(self.corrections[i], odom)
+        self.map_poses[idx] = poses
         self.waypoints[idx] = self._trackers.waypoints_in_base(idx, poses)
 
     def score(self, env: Any, a: np.ndarray, previous: Score | None) -> Score:

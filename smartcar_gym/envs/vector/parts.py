@@ -218,8 +218,8 @@ class Navigation(TaskPart):
     ``reset(options={"obstacles": layout})`` gives every reset car that layout.
     """
 
-    exports = ("builder", "laser", "scan_sectors", "latest_ranges", "clearance", "collision",
-               "obstacles")
+    exports = ("builder", "laser", "scan_sectors", "latest_ranges", "next_scan", "clearance",
+               "collision", "obstacles")
     option_keys = ("obstacles",)
     senses = True
     keeps_single = True
@@ -248,6 +248,11 @@ class Navigation(TaskPart):
         #: every car's obstacle layout
         self.obstacles: list[tuple[Obstacle, ...]] = [()] * n
         self._layout: Any = None
+
+    @property
+    def next_scan(self) -> np.ndarray:
+        """Each car's next scan (ns on its clock): it changes with every scan (a stamp)."""
+        return self._next_scan
 
     def check_options(self, env: Any, taken: dict[str, Any]) -> None:
         if "obstacles" in taken and self.builder is not None:

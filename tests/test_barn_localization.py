@@ -1,0 +1,150 @@
+"""Localization on the known map (``SmartCarBARN-v0(localize=True)``): the scan matcher puts a
+drifted odometry pose back where the scan says it is, the env's waypoint follows the pose on
+the map, its batch is its single env bit for bit, and DWA follows the path from that pose."""
+
+from __future__ import annotations
+
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import smartcar_gym  # noqa: F401
+from smartcar_gym.bench.batched import run_barn_vector
+from smartcar_gym.bench.runner import barn_jobs, run_barn
+from smartcar_gym.envs.vector import SmartCarBatchVectorEnv
+from smartcar_gym.navigation.dwa_driver import DWADriver
+from smartcar_gym.navigation.localization import IDENTITY, ScanMatcher, compose
+from tests.test_vector_batched import rollout
+from tests.test_vector_randomize import assert_same
+
+RADIUS = 0.03
+ORIGIN = np.array([0.05, 0.0])  # the laser, in base_link
+
+
+def scan_of(centres: np.ndarray, pose: tuple[float, float, float],
+            angles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Exact ranges (inf: no hit) from a laser at ``ORIGIN`` on a car at ``pose``, and the
+    beams' directions in base_link."""
+    directions = np.stack([np.cos(angles), np.sin(angles)], axis=1)
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    o = np.array([pose[0] + c * ORIGIN[0] - s * ORIGIN[1], pose[1] + s * ORIGIN[0] + c * ORIGIN[1]])
+    world = directions @ np.array([[c, s], [-s, c]])
+    ranges = np.full(len(angles), np.inf)
+    for centre in centres:  # the nearer root of |o + t u - centre| = r
+        f = o - centre
+        b = world @ f
+        disc = b * b - (f @ f - RADIUS * RADIUS)
+        t = -b - np.sqrt(np.maximum(disc, 0.0))
+        ranges = np.where((disc > 0) & (t > 0), np.minimum(ranges, t), ranges)
+    return ranges, directions
+
+
+@pytest.fixture
+def field() -> np.ndarray:
+    rng = np.random.default_rng(7)
+    return rng.uniform([0.3, -1.2], [2.5, 1.2], (40, 2))
+
+
+def test_the_matcher_brings_a_drifted_odometry_onto_the_map(field):
+    """The car truly at (0, 0.02, 0.03 rad); its odometry 2 cm and 2 degrees off. From the
+    identity, one scan matched in 8 steps puts the odometry pose on the truth within 1e-9 m
+    and rad (the hits lie exactly on the outlines); half a degree off, 4 steps do."""
+    angles = np.linspace(-math.pi, math.pi, 360, endpoint=False)
+    truth = (0.0, 0.02, 0.03)
+    odom = compose(truth, (0.015, -0.013, math.radians(2.0)))  # drifted
+    ranges, directions = scan_of(field, truth, angles)
+    assert math.hypot(odom[0] - truth[0], odom[1] - truth[1]) > 0.015  # it is off
+    for off, steps in (((0.015, -0.013, math.radians(2.0)), 8), ((0.005, 0.0, 0.009), 4)):
+        odom = compose(truth, off)
+        correction = ScanMatcher(field, RADIUS, steps=steps).correct(IDENTITY, odom, ranges,
+                                                                     ORIGIN, directions)
+        on_map = compose(correction, odom)
+        assert math.hypot(on_map[0] - truth[0], on_map[1] - truth[1]) < 1e-9
+        assert abs(on_map[2] - truth[2]) < 1e-9
+    # two steps (a scan's default) leave part of a 2-degree error
+    odom = compose(truth, (0.015, -0.013, math.radians(2.0)))
+    on_map = compose(ScanMatcher(field, RADIUS).correct(IDENTITY, odom, ranges, ORIGIN,
+                                                        directions), odom)
+    assert 1e-4 < math.hypot(on_map[0] - truth[0], on_map[1] - truth[1]) < 0.005
+
+
+def test_too_few_hits_or_hits_off_the_map_keep_the_correction(field):
+    angles = np.linspace(-0.1, 0.1, 5)
+    matcher = ScanMatcher(field, RADIUS)
+    start = (0.001, 0.0, 0.0)
+    ranges, directions = scan_of(field, IDENTITY, angles)
+    assert matcher.correct(start, IDENTITY, ranges, ORIGIN, directions) == start
+    far = np.full(360, 1.0)  # a wall where the map has nothing
+    _, directions = scan_of(field, IDENTITY, np.linspace(-math.pi, math.pi, 360))
+    assert matcher.correct(start, IDENTITY, far, ORIGIN, directions) == start
+    with pytest.raises(ValueError, match="no cylinders"):
+        ScanMatcher(np.zeros((0, 2)), RADIUS)
+
+
+def test_the_env_waypoint_follows_the_pose_on_the_map():
+    """A car whose odometry drifts (track 1.1, encoders off scale): with localize its pose on
+    the map stays within a millimetre of the truth, odometry's goes centimetres off; without,
+    the pose on the map is the odometry's."""
+    drift = {"track": 1.1, "left_encoder_scale": 0.97}
+    errors = {}
+    for localize in (False, True):
+        env = gym.make("SmartCarBARN-v0", engine="planar", randomize=drift, localize=localize)
+        u = env.unwrapped
+        env.reset(seed=0, options={"world": 0})
+        for _ in range(40):
+            _, _, _, _, info = env.step(np.array([0.6, 0.4]))
+        pose, odom = info["pose"], u.robot.odometry
+        errors[localize] = math.hypot(u.map_pose[0] - pose[0], u.map_pose[1] - pose[1])
+        if not localize:
+            assert u.map_pose == (odom.x, odom.y, odom.theta) and u.correction == IDENTITY
+        env.close()
+    assert errors[False] > 0.03 and errors[True] < 1e-3
+
+
+def test_bad_localize_arguments_are_refused():
+    with pytest.raises(ValueError, match="localize must be True or False, got 'yes'"):
+        gym.make("SmartCarBARN-v0", engine="planar", localize="yes")
+    with pytest.raises(ValueError, match=r"laser's rate_hz \(5\) must be the controller's \(10\)"):
+        gym.make("SmartCarBARN-v0", engine="planar", localize=True, laser={"rate_hz": 5.0})
+
+
+def test_the_localized_batch_equals_n_single_envs_bit_for_bit():
+    kwargs = dict(engine="planar", localize=True, randomize="odometry", max_episode_steps=24)
+    batched = gym.make_vec("SmartCarBARN-v0", num_envs=3,
+                           vectorization_mode="vector_entry_point", autoreset_mode="SameStep",
+                           **kwargs)
+    single = gym.make_vec("SmartCarBARN-v0", num_envs=3, vectorization_mode="sync",
+                          vector_kwargs={"autoreset_mode": gym.vector.AutoresetMode.SAME_STEP},
+                          **kwargs)
+    assert isinstance(batched, SmartCarBatchVectorEnv)
+    try:
+        got, want = rollout(batched, 50, 5), rollout(single, 50, 5)
+        for k, (g, w) in enumerate(zip(got, want, strict=True)):
+            assert_same(g, w, f"step {k}")
+        u = batched.unwrapped
+        for i, env in enumerate(single.envs):
+            assert u.corrections[i] == env.unwrapped.correction != IDENTITY
+            assert tuple(u.map_poses[i]) == env.unwrapped.map_pose
+    finally:
+        batched.close()
+        single.close()
+
+
+def test_dwa_follows_the_path_from_the_map_pose_batched_as_single():
+    jobs = barn_jobs((0,), runs=2, seed=3)
+    singles = [gym.make("SmartCarBARN-v0", engine="planar", localize=True) for _ in range(2)]
+    batch = SmartCarBatchVectorEnv("SmartCarBARN-v0", num_envs=2, engine="planar",
+                                   localize=True)
+    try:
+        want = run_barn(singles, DWADriver(), jobs, keep=lambda job: True)
+        got = run_barn_vector(batch, DWADriver(), jobs, keep=lambda job: True)
+    finally:
+        batch.close()
+        for env in singles:
+            env.close()
+    assert [r.outcome for r in want] == ["success"] * 2
+    for g, w in zip(got, want, strict=True):
+        assert g.to_dict() == w.to_dict()
+        assert np.array_equal(g.trajectory, w.trajectory)

@@ -1,5 +1,6 @@
-"""How far each engine's odometry drifts on the BARN policy's commands (docs/barn.md, "How
-steady the gap is"; the ``randomize="odometry"`` preset's ranges were chosen with it).
+"""How far each engine's odometry drifts on the BARN policy's commands (docs/barn.md,
+"Odometry drift"; the ``randomize="odometry"`` preset's ranges were chosen with it, on the
+first shipped policy's commands: docs/history.md).
 
     python benchmarks/barn_odometry_drift.py        # about a minute; deterministic
 

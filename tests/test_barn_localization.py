@@ -1,6 +1,7 @@
 """Localization on the known map (``SmartCarBARN-v0(localize=True)``): the scan matcher puts a
 drifted odometry pose back where the scan says it is, the env's waypoint follows the pose on
-the map, its batch is its single env bit for bit, and DWA follows the path from that pose."""
+the map, and its batch is its single env bit for bit (DWA from that pose, batched as single:
+``tests/test_bench_barn_batched.py``)."""
 
 from __future__ import annotations
 
@@ -11,10 +12,7 @@ import numpy as np
 import pytest
 
 import smartcar_gym  # noqa: F401
-from smartcar_gym.bench.batched import run_barn_vector
-from smartcar_gym.bench.runner import barn_jobs, run_barn
 from smartcar_gym.envs.vector import SmartCarBatchVectorEnv
-from smartcar_gym.navigation.dwa_driver import DWADriver
 from smartcar_gym.navigation.localization import IDENTITY, ScanMatcher, compose
 from tests.test_vector_batched import rollout
 from tests.test_vector_randomize import assert_same
@@ -130,21 +128,3 @@ def test_the_localized_batch_equals_n_single_envs_bit_for_bit():
     finally:
         batched.close()
         single.close()
-
-
-def test_dwa_follows_the_path_from_the_map_pose_batched_as_single():
-    jobs = barn_jobs((0,), runs=2, seed=3)
-    singles = [gym.make("SmartCarBARN-v0", engine="planar", localize=True) for _ in range(2)]
-    batch = SmartCarBatchVectorEnv("SmartCarBARN-v0", num_envs=2, engine="planar",
-                                   localize=True)
-    try:
-        want = run_barn(singles, DWADriver(), jobs, keep=lambda job: True)
-        got = run_barn_vector(batch, DWADriver(), jobs, keep=lambda job: True)
-    finally:
-        batch.close()
-        for env in singles:
-            env.close()
-    assert [r.outcome for r in want] == ["success"] * 2
-    for g, w in zip(got, want, strict=True):
-        assert g.to_dict() == w.to_dict()
-        assert np.array_equal(g.trajectory, w.trajectory)

@@ -6,6 +6,7 @@ import json
 
 import gymnasium as gym
 import numpy as np
+import pytest
 
 import smartcar_gym  # noqa: F401
 from smartcar_gym.bench.batched import run_barn_vector
@@ -15,12 +16,14 @@ from smartcar_gym.envs.vector import SmartCarBatchVectorEnv
 from smartcar_gym.navigation.dwa_driver import DWADriver
 
 
-def test_dwa_on_a_batch_gives_the_single_envs_records_bit_for_bit():
+@pytest.mark.parametrize("kwargs", [{}, {"localize": True}])
+def test_dwa_on_a_batch_gives_the_single_envs_records_bit_for_bit(kwargs):
     """Three runs on two cars: the third job goes to the car that ends first, the other car
-    is parked; every record (outcome, times, scores, way) is the single envs' row's."""
+    is parked; every record (outcome, times, scores, way) is the single envs' row's, with DWA
+    following the path from the odometry or (``localize``) from the pose on the map."""
     jobs = barn_jobs((0, 6), runs=2, seed=3)[:3]
-    singles = [gym.make("SmartCarBARN-v0", engine="planar") for _ in range(2)]
-    batch = SmartCarBatchVectorEnv("SmartCarBARN-v0", num_envs=2, engine="planar")
+    singles = [gym.make("SmartCarBARN-v0", engine="planar", **kwargs) for _ in range(2)]
+    batch = SmartCarBatchVectorEnv("SmartCarBARN-v0", num_envs=2, engine="planar", **kwargs)
     try:
         want = run_barn(singles, DWADriver(), jobs, keep=lambda job: True)
         got = run_barn_vector(batch, DWADriver(), jobs, keep=lambda job: True)

@@ -18,7 +18,6 @@ seen from the frame ``a`` (``map_pose = compose(correction, odom_pose)``), compu
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -106,8 +105,3 @@ class ScanMatcher:
                 at[1] + dy - (math.sin(dyaw) * at[0] + math.cos(dyaw) * at[1]), dyaw)
         return compose(turn, correction)
 
-
-def map_poses(corrections: Sequence[Pose], odom: np.ndarray) -> np.ndarray:
-    """(K, 3): the odometry poses ``odom`` (K, 3) on the map through each car's correction."""
-    return np.array([compose(c, (float(o[0]), float(o[1]), float(o[2])))
-                     for c, o in zip(corrections, odom, strict=True)], dtype=float).reshape(-1, 3)

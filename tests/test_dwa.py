@@ -178,21 +178,21 @@ def test_the_compiled_footprint_check_holds_on_a_dense_memory():
 
 @pytest.mark.parametrize("clearing", [True, False])
 def test_the_obstacle_layers_are_the_memories_bit_for_bit(clearing):
-    """N robots' layers cleared and marked from scans, compiled or as a row of
-    ObstacleMemory: the same points near each robot, in the same order, step after step (and
-    after a clear)."""
+    """N robots' layers cleared and marked from scans, compiled (in one thread or split over
+    two) or as a row of ObstacleMemory: the same points near each robot, in the same order,
+    step after step (and after a clear)."""
     rng = np.random.default_rng(3)
     angles = np.linspace(-np.pi, np.pi, 90, endpoint=False)
     mount = np.eye(4)
     mount[:2, 3] = [0.05, -0.01]
     mount[:2, :2] = [[np.cos(0.1), -np.sin(0.1)], [np.sin(0.1), np.cos(0.1)]]
-    layers = ObstacleLayers(3, scans=4, compiled=False, clearing=clearing)
-    compiled = (ObstacleLayers(3, scans=4, compiled=True, clearing=clearing) if COMPILED
-                else None)
-    plain = ObstacleLayers(3, scans=4, compiled=False, clearing=False)
+    layers = ObstacleLayers(9, scans=4, compiled=False, clearing=clearing)
+    compiled = [ObstacleLayers(9, scans=4, compiled=True, clearing=clearing, threads=threads)
+                for threads in ((1, 2) if COMPILED else ())]
+    plain = ObstacleLayers(9, scans=4, compiled=False, clearing=False)
     padded = cleared = False
     for step in range(12):
-        slots = [0, 2] if step % 3 else [0, 1, 2]
+        slots = [0, 2, 3, 5, 6, 7, 8, 4] if step % 3 else list(range(9))
         ranges = rng.uniform(0.05, 1.0, (len(slots), len(angles)))
         ranges[rng.random(ranges.shape) < 0.3] = np.inf
         ranges[:, :3] = -np.inf
@@ -200,9 +200,8 @@ def test_the_obstacle_layers_are_the_memories_bit_for_bit(clearing):
                                  rng.uniform(-0.02, 0.02, len(slots)),
                                  rng.uniform(-3, 3, len(slots))])
         if step == 6:
-            layers.clear(1)
-            plain.clear(1)
-            compiled and compiled.clear(1)
+            for each in (layers, plain, *compiled):
+                each.clear(1)
         near, counts = layers.update(slots, ranges, angles, mount, poses, 0.6)
         plain.update(slots, ranges, angles, mount, poses, 0.6)
         for k, i in enumerate(slots):  # each is its memory's near points
@@ -215,11 +214,11 @@ def test_the_obstacle_layers_are_the_memories_bit_for_bit(clearing):
             cleared |= len(memory.points) < kept
         assert counts.min() > 0
         padded |= bool((counts < near.shape[1]).any())
-        if compiled is not None:
-            near_c, counts_c = compiled.update(slots, ranges, angles, mount, poses, 0.6)
+        for each in compiled:
+            near_c, counts_c = each.update(slots, ranges, angles, mount, poses, 0.6)
             assert np.array_equal(counts, counts_c) and np.array_equal(near, near_c)
-            for i in range(3):
-                assert np.array_equal(layers.points_of(i), compiled.points_of(i))
+            for i in range(9):
+                assert np.array_equal(layers.points_of(i), each.points_of(i))
     assert padded and cleared == clearing
     # by hand: one return straight ahead of a laser 0.05 m ahead of base_link at the origin
     single = ObstacleLayers(1, compiled=False)

@@ -95,7 +95,7 @@ class DWADriver:
             self.trackers = PathTrackers(len(envs), config.local_goal_m,
                                          2.0 * config.local_goal_m, compiled=self.compiled)
             self.layers = ObstacleLayers(len(envs), compiled=self.compiled,
-                                         clearing=self.clearing)
+                                         clearing=self.clearing, threads=self.threads)
         for i in range(len(envs)) if indices is None else indices:
             self.trackers.start(i, envs[i].global_path if paths is None else paths[i])
             self.layers.clear(i)

@@ -14,8 +14,8 @@ same points bit for bit (``tests/test_dwa.py``):
 * ``ObstacleMemory``: one robot's layer in numpy (sorted cell keys);
 * ``ObstacleLayers``: N robots' layers; with numba (the ``fast`` extra) in arrays, each
   robot's scan marked and its nearby points read in one compiled pass over the robots (the
-  same sorted keys, the same float operations in the same order), else a row of
-  ``ObstacleMemory``.
+  same sorted keys, the same float operations in the same order; ``threads``: the robots
+  split over the cores, each robot's rows its own), else a row of ``ObstacleMemory``.
 """
 
 from __future__ import annotations
@@ -32,6 +32,7 @@ except ImportError:  # the fast extra is not installed
     numba = None
 
 from smartcar_gym.navigation.footprint import FAR_M
+from smartcar_gym.parallel import run_chunks
 
 #: whether ``ObstacleLayers`` runs compiled (numba installed, ``SMARTCAR_GYM_NUMBA`` not ``0``)
 COMPILED = numba is not None and os.environ.get("SMARTCAR_GYM_NUMBA", "1") != "0"
@@ -166,8 +167,9 @@ class ObstacleLayers:
     counts) as ``ObstacleMemory`` does."""
 
     def __init__(self, num: int, scans: int = SCANS, cell_m: float = CELL_M,
-                 compiled: bool | None = None, clearing: bool = True) -> None:
+                 compiled: bool | None = None, clearing: bool = True, threads: int = 1) -> None:
         self.scans, self.cell_m = scans, cell_m
+        self.threads = threads  # the compiled pass's robots split over these (parallel.py)
         self.clearing = clearing
         self.compiled = COMPILED if compiled is None else compiled
         if self.compiled and not COMPILED:
@@ -223,10 +225,15 @@ class ObstacleLayers:
         if self._near.shape[0] < len(slots) or self._near.shape[1] < width:
             self._near = np.empty((max(len(slots), self._near.shape[0]), 2 * width, 2))
         counts = np.zeros(len(slots), dtype=np.int64)
-        _compiled_update(slots, ranges, np.cos(angles), np.sin(angles), frame, poses, cos, sin,
-                         self.keys, self.points, self.seen, self.size, self.count,
-                         self.scans, self.cell_m, reach_m, self._near, counts,
-                         self.clearing, first, step, round_)
+        beam_cos, beam_sin = np.cos(angles), np.sin(angles)
+
+        def work(a: int, b: int) -> None:
+            _compiled_update(slots[a:b], ranges[a:b], beam_cos, beam_sin, frame, poses[a:b],
+                             cos[a:b], sin[a:b], self.keys, self.points, self.seen, self.size,
+                             self.count, self.scans, self.cell_m, reach_m, self._near[a:b],
+                             counts[a:b], self.clearing, first, step, round_)
+
+        run_chunks(work, len(slots), self.threads)
         near = self._near[:len(slots), :max(1, int(counts.max(initial=0)))].copy()
         near[np.arange(near.shape[1]) >= counts[:, None]] = FAR_M
         return near, counts
@@ -329,4 +336,4 @@ def _update_loops(slots, ranges, beam_cos, beam_sin, frame, poses, cos, sin, key
 
 
 if COMPILED:
-    _compiled_update = numba.njit(cache=True)(_update_loops)
+    _compiled_update = numba.njit(cache=True, nogil=True)(_update_loops)

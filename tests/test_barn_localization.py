@@ -13,7 +13,8 @@ import pytest
 
 import smartcar_gym  # noqa: F401
 from smartcar_gym.envs.vector import SmartCarBatchVectorEnv
-from smartcar_gym.navigation.localization import IDENTITY, ScanMatcher, compose
+from smartcar_gym.navigation import localization
+from smartcar_gym.navigation.localization import COMPILED, IDENTITY, ScanMatcher, compose
 from tests.test_vector_batched import rollout
 from tests.test_vector_randomize import assert_same
 
@@ -79,6 +80,88 @@ def test_too_few_hits_or_hits_off_the_map_keep_the_correction(field):
     assert matcher.correct(start, IDENTITY, far, ORIGIN, directions) == start
     with pytest.raises(ValueError, match="no cylinders"):
         ScanMatcher(np.zeros((0, 2)), RADIUS)
+
+
+def drifted_scans(rng: np.random.Generator, centres: np.ndarray, count: int):
+    """``count`` (correction, odometry pose, ranges, directions): scans of random true poses
+    amid ``centres``, with a random correction a few cm and degrees off, some beams lost."""
+    angles = np.linspace(-math.pi, math.pi, 360, endpoint=False)
+    for _ in range(count):
+        truth = (rng.uniform(0.8, 2.0), rng.uniform(-0.6, 0.6), rng.uniform(-math.pi, math.pi))
+        ranges, directions = scan_of(centres, truth, angles)
+        ranges[rng.random(360) < 0.1] = np.inf
+        correction = (rng.normal(0, 0.02), rng.normal(0, 0.02), rng.normal(0, 0.03))
+        odom = compose((-correction[0], -correction[1], 0.0), truth)  # roughly un-corrected
+        yield correction, odom, ranges, directions
+
+
+@pytest.mark.skipif(not COMPILED, reason="numba (the fast extra) is off or not installed")
+def test_the_compiled_matcher_is_numpys_bit_for_bit(field):
+    """Cylinders of two radii, some overlapping; 60 drifted scans, all beams and every third
+    (``max_beams=120``), 1 to 3 Gauss-Newton steps: the same correction to the last bit, and
+    scans with too few hits keep the correction on both."""
+    rng = np.random.default_rng(11)
+    centres = np.vstack([field, field[:8] + 0.02])  # overlapping pairs
+    radii = np.where(np.arange(len(centres)) % 3 == 0, 0.05, RADIUS)
+    moved = 0
+    for max_beams, steps in ((360, 2), (120, 1), (360, 3)):
+        numpy_way = ScanMatcher(centres, radii, steps=steps, max_beams=max_beams,
+                                compiled=False)
+        compiled = ScanMatcher(centres, radii, steps=steps, max_beams=max_beams, compiled=True)
+        for correction, odom, ranges, directions in drifted_scans(rng, centres, 20):
+            want = numpy_way.correct(correction, odom, ranges, ORIGIN, directions)
+            assert compiled.correct(correction, odom, ranges, ORIGIN, directions) == want
+            moved += want != correction
+        few = np.full(360, np.inf)
+        few[:30:2] = 0.5  # 15 hits: fewer than MIN_HITS
+        assert compiled.correct((0.01, 0.0, 0.0), IDENTITY, few, ORIGIN, directions) == (
+            numpy_way.correct((0.01, 0.0, 0.0), IDENTITY, few, ORIGIN, directions))
+    assert moved >= 50
+
+
+def test_every_outline_near_a_hit_is_among_its_cells_candidates(field):
+    """The grid that finds a hit's nearest outline: for 20,000 points about the map, every
+    cylinder whose outline is within the gate (inside or out) is listed in the point's cell,
+    so the nearest outline found is the nearest of all."""
+    rng = np.random.default_rng(5)
+    centres = np.vstack([field, field[:8] + 0.02])
+    radii = np.where(np.arange(len(centres)) % 3 == 0, 0.05, RADIUS)
+    matcher = ScanMatcher(centres, radii, compiled=False)
+    points = centres[rng.integers(len(centres), size=20000)] + rng.normal(0, 0.05, (20000, 2))
+    cell = np.floor((points - matcher._low) / localization.CELL_M).astype(int)
+    rows = cell[:, 0] * matcher._shape[1] + cell[:, 1]
+    gap = np.hypot(points[:, None, 0] - centres[:, 0], points[:, None, 1] - centres[:, 1]) - radii
+    near = gap < matcher.gate_m
+    assert near.any(axis=1).mean() > 0.3  # plenty of points near an outline
+    for k in np.flatnonzero(near.any(axis=1)):
+        listed = set(matcher._table[rows[k]].tolist())
+        assert set(np.flatnonzero(near[k]).tolist()) <= listed
+    assert (matcher._table[-1] == -1).all()  # the row of points off the map lists none
+
+
+def test_max_beams_takes_evenly_spaced_beams(field):
+    """``max_beams`` as amcl's laser_max_beams: 120 of 360 beams is every third, from the
+    first; the correction is the full matcher's on those beams."""
+    rng = np.random.default_rng(2)
+    (correction, odom, ranges, directions), = drifted_scans(rng, field, 1)
+    third = ScanMatcher(field, RADIUS, max_beams=120).correct(correction, odom, ranges, ORIGIN,
+                                                              directions)
+    assert third == ScanMatcher(field, RADIUS).correct(correction, odom, ranges[::3], ORIGIN,
+                                                       directions[::3])
+    assert third != ScanMatcher(field, RADIUS).correct(correction, odom, ranges, ORIGIN,
+                                                       directions)
+
+
+def test_bad_matcher_arguments_are_refused(field, monkeypatch):
+    with pytest.raises(ValueError, match="max_beams must be at least 1, got 0"):
+        ScanMatcher(field, RADIUS, max_beams=0)
+    with pytest.raises(ValueError, match="radii positive"):
+        ScanMatcher(field, 0.0)
+    with pytest.raises(ValueError, match="centres must be finite"):
+        ScanMatcher(np.array([[np.nan, 0.0]]), RADIUS)
+    monkeypatch.setattr(localization, "COMPILED", False)
+    with pytest.raises(RuntimeError, match=r"needs numba: pip install \"smartcar-gym\[fast\]\""):
+        ScanMatcher(field, RADIUS, compiled=True)
 
 
 def test_the_env_waypoint_follows_the_pose_on_the_map():

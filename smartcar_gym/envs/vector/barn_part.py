@@ -33,6 +33,7 @@ from smartcar_gym.navigation.localization import (
     beam_geometry,
     compose,
 )
+from smartcar_gym.parallel import run_chunks
 from smartcar_gym.sim.clock import NS_PER_S
 
 ENV_ID = "SmartCarBARN-v0"
@@ -142,15 +143,20 @@ class Barn(TaskPart):
         poses = np.column_stack([b.x[idx], b.y[idx], b.theta[idx]]).astype(float)
         if self.localize:
             stamps = env.next_scan
+            odoms = [tuple(row) for row in poses.tolist()]
+            new = [(k, i) for k, i in enumerate(idx.tolist()) if stamps[i] != self._matched[i]]
+            ranges, corrections, matchers = env.latest_ranges, self.corrections, self._matchers
+
+            def match(a: int, z: int) -> None:  # each scan corrects once; cars split over
+                for k, i in new[a:z]:           # threads (the compiled matcher frees the GIL)
+                    corrections[i] = matchers[i].correct(corrections[i], odoms[k], ranges[i],
+                                                         *self._beams)
+
+            run_chunks(match, len(new), env.threads)
+            for _, i in new:
+                self._matched[i] = stamps[i]
             for k, i in enumerate(idx.tolist()):
-                odom = (float(b.x[i]), float(b.y[i]), float(b.theta[i]))
-                if stamps[i] != self._matched[i]:  # each scan corrects once
-                    matcher = self._matchers[i]
-                    assert matcher is not None
-                    self.corrections[i] = matcher.correct(self.corrections[i], odom,
-                                                          env.latest_ranges[i], *self._beams)
-                    self._matched[i] = stamps[i]
-                poses[k] = compose(self.corrections[i], odom)
+                poses[k] = compose(corrections[i], odoms[k])
         self.map_poses[idx] = poses
         self.waypoints[idx] = self._trackers.waypoints_in_base(idx, poses)
 

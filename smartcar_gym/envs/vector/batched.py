@@ -107,6 +107,8 @@ class SmartCarBatchVectorEnv(CarsVectorEnv):
         #: steps before a car's episode is truncated (None: no limit)
         self.max_episode_steps = check_max_episode_steps(max_episode_steps, env_id)
         threads = check_num_threads(num_threads)
+        #: the worker threads the cars' compiled loops split over (physics, laser, parts)
+        self.threads = threads
         template = single_env(**kwargs)
         try:
             if template.controller_mode != HARDWARE:

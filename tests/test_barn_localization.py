@@ -192,11 +192,12 @@ def test_bad_localize_arguments_are_refused():
 
 
 def test_the_localized_batch_equals_n_single_envs_bit_for_bit():
+    """8 cars, their scans matched on two threads (4 cars each), as 8 single envs."""
     kwargs = dict(engine="planar", localize=True, randomize="odometry", max_episode_steps=24)
-    batched = gym.make_vec("SmartCarBARN-v0", num_envs=3,
+    batched = gym.make_vec("SmartCarBARN-v0", num_envs=8, num_threads=2,
                            vectorization_mode="vector_entry_point", autoreset_mode="SameStep",
                            **kwargs)
-    single = gym.make_vec("SmartCarBARN-v0", num_envs=3, vectorization_mode="sync",
+    single = gym.make_vec("SmartCarBARN-v0", num_envs=8, vectorization_mode="sync",
                           vector_kwargs={"autoreset_mode": gym.vector.AutoresetMode.SAME_STEP},
                           **kwargs)
     assert isinstance(batched, SmartCarBatchVectorEnv)

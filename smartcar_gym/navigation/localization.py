@@ -97,12 +97,6 @@ def _step(sums: tuple, at: tuple, correction: tuple) -> tuple:
             ty + s * correction[0] + c * correction[1], dyaw + correction[2])
 
 
-def _compose(a: tuple, b: tuple) -> tuple:
-    """``compose``, for the compiled loop."""
-    c, s = math.cos(a[2]), math.sin(a[2])
-    return (a[0] + c * b[0] - s * b[1], a[1] + s * b[0] + c * b[1], a[2] + b[2])
-
-
 class ScanMatcher:
     """The map -> odom correction on a map of circles (``centres`` (M, 2), ``radii`` (M,), m).
 
@@ -282,6 +276,6 @@ def _correct_loops(correction, odom_pose, ranges, origin, directions, centres, r
 
 
 if COMPILED:
-    _compose = numba.njit(cache=True)(_compose)
+    _compose = numba.njit(cache=True)(compose)  # for the compiled loop
     _step_compiled = numba.njit(cache=True)(_step)
     _compiled_correct = numba.njit(cache=True, nogil=True)(_correct_loops)

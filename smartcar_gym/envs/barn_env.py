@@ -34,10 +34,10 @@ from smartcar_gym.model.urdf import UrdfRobot
 from smartcar_gym.navigation.grid_planner import distance_grid, plan_path
 from smartcar_gym.navigation.localization import (
     IDENTITY,
+    Localizer,
     Pose,
     ScanMatcher,
     beam_geometry,
-    compose,
 )
 from smartcar_gym.sim.obstacles import nearest_distance
 from smartcar_gym.worlds.barn import (
@@ -214,12 +214,10 @@ class SmartCarBARNEnv(SmartCarNavEnv):
             raise ValueError(f"localize=True matches each scan with the odometry of its instant: "
                              f"the laser's rate_hz ({self.laser_config.rate_hz:g}) must be the "
                              f"controller's ({self.controller_config.rate_hz:g})")
-        #: map -> odom (x, y, yaw): the localization's correction (identity without it)
-        self.correction: Pose = IDENTITY
         #: base_link on the map (x, y, yaw), as the last observation saw it
         self.map_pose: Pose = IDENTITY
-        self._matcher: ScanMatcher | None = None
-        self._scan_used: Any = None
+        #: this episode's localization on its world's map (``localize``; else None)
+        self.localizer: Localizer | None = None
         #: the weight of the progress along the global path (0: the progress to the goal)
         self.path_progress_weight = 0.0
         if progress == "path":
@@ -258,10 +256,10 @@ class SmartCarBARNEnv(SmartCarNavEnv):
         super()._build_world()
         self.global_path = self._global_path()
         self.tracker = PathTracker(self.global_path, self.lookahead_m)
-        self.correction, self._scan_used = IDENTITY, None
         if self.localize:
-            self._matcher = ScanMatcher(self._centres, self._radii)
-            self._beams = beam_geometry(self.laser_config.angles, self.laser.mount)
+            self.localizer = Localizer(ScanMatcher(self._centres, self._radii),
+                                       *beam_geometry(self.laser_config.angles,
+                                                      self.laser.mount))
         self._reward_tracker = PathTracker(self.global_path, 0.0)  # ground truth, for rewards
         self._to_go = self._reward_tracker.to_go(np.zeros(2))
         self._clock = RunClock(np.zeros(2), self.protocol.moved_m)
@@ -334,18 +332,19 @@ class SmartCarBARNEnv(SmartCarNavEnv):
         readings = super().readings()
         odom = readings.odometry
         pose = (odom.x, odom.y, odom.theta)
-        if self._matcher is not None:
+        if self.localizer is not None:
             scan = self.laser.latest
-            if scan is not self._scan_used:  # each scan corrects once
-                self.correction = self._matcher.correct(self.correction, pose, scan.ranges,
-                                                        *self._beams)
-                self._scan_used = scan
-            pose = compose(self.correction, pose)
+            pose = self.localizer.locate(pose, scan.stamp_s, scan.ranges)
         self.map_pose = pose
         waypoint = self.tracker.waypoint(np.array(pose[:2]))
         return Readings(readings.odometry, readings.joint_position, readings.joint_velocity,
                         readings.goal, readings.previous_action,
                         {**readings.extra, WAYPOINT_KEY: waypoint, MAP_POSE_KEY: pose})
+
+    @property
+    def correction(self) -> Pose:
+        """map -> odom (x, y, yaw): the localization's correction (the identity without it)."""
+        return IDENTITY if self.localizer is None else self.localizer.correction
 
     def __getstate__(self) -> dict[str, Any]:
         state = super().__getstate__()

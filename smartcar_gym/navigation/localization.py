@@ -211,6 +211,33 @@ class ScanMatcher:
         return _step(tuple(sums.tolist()), at, correction)
 
 
+class Localizer:
+    """One robot's localization on a known map, as amcl runs beside move_base: ``locate(odom,
+    scan, ranges)`` corrects map -> odom with the scan ``scan`` (any key that differs from one
+    scan to the next: a stamp) unless that scan was matched already, and is the pose on the
+    map. The single env has one; the batch one per car, in the same order of calls."""
+
+    def __init__(self, matcher: ScanMatcher, origin: np.ndarray,
+                 directions: np.ndarray) -> None:
+        self.matcher = matcher
+        self._beams = (origin, directions)  # ``beam_geometry``'s
+        #: map -> odom (x, y, yaw): the identity at the start (the map's origin)
+        self.correction: Pose = IDENTITY
+        self._scan: object = None  # the key of the scan matched last
+
+    def match(self, odom_pose: Pose, scan: object, ranges: np.ndarray) -> None:
+        """The correction after the scan ``scan`` (``ranges``, taken at ``odom_pose``), once."""
+        if scan != self._scan:
+            self.correction = self.matcher.correct(self.correction, odom_pose, ranges,
+                                                   *self._beams)
+            self._scan = scan
+
+    def locate(self, odom_pose: Pose, scan: object, ranges: np.ndarray) -> Pose:
+        """Base_link on the map after ``match``."""
+        self.match(odom_pose, scan, ranges)
+        return compose(self.correction, odom_pose)
+
+
 def _correct_loops(correction, odom_pose, ranges, origin, directions, centres, radii, table,
                    low_x, low_y, nx, ny, cell, gate, min_hits, steps, stride):
     """``ScanMatcher.correct``, compiled: ``(ok, x, y, yaw)``, ``ok`` False where the

@@ -26,13 +26,7 @@ from smartcar_gym.envs.tasks.barn import (
 )
 from smartcar_gym.envs.tasks.path_trackers import PathTrackers
 from smartcar_gym.envs.vector.parts import TASKS, Navigation, Reach, Score, TaskPart
-from smartcar_gym.navigation.localization import (
-    IDENTITY,
-    Pose,
-    ScanMatcher,
-    beam_geometry,
-    compose,
-)
+from smartcar_gym.navigation.localization import IDENTITY, Localizer, Pose, beam_geometry
 from smartcar_gym.parallel import run_chunks
 from smartcar_gym.sim.clock import NS_PER_S
 
@@ -69,15 +63,18 @@ class Barn(TaskPart):
         self.outcome = np.full(n, None, dtype=object)
         self._timeout = np.zeros(n, dtype=bool)
         self._chosen: list[int] | None = None
-        #: ``localize``: each car's map -> odom correction (its builder's scan matcher's),
-        #: and its base_link on the map as the last observation saw it, (N, 3)
+        #: ``localize``: each car's localization (on its builder's scan matcher), and its
+        #: base_link on the map as the last observation saw it, (N, 3)
         self.localize = single.localize
-        self.corrections: list[Pose] = [IDENTITY] * n
+        self._localizers: list[Localizer | None] = [None] * n
         self.map_poses = np.zeros((n, 3))
-        self._matchers: list[ScanMatcher | None] = [None] * n
-        self._matched = np.full(n, -1, dtype=np.int64)  # the scan each car's matched last
         if self.localize:
             self._beams = beam_geometry(single.laser_config.angles, single.laser.mount)
+
+    @property
+    def corrections(self) -> list[Pose]:
+        """Each car's map -> odom correction (the identity without ``localize``)."""
+        return [IDENTITY if loc is None else loc.correction for loc in self._localizers]
 
     @property
     def planned_paths(self) -> dict[int, np.ndarray]:
@@ -120,7 +117,8 @@ class Barn(TaskPart):
         self.world[i] = world.index
         self.optimal[i] = self.protocol.optimal_time_s(world.path_length_m * self.protocol.scale)
         self.global_paths[i] = builder.global_path
-        self._matchers[i] = builder._matcher
+        if builder.localizer is not None:  # the car's own, on the builder's map
+            self._localizers[i] = Localizer(builder.localizer.matcher, *self._beams)
 
     def after_reset(self, env: Any, mask: np.ndarray, idx: np.ndarray) -> None:
         """A fresh run: its clock, no outcome, the path followed from its start."""
@@ -130,7 +128,6 @@ class Barn(TaskPart):
             self._trackers.start(i, self.global_paths[i])
             self._reward_trackers.start(i, self.global_paths[i])
             self._to_go[i] = self._reward_trackers.to_go([i], np.zeros((1, 2)))[0]
-            self.corrections[i], self._matched[i] = IDENTITY, -1
         if len(idx):
             self._follow(env, idx)
         self.outcome[idx] = None
@@ -142,21 +139,17 @@ class Barn(TaskPart):
         b = env.base
         poses = np.column_stack([b.x[idx], b.y[idx], b.theta[idx]]).astype(float)
         if self.localize:
-            stamps = env.next_scan
+            cars, stamps, ranges = idx.tolist(), env.next_scan, env.latest_ranges
             odoms = [tuple(row) for row in poses.tolist()]
-            new = [(k, i) for k, i in enumerate(idx.tolist()) if stamps[i] != self._matched[i]]
-            ranges, corrections, matchers = env.latest_ranges, self.corrections, self._matchers
+            localizers = [self._localizers[i] for i in cars]
 
-            def match(a: int, z: int) -> None:  # each scan corrects once; cars split over
-                for k, i in new[a:z]:           # threads (the compiled matcher frees the GIL)
-                    corrections[i] = matchers[i].correct(corrections[i], odoms[k], ranges[i],
-                                                         *self._beams)
+            def match(a: int, z: int) -> None:  # the cars split over threads (the compiled
+                for k in range(a, z):           # matcher frees the GIL)
+                    localizers[k].match(odoms[k], int(stamps[cars[k]]), ranges[cars[k]])
 
-            run_chunks(match, len(new), env.threads)
-            for _, i in new:
-                self._matched[i] = stamps[i]
-            for k, i in enumerate(idx.tolist()):
-                poses[k] = compose(corrections[i], odoms[k])
+            run_chunks(match, len(cars), env.threads)
+            for k, localizer in enumerate(localizers):
+                poses[k] = localizer.locate(odoms[k], int(stamps[cars[k]]), ranges[cars[k]])
         self.map_poses[idx] = poses
         self.waypoints[idx] = self._trackers.waypoints_in_base(idx, poses)
 

@@ -166,6 +166,11 @@ def test_a_faulty_encoder_without_faults_counts_as_the_plain_one():
         encoder.reset(0.3)
     for angle in np.linspace(-50, 400, 2001):
         assert faulty.count(angle) == plain.count(angle)
+    # so it says it is exact (a batch then counts it in arrays); any fault says it is not
+    assert plain.exact and faulty.exact
+    rng = np.random.default_rng(0)
+    for fault in ({"scale": 1.02}, {"noise_ticks": 0.5}, {"slip": 0.01}):
+        assert not FaultyEncoder(0.025, 4100, rng=rng, **fault).exact, fault
 
 
 def test_encoder_scale_noise_and_slip_are_measured_as_asked():

@@ -22,6 +22,9 @@ def ticks_from_angle(angle_rad: float, wheel_radius_m: float, ticks_meter: float
 class WheelEncoder:
     """One wheel's encoder: counts ticks of wheel travel since ``reset`` (board power-up)."""
 
+    #: whether it counts exactly ``ticks_meter`` ticks a metre (a batch counts those in arrays)
+    exact = True
+
     def __init__(self, wheel_radius_m: float, ticks_meter: float) -> None:
         if not wheel_radius_m > 0 or not ticks_meter > 0:
             raise ValueError(

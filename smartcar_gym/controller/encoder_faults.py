@@ -50,6 +50,11 @@ class FaultyEncoder(WheelEncoder):
         self._travel = 0.0  # true ticks at the last reading (float)
         self._counted = 0.0  # ticks counted so far, slip included (float)
 
+    @property
+    def exact(self) -> bool:
+        """No fault: on scale, no noise, no slip (it counts as a ``WheelEncoder``)."""
+        return self.scale == 1.0 and not self.noise_ticks and not self.slip
+
     def reset(self, angle_rad: float, phase_ticks: float = 0.0) -> None:
         super().reset(angle_rad, phase_ticks)
         self._travel = self._counted = phase_ticks * self.scale

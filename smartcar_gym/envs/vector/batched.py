@@ -259,9 +259,7 @@ class SmartCarBatchVectorEnv(CarsVectorEnv):
         robot = single.robot
         self._draws[i] = None if single.draw is None else single.draw.info
         encoders = robot.base.encoders
-        exact = all(getattr(e, "scale", 1.0) == 1.0 and not getattr(e, "noise_ticks", 0.0)
-                    and not getattr(e, "slip", 0.0) for e in encoders)
-        self.base.vary(i, robot.config, None if exact else encoders)
+        self.base.vary(i, robot.config, None if all(e.exact for e in encoders) else encoders)
         if robot.command_delay is None:
             self._delays.pop(i, None)
         else:

@@ -139,17 +139,18 @@ class Barn(TaskPart):
         b = env.base
         poses = np.column_stack([b.x[idx], b.y[idx], b.theta[idx]]).astype(float)
         if self.localize:
-            cars, stamps, ranges = idx.tolist(), env.next_scan, env.latest_ranges
             odoms = [tuple(row) for row in poses.tolist()]
-            localizers = [self._localizers[i] for i in cars]
+            scans = env.next_scan[idx].tolist()  # each car's scan's key (its next one's time)
+            ranges = env.latest_ranges[idx]
+            localizers = [self._localizers[i] for i in idx.tolist()]
 
             def match(a: int, z: int) -> None:  # the cars split over threads (the compiled
                 for k in range(a, z):           # matcher frees the GIL)
-                    localizers[k].match(odoms[k], int(stamps[cars[k]]), ranges[cars[k]])
+                    localizers[k].match(odoms[k], scans[k], ranges[k])
 
-            run_chunks(match, len(cars), env.threads)
+            run_chunks(match, len(idx), env.threads)
             for k, localizer in enumerate(localizers):
-                poses[k] = localizer.locate(odoms[k], int(stamps[cars[k]]), ranges[cars[k]])
+                poses[k] = localizer.locate(odoms[k], scans[k], ranges[k])
         self.map_poses[idx] = poses
         self.waypoints[idx] = self._trackers.waypoints_in_base(idx, poses)
 
@@ -165,7 +166,7 @@ class Barn(TaskPart):
             self._to_go = to_go
         for i in range(env.num_envs):
             self._clocks[i].update(pose[i, :2], int(now[i]) / NS_PER_S)
-        self._follow(env, np.arange(env.num_envs))
+        self._follow(env, np.flatnonzero(~env._parked))  # a parked car stands as followed
         ended = collision | success | failure
         self._timeout = ~ended & (env._steps >= self.timeout_steps)
         for outcome, mask in ((TIMEOUT, self._timeout), (FAILURE, failure),

@@ -20,10 +20,14 @@ from smartcar_gym.navigation.dwa_driver import DWADriver
 def test_dwa_on_a_batch_gives_the_single_envs_records_bit_for_bit(kwargs):
     """Three runs on two cars: the third job goes to the car that ends first, the other car
     is parked; every record (outcome, times, scores, way) is the single envs' row's, with DWA
-    following the path from the odometry or (``localize``) from the pose on the map."""
+    following the path from the odometry or (``localize``) from the pose on the map. A car
+    left without a run is parked where it stands: three worlds are built, one per run."""
     jobs = barn_jobs((0, 6), runs=2, seed=3)[:3]
     singles = [gym.make("SmartCarBARN-v0", engine="planar", **kwargs) for _ in range(2)]
     batch = SmartCarBatchVectorEnv("SmartCarBARN-v0", num_envs=2, engine="planar", **kwargs)
+    builds = []
+    reset = batch.builder.reset
+    batch.builder.reset = lambda **kw: builds.append(kw["options"]["world"]) or reset(**kw)
     try:
         want = run_barn(singles, DWADriver(), jobs, keep=lambda job: True)
         got = run_barn_vector(batch, DWADriver(), jobs, keep=lambda job: True)
@@ -32,6 +36,7 @@ def test_dwa_on_a_batch_gives_the_single_envs_records_bit_for_bit(kwargs):
         for env in singles:
             env.close()
     assert [r.outcome for r in want] == ["success"] * 3
+    assert builds == [job.world for job in jobs]
     for g, w in zip(got, want, strict=True):
         assert g.to_dict() == w.to_dict()
         assert np.array_equal(g.trajectory, w.trajectory)

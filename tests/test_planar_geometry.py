@@ -427,6 +427,30 @@ def test_a_stack_of_footprints_places_each_car_its_own():
         Footprint.stack([small, footprint(load_model(mappings={"laser": "true"}))])
 
 
+
+@pytest.mark.parametrize("stacked", [False, True])
+def test_clearance_of_listed_cars_is_their_clearance_of_all(stacked):
+    """``cars``: the listed cars' clearances are the same bits as measuring every car, the
+    others are ``max_distance`` (a batch measures only the cars it runs), for one footprint
+    and for a stack; a mask of another shape or type is one line."""
+    rng, layouts = _layouts(7, 12, n=6, half_extent=1.0)
+    shapes = Shapes2D.from_layouts(layouts)
+    poses = np.c_[rng.uniform(-0.9, 0.9, (12, 2)), rng.uniform(-np.pi, np.pi, 12)]
+    car = footprint(load_model(), wheel_contact="urdf")
+    car = Footprint.stack([car] * 12) if stacked else car
+    every = clearance(car, poses, shapes, 0.3)
+    assert (every < 0.3).sum() >= 6 and (every < 0).any()  # near and touching cars too
+    listed = np.zeros(12, dtype=bool)
+    listed[[0, 3, 4, 9, 11]] = True
+    got = clearance(car, poses, shapes, 0.3, cars=listed)
+    assert got[listed].tolist() == every[listed].tolist()
+    assert (got[~listed] == 0.3).all()
+    assert (clearance(car, poses, shapes, 0.3, cars=np.zeros(12, dtype=bool)) == 0.3).all()
+    for bad in (listed.astype(int), listed[:5], [True] * 12):
+        with pytest.raises(ValueError, match=r"cars must be a bool mask of shape \(12,\)"):
+            clearance(car, poses, shapes, 0.3, cars=bad)
+
+
 # -- bad input -------------------------------------------------------------------------------
 def test_bad_input_is_refused_naming_the_argument():
     shapes = Shapes2D.from_layout([_box(1.0, 0.0, 0.2, 0.4)])

@@ -154,3 +154,61 @@ def test_park_takes_only_a_bool_array_of_one_flag_per_car(mask):
         assert envs.unwrapped._parked.tolist() == [False, True, False]
     finally:
         envs.close()
+
+
+@pytest.mark.parametrize("engine", ["planar", pytest.param("mujoco", marks=pytest.mark.skipif(
+    not MUJOCO, reason="engine='mujoco' needs the mujoco extra"))])
+@pytest.mark.parametrize("mode", ["NextStep", "SameStep"])
+def test_a_parked_car_is_never_autoreset(engine, mode):
+    """Every car's episode ends at its third step (``max_episode_steps``). Car 1, parked
+    before the step that would reset it, is not reset (its clock stands, no new world is
+    built) and never ends again; the others are autoreset as usual, and a ``reset`` that names
+    car 1 unparks it."""
+    envs = gym.make_vec("SmartCarNav-v0", num_envs=N, vectorization_mode="vector_entry_point",
+                        engine=engine, max_episode_steps=3, autoreset_mode=mode)
+    u = envs.unwrapped
+    builder = next(p.builder for p in u.parts if getattr(p, "builder", None) is not None)
+    builds = []
+    reset = builder.reset
+    builder.reset = lambda **kw: builds.append(1) or reset(**kw)
+    parked = np.array([False, True, False])
+    at = 3 if mode == "NextStep" else 2  # NextStep: after its end; SameStep: before it
+    try:
+        envs.reset(seed=0)
+        action = np.full((N, 2), 0.5, dtype=np.float32)
+        ends, final = [], []
+        for k in range(5):
+            if k == at:
+                u.park(parked)
+                clock = u._now[1]
+                builds.clear()
+            _, _, terminated, truncated, info = envs.step(action)
+            ends.append((terminated | truncated).tolist())
+            final.append(info.get("_final_obs", np.zeros(N, dtype=bool)).tolist())
+        assert ends[2] == [True, at == 3, True]  # the first episodes' end
+        assert u._parked.tolist() == [False, True, False] and u._now[1] == clock
+        assert not any(end[1] for end in ends[at:]) and not any(f[1] for f in final)
+        assert len(builds) == 2  # cars 0 and 2 autoreset once each, car 1 never
+        envs.reset(seed=[None, 5, None], options={"reset_mask": parked})
+        assert not u._parked.any() and u._now[1] == 0 and len(builds) == 3
+    finally:
+        envs.close()
+
+
+@pytest.mark.parametrize("engine", ["planar", pytest.param("mujoco", marks=pytest.mark.skipif(
+    not MUJOCO, reason="engine='mujoco' needs the mujoco extra"))])
+def test_the_engines_measure_the_listed_cars_clearances_alone(engine):
+    """``CarBatch.clearances(pose, d, idx)``: each listed car's value is the one it has among
+    every car's, bit for bit, in the listed order (the batch measures the running cars)."""
+    envs = gym.make_vec("SmartCarNav-v0", num_envs=4, vectorization_mode="vector_entry_point",
+                        engine=engine, obstacles=6, arena_size=2.0, goal_range=(0.4, 0.9))
+    try:
+        envs.reset(seed=1)
+        u = envs.unwrapped
+        every = u.cars.clearances(u._pose, 0.5, np.arange(4))
+        assert (every < 0.5).sum() >= 2  # obstacles within reach of some cars
+        idx = np.array([3, 0, 2])
+        assert u.cars.clearances(u._pose, 0.5, idx).tolist() == every[idx].tolist()
+        assert u.cars.clearances(u._pose, 0.5, np.zeros(0, dtype=np.int64)).shape == (0,)
+    finally:
+        envs.close()

@@ -3,7 +3,7 @@
 ``run_barn_vector`` is ``runner.run_barn`` for a batch: the same jobs to the same cars in the
 same order (a car whose run ends takes the next job by a partial reset with its seed and
 world), ``driver.act`` for the cars with a run (``driver.act_chunk`` at a time, None: all at
-once), idle cars parked.
+once), a car left without a run parked where it stands (not reset: no world is built for it).
 ``BatchCar`` shows the driver car i as it sees a single env (odometry, scan, global path, the
 car's settings). Per car the batch is its single env bit for bit, so the records are the
 single envs' row's.
@@ -84,18 +84,19 @@ def run_barn_vector(envs: gym.vector.VectorEnv, driver: Any, jobs: Sequence[Job]
             if slots[i] is not None:
                 seeds[i], worlds[i] = slots[i][1].seed, slots[i][1].world
                 started.append(i)
-        mask = np.zeros(n, dtype=bool)
-        mask[idx] = True
-        options: dict[str, Any] = {"world": list(worlds)}
-        if not first:
-            options["reset_mask"] = mask
-        obs[:], info = envs.reset(seed=seeds, options=options)
-        for i in started:
-            slots[i][2].append(info["pose"][i, :2].copy())
-        idle = mask.copy()
-        idle[started] = False
+        fresh, idle = np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
+        fresh[started] = True
+        idle[idx] = True
+        idle &= ~fresh
+        if first or started:  # the first reset resets every car; later, only the new runs'
+            options: dict[str, Any] = {"world": list(worlds)}
+            if not first:
+                options["reset_mask"] = fresh
+            obs[:], info = envs.reset(seed=seeds, options=options)
+            for i in started:
+                slots[i][2].append(info["pose"][i, :2].copy())
         if idle.any():
-            u.park(idle)
+            u.park(idle)  # a car left without a run stands where it is: no new world
         if started:
             driver.reset(cars, started)
 

@@ -85,9 +85,11 @@ class CarBatch(Protocol):
         casts them: which beams hit ((K, B) bool) and how far along (fraction, 1 where
         none)."""
 
-    def clearances(self, pose: np.ndarray, max_distance_m: float) -> np.ndarray:
-        """(N,): every car's ``nearest_distance`` to its obstacles (<= 0: touching), at most
-        ``max_distance_m``; ``pose`` is what ``read_pose`` last wrote."""
+    def clearances(self, pose: np.ndarray, max_distance_m: float, idx: np.ndarray
+                   ) -> np.ndarray:
+        """(K,): the listed cars' ``nearest_distance`` to their obstacles (<= 0: touching), at
+        most ``max_distance_m``; ``pose`` is what ``read_pose`` last wrote (every car's). A
+        car's value does not depend on which others are listed."""
 
 
 class CarBatchFactory(Protocol):

@@ -61,6 +61,8 @@ class Barn(TaskPart):
         self._trackers = PathTrackers(n, self.lookahead_m)
         self._clocks = [RunClock(np.zeros(2), self.protocol.moved_m) for _ in range(n)]
         self.outcome = np.full(n, None, dtype=object)
+        #: each car's AT and scores (``info_values``): (3, N)
+        self._timing = np.zeros((3, n))
         self._timeout = np.zeros(n, dtype=bool)
         self._chosen: list[int] | None = None
         #: ``localize``: each car's localization (on its builder's scan matcher), and its
@@ -164,9 +166,10 @@ class Barn(TaskPart):
             to_go = self._reward_trackers.to_go(np.arange(env.num_envs), pose[:, :2])
             reward = reward + self.path_progress_weight * (self._to_go - to_go)
             self._to_go = to_go
-        for i in range(env.num_envs):
+        running = np.flatnonzero(~env._parked)  # a parked car stands: as timed and followed
+        for i in running.tolist():
             self._clocks[i].update(pose[i, :2], int(now[i]) / NS_PER_S)
-        self._follow(env, np.flatnonzero(~env._parked))  # a parked car stands as followed
+        self._follow(env, running)
         ended = collision | success | failure
         self._timeout = ~ended & (env._steps >= self.timeout_steps)
         for outcome, mask in ((TIMEOUT, self._timeout), (FAILURE, failure),
@@ -182,19 +185,18 @@ class Barn(TaskPart):
 
     def info_values(self, env: Any, values: dict[str, np.ndarray],
                     success: np.ndarray) -> None:
-        """``SmartCarBARNEnv._barn_info``: world, outcome, AT, OT and both scores."""
+        """``SmartCarBARNEnv._barn_info``: world, outcome, AT, OT and both scores (a parked
+        car's as they were: its clock stands)."""
         now = env._now
-        n = env.num_envs
-        run_time = np.array([self._clocks[i].elapsed_s(int(now[i]) / NS_PER_S)
-                             for i in range(n)])
-        won = self.outcome == SUCCESS
-        values.update(
-            world=self.world.copy(), outcome=self.outcome.copy(), run_time_s=run_time,
-            optimal_time_s=self.optimal.copy(),
-            score=np.array([barn_score(bool(won[i]), run_time[i], self.optimal[i])
-                            for i in range(n)]),
-            score_025=np.array([barn_score(bool(won[i]), run_time[i], self.optimal[i],
-                                           floor=4.0) for i in range(n)]))
+        run_time, score, score_025 = self._timing
+        for i in np.flatnonzero(~env._parked).tolist():
+            run_time[i] = at = self._clocks[i].elapsed_s(int(now[i]) / NS_PER_S)
+            won = self.outcome[i] == SUCCESS
+            score[i] = barn_score(won, at, self.optimal[i])
+            score_025[i] = barn_score(won, at, self.optimal[i], floor=4.0)
+        values.update(world=self.world.copy(), outcome=self.outcome.copy(),
+                      run_time_s=run_time.copy(), optimal_time_s=self.optimal.copy(),
+                      score=score.copy(), score_025=score_025.copy())
 
 
 TASKS[ENV_ID] = (SmartCarBARNEnv, (Reach, Navigation, Barn))

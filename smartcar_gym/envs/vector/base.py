@@ -59,6 +59,8 @@ class CarsVectorEnv(gym.vector.VectorEnv):
         self._distance = np.zeros(n)
         self._prev_action = np.zeros((n, 2), dtype=np.float32)
         self._autoreset = np.zeros(n, dtype=bool)
+        #: cars not simulated until a reset names them (``park`` where the subclass has it)
+        self._parked = np.zeros(n, dtype=bool)
         self._needs_reset = True
 
     # -- copies --------------------------------------------------------------------------------
@@ -111,13 +113,17 @@ class CarsVectorEnv(gym.vector.VectorEnv):
         if self._needs_reset:
             raise gym.error.ResetNeeded(f"{self.label}: call reset() before step()")
         a = check_actions(actions, self.num_envs)
-        restart = self._autoreset.copy() if self.autoreset_mode == AutoresetMode.NEXT_STEP \
+        restart = self._autoreset & ~self._parked \
+            if self.autoreset_mode == AutoresetMode.NEXT_STEP \
             else np.zeros(self.num_envs, dtype=bool)
         reward, success, failure = self._advance(a)
         terminated = success | failure
         truncated = self._cut_short() | (
             self._steps >= self.max_episode_steps if self.max_episode_steps is not None
             else np.zeros(self.num_envs, dtype=bool))
+        # a parked car has no episode: it never ends, so it is never autoreset
+        terminated &= ~self._parked
+        truncated &= ~self._parked
         if self.autoreset_mode == AutoresetMode.NEXT_STEP:
             if restart.any():
                 self._reset_cars(restart, None)

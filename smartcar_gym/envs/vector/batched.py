@@ -207,11 +207,13 @@ class SmartCarBatchVectorEnv(CarsVectorEnv):
         return state
 
     def park(self, mask: np.ndarray) -> None:
-        """Stop simulating the masked cars until each one's next reset (``reset`` or an
-        autoreset): no events, no physics, their clocks stand still. ``step`` still reports
-        them, computed from where they stand (the same observation; a reward, ends and infos
-        that mean nothing). For evaluations with fewer episodes left than cars: the idle cars
-        cost no physics (``smartcar-eval --vectorization batched``). The other cars step
+        """Stop simulating the masked cars until a ``reset`` names each one (``reset_mask``): no
+        events, no physics, their clocks stand still, and no autoreset (a car parked once its
+        episode ended is not started again). ``step`` still reports them, computed from where
+        they stand (the same observation; a reward and infos that mean nothing) and never
+        ending (``terminated`` and ``truncated`` False). For evaluations with fewer episodes
+        left than cars: the idle cars cost no physics and no new world
+        (``smartcar-eval --vectorization batched``, ``smartcar-bench barn``). The other cars step
         exactly as they would have. ``mask`` is a numpy bool array of shape (N,)."""
         if not (isinstance(mask, np.ndarray) and mask.dtype == np.bool_
                 and mask.shape == (self.num_envs,)):

@@ -241,6 +241,10 @@ class Navigation(TaskPart):
         self.scan_sectors = single.scan_sectors
         #: every car's latest scan, (N, beams) float32
         self.latest_ranges = np.zeros((n, single.laser_config.beams), dtype=np.float32)
+        #: the observation's scan sectors of ``latest_ranges``, remade for the cars scanned
+        #: since (``_stale``): a car that has not scanned (parked) keeps its row
+        self._sectors = np.zeros((n, single.scan_sectors))
+        self._stale = np.ones(n, dtype=bool)
         self._laser_rngs: list[np.random.Generator | None] = [None] * n
         self._next_scan = np.zeros(n, dtype=np.int64)
         self.clearance = np.zeros(n)
@@ -280,6 +284,7 @@ class Navigation(TaskPart):
             _, info = b.reset(options=options or None)
             env.goal[i] = b.goal
             self.latest_ranges[i] = b.laser.latest.ranges
+            self._stale[i] = True
             self._laser_rngs[i] = b.laser.rng
             self._next_scan[i] = self.laser.period_ns
             self.clearance[i], self.collision[i] = info["clearance"], False
@@ -295,16 +300,20 @@ class Navigation(TaskPart):
         assert previous is not None
         reward, success, failure = previous
         task = env.task
-        self.clearance = env.cars.clearances(env._pose, task.proximity_m)
+        running = np.flatnonzero(~env._parked)  # a parked car stands: its clearance stays
+        self.clearance[running] = env.cars.clearances(env._pose, task.proximity_m, running)
         self.collision = self.clearance <= 0.0
         reward = (reward + task.collision_reward(self.collision)
                   + task.proximity_reward(self.clearance))
         return reward, success, failure | self.collision
 
     def columns(self, env: Any, columns: dict[str, Any]) -> None:
-        sectors = scan_sectors(self.latest_ranges, self.laser.config.range_max,
-                               self.scan_sectors)
-        columns[SCAN_KEY] = tuple(sectors.T)
+        stale = np.flatnonzero(self._stale)
+        if len(stale):
+            self._sectors[stale] = scan_sectors(self.latest_ranges[stale],
+                                                self.laser.config.range_max, self.scan_sectors)
+            self._stale[:] = False
+        columns[SCAN_KEY] = tuple(self._sectors.T.copy())
 
     def info_values(self, env: Any, values: dict[str, np.ndarray],
                     success: np.ndarray) -> None:
@@ -325,6 +334,7 @@ class Navigation(TaskPart):
         """``SimulatedLaser.scan`` for the listed cars: the engine casts, the ranges here."""
         laser = self.laser
         hit, fraction = env.cars.cast(idx, laser)
+        self._stale[idx] = True
         if laser.config.noise_std_m > 0:
             for k, i in enumerate(idx.tolist()):
                 self.latest_ranges[i] = laser.ranges(fraction[k], hit[k], self._laser_rngs[i])

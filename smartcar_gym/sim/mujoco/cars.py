@@ -104,6 +104,8 @@ class MujocoCars:
         return self.batch.scan(idx, starts,
                                origin[:, None, :] + directions * laser.config.range_max)
 
-    def clearances(self, pose: np.ndarray, max_distance_m: float) -> np.ndarray:
-        """``mj_geomDistance`` over each car's pairs (``CarBatch.distances``)."""
-        return self.batch.distances(np.arange(self.batch.n), self._pairs, max_distance_m)
+    def clearances(self, pose: np.ndarray, max_distance_m: float, idx: np.ndarray
+                   ) -> np.ndarray:
+        """``mj_geomDistance`` over each listed car's pairs (``CarBatch.distances``)."""
+        return self.batch.distances(np.asarray(idx, dtype=np.int64), self._pairs,
+                                    max_distance_m)

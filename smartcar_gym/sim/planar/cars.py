@@ -164,13 +164,17 @@ class PlanarCars:
         fraction = np.where(hit, found.distance / np.where(moving, length, 1.0), 1.0)
         return hit, fraction
 
-    def clearances(self, pose: np.ndarray, max_distance_m: float) -> np.ndarray:
-        """Every car's footprint against its obstacles: ``geometry.clearance``."""
+    def clearances(self, pose: np.ndarray, max_distance_m: float, idx: np.ndarray
+                   ) -> np.ndarray:
+        """The listed cars' footprints against their obstacles: ``geometry.clearance``, on
+        every car's stacked shapes (kept between steps) with the others left out."""
         if self._footprint is None:
             self._footprint = Footprint.stack(self._footprints)
-        return clearance(self._footprint, pose,
-                         self._world_shapes(np.arange(self.batch.n)), max_distance_m,
-                         height=OBSTACLE_HEIGHT_M)
+        idx = np.asarray(idx, dtype=np.int64)
+        listed = np.zeros(self.batch.n, dtype=bool)
+        listed[idx] = True
+        return clearance(self._footprint, pose, self._world_shapes(np.arange(self.batch.n)),
+                         max_distance_m, height=OBSTACLE_HEIGHT_M, cars=listed)[idx]
 
 
 def _stack(parts: list[Shapes2D]) -> Shapes2D:

@@ -126,7 +126,8 @@ def _corners_to_box(qx: np.ndarray, qy: np.ndarray, hx: np.ndarray, hy: np.ndarr
 
 
 def clearance(footprint: Footprint, poses: Any, shapes: Shapes2D, max_distance: float, *,
-              height: float | None = OBSTACLE_HEIGHT_M, box_margin: float = 0.0) -> np.ndarray:
+              height: float | None = OBSTACLE_HEIGHT_M, box_margin: float = 0.0,
+              cars: np.ndarray | None = None) -> np.ndarray:
     """``(N,)``: the smallest distance (m) between the footprint with base_link at ``poses``
     (``(N, 3)``: x, y, yaw) and car i's ``shapes`` (N or 1 worlds), negative (the
     penetration depth) where they overlap, at most ``max_distance``: pybullet's
@@ -140,7 +141,8 @@ def clearance(footprint: Footprint, poses: Any, shapes: Shapes2D, max_distance: 
     them (or below the ground) the hypotenuse of its 2D distance and the height between. None:
     the 2D distance alone.
     ``box_margin``: see ``distances`` (``BULLET_BOX_MARGIN_M`` matches pybullet's rounded box
-    edges).
+    edges). ``cars``: a bool mask (N,) of the cars to measure (None: all); the others get
+    ``max_distance``, and a measured car's value is the same as without the mask.
     """
     if not (is_number(max_distance) and math.isfinite(max_distance)):
         raise ValueError(f"max_distance must be a finite number of metres, got {max_distance!r}")
@@ -157,15 +159,25 @@ def clearance(footprint: Footprint, poses: Any, shapes: Shapes2D, max_distance: 
         raise ValueError(f"shapes hold {shapes.num_cars} cars' obstacles, poses {n} cars")
     shapes = shapes.broadcast_to(n)
     nearest = np.full(n, float(max_distance))
+    if cars is None:  # the measured cars: every row of the arrays, or the listed rows
+        rows: Any = slice(None)
+        measured = footprint
+    elif isinstance(cars, np.ndarray) and cars.dtype == np.bool_ and cars.shape == (n,):
+        rows = np.flatnonzero(cars)
+        measured = footprint.take(rows)
+    else:
+        raise ValueError(f"cars must be a bool mask of shape ({n},), got {cars!r}")
     # broad phase: the (car, obstacle) pairs whose bounding circles are within max_distance
-    offset = shapes.centre - poses[:, None, :2]
-    apart = np.hypot(offset[..., 0], offset[..., 1]) - _kept(shapes, "radius", 0.0)
-    pair_car, pair_shape = np.nonzero(shapes.valid & (apart < footprint.radius + max_distance))
+    offset = shapes.centre[rows] - poses[rows, None, :2]
+    apart = np.hypot(offset[..., 0], offset[..., 1]) - _kept(shapes, "radius", 0.0)[rows]
+    pair_row, pair_shape = np.nonzero(shapes.valid[rows]
+                                      & (apart < footprint.radius + max_distance))
+    pair_car = pair_row if cars is None else rows[pair_row]
     if len(pair_car) == 0:
         return nearest
     # exact: each pair's obstacle against every part of its car's footprint, (pair, part)
     k = footprint.shapes.num_shapes
-    parts = np.take(_columns(footprint.place(poses), box_margin), pair_car, axis=1)
+    parts = np.take(_columns(measured.place(poses[rows]), box_margin), pair_row, axis=1)
     obstacles = _kept(shapes, "columns", box_margin)[:, pair_car, pair_shape]
     signed = _signed(parts.reshape(7, -1), np.repeat(obstacles, k, axis=1)).reshape(-1, k)
     if height is not None:

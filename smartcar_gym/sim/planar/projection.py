@@ -204,9 +204,16 @@ class Footprint:
         rc, rs = local.rotation[..., 0], local.rotation[..., 1]
         rotation = np.stack([c * rc - s * rs, s * rc + c * rs], axis=-1)
         n = len(poses)
-        return Shapes2D(np.broadcast_to(local.kind, (n, local.num_shapes)), centre, rotation,
-                        np.broadcast_to(local.half, (n, local.num_shapes, 2)),
-                        np.broadcast_to(local.valid, (n, local.num_shapes)))
+        return Shapes2D.derived(np.broadcast_to(local.kind, (n, local.num_shapes)), centre,
+                                rotation, np.broadcast_to(local.half, (n, local.num_shapes, 2)),
+                                np.broadcast_to(local.valid, (n, local.num_shapes)))
+
+    def take(self, rows: np.ndarray) -> Footprint:
+        """The footprints of cars ``rows`` of a stack (one footprint: itself)."""
+        if self.shapes.num_cars == 1:
+            return self
+        return Footprint(self.shapes.take(rows, self.shapes.num_shapes), self.links,
+                         self.z_range[rows], self.exact)
 
 
 def footprint(robot: RobotModel | UrdfRobot | str, wheel_contact: str = "sphere") -> Footprint:

@@ -73,9 +73,18 @@ class Shapes2D:
 
     def take(self, rows: np.ndarray, m: int) -> Shapes2D:
         """Cars ``rows``' first ``m`` shapes (already checked: no checks run again)."""
+        return Shapes2D.derived(*(getattr(self, name)[rows, :m] for name in
+                                  ("kind", "centre", "rotation", "half", "valid")))
+
+    @staticmethod
+    def derived(kind: np.ndarray, centre: np.ndarray, rotation: np.ndarray, half: np.ndarray,
+                valid: np.ndarray) -> Shapes2D:
+        """Shapes made from checked ones by taking rows or moving them rigidly (``take``,
+        ``Footprint.place``): the checks are not run again, the arrays are made read-only."""
         out = object.__new__(Shapes2D)
-        for name in ("kind", "centre", "rotation", "half", "valid"):
-            value = getattr(self, name)[rows, :m]
+        for name, value in zip(("kind", "centre", "rotation", "half", "valid"),
+                               (kind, centre, rotation, half, valid), strict=True):
+            value = value.view()
             value.setflags(write=False)
             object.__setattr__(out, name, value)
         return out

@@ -1,5 +1,6 @@
 """Compiled loops over robots, split across threads: ``run_chunks(work, n, threads)`` calls
-``work(start, stop)`` on consecutive chunks of ``range(n)`` at once and waits for them all.
+``work(start, stop)`` on consecutive chunks of ``range(n)``, ``threads`` at once (each thread
+takes the next chunk when its last is done), and waits for them all.
 
 The loops are numba's with ``nogil=True``, each robot's work independent of the others' and
 written to its own rows, so a split run gives the numbers of one call bit for bit; numba's own
@@ -10,26 +11,38 @@ enter it at once). One pool serves the process; a thread count of 1, or fewer th
 
 from __future__ import annotations
 
+import itertools
 import os
 import threading
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 
 MIN_CHUNK = 4  # robots per thread below which splitting costs more than it saves
+#: chunks per thread, taken in turn: a thread whose robots cost less takes more of them (the
+#: robots' costs differ: a DWA robot among many obstacle points costs several times another's)
+CHUNKS_PER_THREAD = 4
 _POOL: ThreadPoolExecutor | None = None
 _POOL_PID = 0  # the process that made it: a forked child makes its own (it has no threads)
 _POOL_LOCK = threading.Lock()
 
 
 def run_chunks(work: Callable[[int, int], None], n: int, threads: int) -> None:
-    """``work(start, stop)`` over ``range(n)`` in at most ``threads`` chunks, in parallel."""
+    """``work(start, stop)`` over ``range(n)`` on at most ``threads`` threads in parallel, in
+    up to ``CHUNKS_PER_THREAD`` chunks per thread (of ``MIN_CHUNK`` robots or more)."""
     parts = max(1, min(threads, n // MIN_CHUNK))
     if parts == 1:
         work(0, n)
         return
-    bounds = [n * k // parts for k in range(parts + 1)]
-    futures = [_pool().submit(work, bounds[k], bounds[k + 1]) for k in range(1, parts)]
-    work(bounds[0], bounds[1])  # the calling thread takes the first chunk
+    pieces = max(parts, min(parts * CHUNKS_PER_THREAD, n // MIN_CHUNK))
+    bounds = [n * k // pieces for k in range(pieces + 1)]
+    taken = itertools.count()  # the next chunk: ``next`` on it is atomic (one C call)
+
+    def drain() -> None:
+        while (k := next(taken)) < pieces:
+            work(bounds[k], bounds[k + 1])
+
+    futures = [_pool().submit(drain) for _ in range(parts - 1)]
+    drain()  # the calling thread takes chunks too
     for future in futures:
         future.result()
 

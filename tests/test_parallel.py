@@ -11,24 +11,41 @@ import numpy as np
 import pytest
 
 from smartcar_gym.navigation.footprint import COMPILED, footprint_check
-from smartcar_gym.parallel import MIN_CHUNK, run_chunks
+from smartcar_gym.parallel import CHUNKS_PER_THREAD, MIN_CHUNK, run_chunks
 
 
-@pytest.mark.parametrize("n, threads, parts", [(0, 2, 1), (7, 2, 1), (8, 2, 2), (23, 3, 3),
-                                              (9, 1, 1), (100, 4, 4)])
-def test_every_robot_is_worked_once_in_at_most_threads_chunks(n, threads, parts):
+@pytest.mark.parametrize("n, threads, chunks", [(0, 2, 1), (7, 2, 1), (8, 2, 2), (23, 3, 5),
+                                               (9, 1, 1), (100, 4, 16)])
+def test_every_robot_is_worked_once_in_consecutive_chunks(n, threads, chunks):
+    """Up to ``CHUNKS_PER_THREAD`` chunks per thread, none under ``MIN_CHUNK`` robots, on at
+    most ``threads`` threads; one thread (the caller's) below two chunks' worth."""
     seen = np.zeros(n, dtype=int)
-    chunks, names = [], set()
+    done, names = [], set()
 
     def work(a: int, b: int) -> None:
         seen[a:b] += 1
-        chunks.append((a, b))
+        done.append((a, b))
         names.add(threading.current_thread().name)
 
     run_chunks(work, n, threads)
-    assert (seen == 1).all() and len(chunks) == parts
-    assert all(b - a >= min(n, MIN_CHUNK) for a, b in chunks)
-    assert (len(names) > 1) == (parts > 1)  # the pool took the other chunks
+    assert (seen == 1).all() and len(done) == chunks
+    assert all(b - a >= min(n, MIN_CHUNK) for a, b in done)
+    assert len(names) <= threads and (chunks > 1 or names == {threading.current_thread().name})
+
+
+def test_a_thread_whose_chunk_is_slow_leaves_the_others_to_the_other_threads():
+    """Chunks are taken in turn: while the first chunk's robot takes long, the other thread
+    works every other chunk (a fixed split would leave it half the robots, then idle)."""
+    by_thread: dict[str, list[int]] = {}
+
+    def work(a: int, b: int) -> None:
+        if a == 0:
+            time.sleep(0.5)
+        by_thread.setdefault(threading.current_thread().name, []).append(a)
+
+    run_chunks(work, 32, 2)
+    assert sorted(len(v) for v in by_thread.values()) == [1, CHUNKS_PER_THREAD * 2 - 1]
+    assert [0] in by_thread.values()
 
 
 def test_a_chunks_error_reaches_the_caller():
@@ -66,7 +83,7 @@ def test_a_forked_child_runs_its_chunks_instead_of_waiting_on_the_parents_thread
         try:
             run_chunks(lambda a, b: done.append((a, b)), 16, 2)
         finally:
-            os._exit(0 if len(done) == 2 else 1)
+            os._exit(0 if sum(b - a for a, b in done) == 16 and len(done) > 1 else 1)
     deadline = time.monotonic() + 30
     while time.monotonic() < deadline:
         finished, status = os.waitpid(pid, os.WNOHANG)

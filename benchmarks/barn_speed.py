@@ -1,0 +1,98 @@
+"""Wall time of ``smartcar-bench barn`` on the planar batch: the issue's 500 runs in 60 s.
+
+    python benchmarks/barn_speed.py [--driver dwa | --pretrained barn] [--localize]
+        [--cars 100 500] [--rounds 2] [--runs 10] [--out FILE.json]
+
+Each round runs, one after the other, the command a user types for each number of cars:
+``smartcar-bench barn --driver dwa --engine planar --runs 10 --n-envs N`` (with
+``--env-kwargs localize=true`` under ``--localize``), the 50 test worlds x ``--runs``. Each
+command's wall time (start-up included) and CPU time (its process and threads, from
+``getrusage``) are measured, with the load average before it; ratios are taken within a round
+(this shared machine's speed drifts). The runs' records must be the same for every number of
+cars (each run's seed and world make it): the script says where they differ. Prints a
+Markdown table; ``--out FILE.json`` keeps the numbers. Run it once first if numba's cache is
+cold (the first run after an install compiles, about 20 s more).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+TARGET_S = 60.0  # the issue's: the 500-run benchmark, batched on planar
+RECORD_KEYS = ("world", "run", "outcome", "time_s", "steps", "final_distance_m")
+
+
+def run(cars: int, args: argparse.Namespace, folder: Path) -> dict:
+    """One ``smartcar-bench barn`` command: its wall and CPU seconds and its records."""
+    out = folder / f"cars_{cars}.json"
+    driver = ["--pretrained", args.pretrained] if args.pretrained else ["--driver", args.driver]
+    argv = [sys.executable, "-m", "smartcar_gym.bench.cli", "barn", *driver, "--engine",
+            "planar", "--runs", str(args.runs), "--n-envs", str(cars), "--quiet", "--json",
+            str(out)]
+    if args.localize:
+        argv += ["--env-kwargs", "localize=true"]
+    load = os.getloadavg()[0]
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    start = time.perf_counter()
+    subprocess.run(argv, check=True, stdout=subprocess.DEVNULL)
+    wall = time.perf_counter() - start
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    data = json.loads(out.read_text())
+    records = [{k: r[k] for k in RECORD_KEYS} for r in data["records"]]
+    return {"cars": cars, "wall_s": wall, "load": load,
+            "cpu_s": (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime),
+            "car_steps": sum(r["steps"] for r in records), "records": records,
+            "command": "smartcar-bench " + " ".join(argv[3:]).replace(str(out), "OUT.json")}
+
+
+def differing(a: list[dict], b: list[dict]) -> list[tuple[int, int]]:
+    """The (world, run) of the records that differ between two runs of the benchmark."""
+    return [(x["world"], x["run"]) for x, y in zip(a, b, strict=True) if x != y]
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--driver", default="dwa")
+    parser.add_argument("--pretrained", default=None, help="a shipped policy instead of DWA")
+    parser.add_argument("--localize", action="store_true")
+    parser.add_argument("--cars", type=int, nargs="+", default=[100, 500])
+    parser.add_argument("--rounds", type=int, default=2)
+    parser.add_argument("--runs", type=int, default=10, help="runs per test world")
+    parser.add_argument("--out", type=Path, default=None)
+    args = parser.parse_args(argv)
+    results = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for round_ in range(1, args.rounds + 1):
+            for cars in args.cars:
+                result = run(cars, args, Path(tmp))
+                result["round"] = round_
+                results.append(result)
+                print(f"round {round_}, {cars} cars: {result['wall_s']:.1f} s", file=sys.stderr)
+    first = results[0]["records"]
+    print(f"| round | cars | wall (s) | CPU (s) | load before | car-steps | vs {args.cars[0]} cars"
+          f" | within {TARGET_S:.0f} s |\n|---|---|---|---|---|---|---|---|")
+    for r in results:
+        base = next(x for x in results if x["round"] == r["round"] and x["cars"] == args.cars[0])
+        print(f"| {r['round']} | {r['cars']} | {r['wall_s']:.1f} | {r['cpu_s']:.1f} | "
+              f"{r['load']:.2f} | {r['car_steps']:,} | {r['wall_s'] / base['wall_s']:.2f}x | "
+              f"{'yes' if r['wall_s'] <= TARGET_S else 'no'} |")
+    changed = {r["cars"]: differing(first, r["records"]) for r in results}
+    same = not any(changed.values())
+    print("records: the same for every number of cars" if same else
+          f"records differ (world, run): {changed}")
+    if args.out is not None:
+        args.out.write_text(json.dumps([{k: v for k, v in r.items() if k != "records"}
+                                        for r in results], indent=2))
+    return 0 if same else 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -18,13 +18,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import resource
-import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
+
+from timed import timed_run  # benchmarks/timed.py, beside this script
 
 TARGET_S = 60.0  # the issue's: the 500-run benchmark, batched on planar
 RECORD_KEYS = ("world", "run", "outcome", "time_s", "steps", "final_distance_m")
@@ -39,17 +37,11 @@ def run(cars: int, args: argparse.Namespace, folder: Path) -> dict:
             str(out)]
     if args.localize:
         argv += ["--env-kwargs", "localize=true"]
-    load = os.getloadavg()[0]
-    before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    start = time.perf_counter()
-    subprocess.run(argv, check=True, stdout=subprocess.DEVNULL)
-    wall = time.perf_counter() - start
-    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    timing = timed_run(argv)
     data = json.loads(out.read_text())
     records = [{k: r[k] for k in RECORD_KEYS} for r in data["records"]]
-    return {"cars": cars, "wall_s": wall, "load": load,
-            "cpu_s": (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime),
-            "car_steps": sum(r["steps"] for r in records), "records": records,
+    return {"cars": cars, **timing, "car_steps": sum(r["steps"] for r in records),
+            "records": records,
             "command": "smartcar-bench " + " ".join(argv[3:]).replace(str(out), "OUT.json")}
 
 

@@ -23,14 +23,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import resource
 import statistics
-import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
+
+from timed import timed_run  # benchmarks/timed.py, beside this script
 
 MODES = {
     "sequential": [],
@@ -44,14 +42,7 @@ def run(mode: str, name: str, episodes: int, folder: Path, env: list[str]) -> di
     out = folder / f"{mode.replace(' ', '_')}.json"
     argv = [sys.executable, "-m", "smartcar_gym.agents.evaluate", "--pretrained", name, *env,
             "--episodes", str(episodes), "--no-progress", "--json", str(out), *MODES[mode]]
-    load = os.getloadavg()[0]
-    before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    start = time.perf_counter()
-    subprocess.run(argv, check=True, stdout=subprocess.DEVNULL)
-    wall = time.perf_counter() - start
-    after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
-    return {"mode": mode, "wall_s": wall, "cpu_s": cpu, "load": load,
+    return {"mode": mode, **timed_run(argv),
             "command": "smartcar-eval " + " ".join(argv[3:]).replace(str(out), "OUT.json"),
             "record": json.loads(out.read_text())}
 

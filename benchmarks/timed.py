@@ -1,0 +1,22 @@
+"""One command timed as the speed benchmarks time it (``eval_speed.py``, ``barn_speed.py``)."""
+
+from __future__ import annotations
+
+import os
+import resource
+import subprocess
+import time
+
+
+def timed_run(argv: list[str]) -> dict[str, float]:
+    """Run ``argv`` (its output discarded; an error exit raises): its wall seconds, its CPU
+    seconds (the process and its threads and children, from ``getrusage``) and the load
+    average before it."""
+    load = os.getloadavg()[0]
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    start = time.perf_counter()
+    subprocess.run(argv, check=True, stdout=subprocess.DEVNULL)
+    wall = time.perf_counter() - start
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    return {"wall_s": wall, "cpu_s": cpu, "load": load}

@@ -89,10 +89,9 @@ def _step(sums: tuple, at: tuple, correction: tuple) -> tuple:
     dy = (y1 - l21 * dyaw) / l11
     dx = (y0 - l10 * dy - l20 * dyaw) / l00
     # the step turns the map about ``at`` by dyaw and moves it by (dx, dy)
-    cd, sd = math.cos(dyaw), math.sin(dyaw)
-    tx = at[0] + dx - (cd * at[0] - sd * at[1])
-    ty = at[1] + dy - (sd * at[0] + cd * at[1])
     c, s = math.cos(dyaw), math.sin(dyaw)
+    tx = at[0] + dx - (c * at[0] - s * at[1])
+    ty = at[1] + dy - (s * at[0] + c * at[1])
     return (True, tx + c * correction[0] - s * correction[1],
             ty + s * correction[0] + c * correction[1], dyaw + correction[2])
 

@@ -3,7 +3,9 @@
 The hashes in ``fixtures/rollout_hashes.json`` were recorded on main 094ff80, before the
 engines became plug-ins and the batched envs one class (issue 41): a redesign must leave every
 rollout bit for bit what it was. Each digest covers the reset observations, every observation,
-reward, termination and truncation flag, and every number in ``info``.
+reward, termination and truncation flag, and every number in ``info``. SmartCarBARN-v0's
+(single on every engine, batched on MuJoCo and planar, ``localize`` off and on) were recorded
+on main 49d6fad, before the tasks were written once (issue 53).
 
 Recording them again is a deliberate act, for a change that means to alter behaviour:
 ``SMARTCAR_RECORD_HASHES=1 python -m pytest tests/test_rollout_hashes.py`` rewrites the file.
@@ -96,8 +98,51 @@ def batched_digest(env_id: str, engine: str, mode: str) -> str:
     return digest.hexdigest()
 
 
+BARN = "SmartCarBARN-v0"
+BARN_WORLDS = [0, 6, 12]  # the first run's worlds (car i's, batched); the second's are drawn
+
+
+def barn_single_digest(engine: str, localize: bool) -> str:
+    """A run in world 0, then one in a world drawn from the training worlds (no time limit
+    cuts a BARN run: the env ends it)."""
+    digest = hashlib.sha256()
+    env = gym.make(BARN, engine=engine, localize=localize)
+    try:
+        _feed(digest, env.reset(seed=SEED, options={"world": BARN_WORLDS[0]}))
+        for k, action in enumerate(_actions((2,))):
+            if k == STEPS // 2:
+                _feed(digest, env.reset())
+            _feed(digest, env.step(action))
+    finally:
+        env.close()
+    return digest.hexdigest()
+
+
+def barn_batched_digest(engine: str, mode: str, localize: bool) -> str:
+    """Cars in worlds 0, 6 and 12, then cars 0 and 2 reset mid-way into drawn worlds (no run
+    ends in these steps, so the autoreset mode changes nothing: NextStep only)."""
+    digest = hashlib.sha256()
+    envs = gym.make_vec(BARN, num_envs=NUM_ENVS, vectorization_mode="vector_entry_point",
+                        engine=engine, autoreset_mode=mode, localize=localize)
+    try:
+        _feed(digest, envs.reset(seed=SEED, options={"world": BARN_WORLDS}))
+        for k, actions in enumerate(_actions((NUM_ENVS, 2))):
+            if k == STEPS // 2:
+                mask = np.array([True, False, True])
+                _feed(digest, envs.reset(options={"reset_mask": mask}))
+            _feed(digest, envs.step(actions))
+    finally:
+        envs.close()
+    return digest.hexdigest()
+
+
 CASES = [(env_id, engine, how) for env_id in RECORDED_IDS for engine in ENGINES
          for how in ("single", "NextStep", "SameStep")]
+CASES += [(BARN + localize, engine, how) for localize in ("", "+localize")
+          for engine, hows in (("pybullet", ("single",)),
+                               ("mujoco", ("single", "NextStep")),
+                               ("planar", ("single", "NextStep")))
+          for how in hows]
 
 
 def _key(env_id: str, engine: str, how: str) -> str:
@@ -105,6 +150,11 @@ def _key(env_id: str, engine: str, how: str) -> str:
 
 
 def _digest(env_id: str, engine: str, how: str) -> str:
+    if env_id.startswith(BARN):
+        localize = env_id.endswith("+localize")
+        if how == "single":
+            return barn_single_digest(engine, localize)
+        return barn_batched_digest(engine, how, localize)
     if how == "single":
         return single_digest(env_id, engine)
     return batched_digest(env_id, engine, how)

@@ -40,7 +40,7 @@ MODES = {
 def run(mode: str, name: str, episodes: int, folder: Path, env: list[str]) -> dict:
     """One ``smartcar-eval`` command: its wall and CPU seconds and its JSON."""
     out = folder / f"{mode.replace(' ', '_')}.json"
-    argv = [sys.executable, "-m", "smartcar_gym.agents.evaluate", "--pretrained", name, *env,
+    argv = [sys.executable, "-m", "smartcar_gym.agents.cli_eval", "--pretrained", name, *env,
             "--episodes", str(episodes), "--no-progress", "--json", str(out), *MODES[mode]]
     return {"mode": mode, **timed_run(argv),
             "command": "smartcar-eval " + " ".join(argv[3:]).replace(str(out), "OUT.json"),

@@ -77,7 +77,7 @@ def start(policy: list[str], extra: list[str], episodes: int, n_envs: int,
     """Start one ``smartcar-eval`` process (into a folder of its own); ``split``: through
     ``SPLIT``, which writes its CPU time stamps to the folder's ``stamps.json``."""
     tmp = tempfile.mkdtemp(prefix="recording-cost-")
-    head = ["-c", SPLIT, f"{tmp}/stamps.json"] if split else ["-m", "smartcar_gym.agents.evaluate"]
+    head = ["-c", SPLIT, f"{tmp}/stamps.json"] if split else ["-m", "smartcar_gym.agents.cli_eval"]
     command = [sys.executable, *head, *policy, "--episodes",
                str(episodes), "--n-envs", str(n_envs), "--no-progress",
                *(a.format(tmp=tmp) for a in extra)]

@@ -31,7 +31,7 @@ from env_speed import REPO, extract_baseline  # noqa: E402
 def train(tree: Path, run_dir: Path, timesteps: int) -> float:
     """Training steps/s of one ``smartcar-train`` run with the package at ``tree``."""
     env = {**os.environ, "PYTHONPATH": str(tree)}
-    command = [sys.executable, "-m", "smartcar_gym.agents.train", "--timesteps", str(timesteps),
+    command = [sys.executable, "-m", "smartcar_gym.agents.cli_train", "--timesteps", str(timesteps),
                "--eval-freq", "0", "--checkpoint-freq", "0", "--no-progress",
                "--run-dir", str(run_dir)]
     done = subprocess.run(command, capture_output=True, text=True, env=env, cwd=run_dir.parent,

@@ -31,7 +31,7 @@ def write_run_files(folder: Path) -> None:
     """model.zip, config.yaml and summary.json of a checkpoint folder, from its provenance."""
     import yaml
 
-    from smartcar_gym.agents.run_folder import _versions
+    from smartcar_gym.agents.runs import _versions
 
     record = json.loads((folder / "provenance.json").read_text())
     shutil.copyfile(folder / "policy.zip", folder / "model.zip")
@@ -67,7 +67,7 @@ def main() -> None:
     from stable_baselines3.common.callbacks import BaseCallback
     from stable_baselines3.common.vec_env import VecNormalize
 
-    from smartcar_gym.agents.env_factory import make_vec_env
+    from smartcar_gym.agents.vec_envs import make_vec_env
 
     env_kwargs = {"goal_tolerance": args.goal_tolerance}
     source = json.loads((SOURCE / "provenance.json").read_text())

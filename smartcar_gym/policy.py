@@ -44,7 +44,6 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from smartcar_gym.agents import TRAIN_EXTRA, missing_modules
 from smartcar_gym.agents.hyperparams import ALGOS
 from smartcar_gym.agents.models import (
     PRETRAINED_POLICIES,
@@ -57,6 +56,7 @@ from smartcar_gym.agents.models import (
     shipped_model,
 )
 from smartcar_gym.agents.zoo_runs import ZooRunError
+from smartcar_gym.extras import TRAIN_EXTRA, missing_modules
 from smartcar_gym.runtime.onnx_policy import is_onnx_path
 
 if TYPE_CHECKING:
@@ -252,9 +252,9 @@ def choose_normalizer(files: ModelFiles, named: Path | None) -> tuple[Path | Non
 def _run_env_kwargs(run: dict[str, Any], overrides: dict[str, Any]) -> dict[str, Any]:
     """The run's env kwargs with ``overrides`` added; an overriding ``engine`` first leaves
     out what only another engine takes (a planar run's ``planar_params`` on pybullet)."""
-    from smartcar_gym.sim.engines import ENGINES, on_engine
+    from smartcar_gym.sim.engines import engine_names, on_engine
 
-    if overrides.get("engine") in ENGINES:  # an unknown engine: gym.make names it
+    if overrides.get("engine") in engine_names():  # an unknown engine: gym.make names it
         run = on_engine(run, overrides["engine"])
     return {**run, **overrides}
 

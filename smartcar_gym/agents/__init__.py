@@ -16,7 +16,8 @@ Modules (imported on demand; this package imports nothing heavy), by concern:
   SubprocVecEnv/DummyVecEnv, the batched vector entry points, Gymnasium's Sync/Async vector
   envs of single envs; VecNormalize), ``sb3_vec_env`` (``GymVectorVecEnv``: a Gymnasium
   vector env seen as an SB3 VecEnv).
-* Episodes: ``episodes`` (every evaluation's episodes, sequential, batched and SB3's during
+* Episodes: ``runner`` (the one episode runner: jobs handed to the cars of a vector env,
+  with hooks), ``episodes`` (every evaluation's episodes, sequential, batched and SB3's during
   training; ``EpisodeRecord``, ``summarize``, ``RandomPolicy``), ``video`` (episodes
   rendered to a .gif or .mp4), ``eval_worker`` (evaluations in a second process while
   training goes on).
@@ -32,40 +33,18 @@ Modules (imported on demand; this package imports nothing heavy), by concern:
 * Figures: ``plots`` (learning curve and top-down trajectory figures).
 * ``smartcar_gym.policy`` (outside this package, used by the commands here and in ``ros``):
   ``Policy.load()``, a model with its normaliser and env settings, and ``act(obs)``.
-
-Old module paths, kept so that earlier imports work (each imports its names from the modules
-that now hold them): ``train`` (``cli_train``), ``evaluate`` (``cli_eval``), ``rollouts``
-and ``batched_rollouts`` (``episodes``), ``vec_env`` (``vec_envs``, ``sb3_vec_env``),
-``run_folder`` (``runs``), ``run_files`` (``atomic_files``, ``runs``), ``model_files``
-(``models``), ``zoo_folder`` (``zoo_runs``).
 """
 
 from __future__ import annotations
 
-import importlib
-import importlib.util
 import sys
-from collections.abc import Callable
-from typing import Any
 
-TRAIN_EXTRA = 'pip install "smartcar-gym[train]"'
+from smartcar_gym.extras import TRAIN_EXTRA, missing_modules
+
 # Import names of what the commands import themselves (SB3 brings torch, pandas, matplotlib).
 TRAIN_MODULES = ("stable_baselines3", "torch", "tensorboard", "pandas", "matplotlib", "tqdm",
                  "rich")
 EVAL_MODULES = ("stable_baselines3", "torch", "matplotlib", "tqdm", "rich")
-
-
-def missing_modules(modules: tuple[str, ...]) -> list[str]:
-    """The names in ``modules`` that cannot be imported (found without importing them)."""
-    missing = []
-    for name in modules:
-        try:
-            found = importlib.util.find_spec(name) is not None
-        except (ImportError, ValueError):
-            found = False
-        if not found:
-            missing.append(name)
-    return missing
 
 
 def require_train_extra(prog: str, modules: tuple[str, ...] = TRAIN_MODULES) -> None:
@@ -77,19 +56,5 @@ def require_train_extra(prog: str, modules: tuple[str, ...] = TRAIN_MODULES) -> 
         raise SystemExit(2)
 
 
-def moved(*modules: str, names: tuple[str, ...] | None = None) -> Callable[[str], Any]:
-    """A module ``__getattr__`` for an old module path: ``names`` (default: every name) are
-    looked up in ``modules``, in order, each imported on first use."""
-    def __getattr__(name: str) -> Any:
-        if names is None or name in names:
-            for module in modules:
-                found = getattr(importlib.import_module(module), name, _MISSING)
-                if found is not _MISSING:
-                    return found
-        raise AttributeError(f"{name!r} is not among the names kept at this old module path "
-                             f"(now in {', '.join(modules)})")
-
-    return __getattr__
-
-
-_MISSING = object()
+__all__ = ["EVAL_MODULES", "TRAIN_EXTRA", "TRAIN_MODULES", "missing_modules",
+           "require_train_extra"]

@@ -27,7 +27,7 @@ from smartcar_gym.agents.cli_args import key_value_arg, non_negative_int_arg, po
 from smartcar_gym.agents.hyperparams import ALGOS, HyperparamsError
 from smartcar_gym.agents.runs import DEFAULT_ENV_ID, new_run, resume_config
 from smartcar_gym.agents.training import RunSetupError, TrainResult, train
-from smartcar_gym.sim.engines import ENGINES, add_engine_argument
+from smartcar_gym.sim.engines import add_engine_argument, engine_names
 
 FAILED_EXIT_CODE = 1  # the run stopped on an error (a full disk...)
 INTERRUPTED_EXIT_CODE = 130  # 128 + SIGINT
@@ -73,7 +73,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--env-kwargs", nargs="+", default=None, type=key_value_arg,
                         metavar="KEY=VALUE", help="keyword arguments for gym.make (YAML values)")
     add_engine_argument(parser)
-    parser.add_argument("--eval-engine", choices=ENGINES, default=None,
+    parser.add_argument("--eval-engine", choices=engine_names(), default=None,
                         help="run the evaluations (which pick the best model) on this engine "
                              "instead of the training env's, e.g. train on planar, evaluate on "
                              "pybullet (default: the hyperparameters' eval_engine, else the "

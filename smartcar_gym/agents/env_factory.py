@@ -4,8 +4,7 @@ checks that an env id and its kwargs can be made, in one line (``EnvSetupError``
 ``make_env`` is a module-level function so it pickles into ``SubprocVecEnv`` and
 ``gymnasium.vector.AsyncVectorEnv`` workers; importing this module registers the smartcar envs
 there. Stable-Baselines3 is imported lazily, so evaluation workers do not load torch. The
-vector envs are built in ``vec_envs`` (``make_vec_env``, ``close_vec_env``, ``wrap_normalize``
-and ``env_fns`` still import from here).
+vector envs are built in ``vec_envs``.
 """
 
 from __future__ import annotations
@@ -17,7 +16,6 @@ from typing import Any
 import gymnasium as gym
 
 import smartcar_gym  # noqa: F401  (registers SmartCar-v0 in worker processes)
-from smartcar_gym.agents import moved
 
 INFO_KEYWORDS = ("is_success",)
 
@@ -120,8 +118,3 @@ def make_env(
 
         env = wrap_env(env, env_wrapper)
     return env
-
-
-__getattr__ = moved("smartcar_gym.agents.vec_envs",
-                    names=("FORKSERVER_PRELOAD", "close_vec_env", "env_fns", "make_vec_env",
-                           "wrap_normalize"))

@@ -42,14 +42,13 @@ import gymnasium as gym
 import numpy as np
 
 from smartcar_gym.agents.env_factory import EnvSetupError
+from smartcar_gym.agents.runner import Hooks, Job, ResetError, run_jobs
 from smartcar_gym.agents.vec_envs import make_batched_env, make_single_env_vector
-from smartcar_gym.agents.video import record_video  # its old place: rollouts, episodes
 from smartcar_gym.policy import DEFAULT_ENV_ID, Policy, as_policy
 
 __all__ = ["DEFAULT_BATCH", "DEFAULT_ENV_ID", "RECORD_TOLERANCE", "EpisodeRecord",
            "ObservationShapeError", "RandomPolicy", "act_batch", "evaluate_batched_episodes",
-           "evaluate_policy_episodes", "make_batched_env", "record_video", "run_sb3_episodes",
-           "summarize"]
+           "evaluate_policy_episodes", "make_batched_env", "run_sb3_episodes", "summarize"]
 
 #: cars in the batch when ``n_envs`` is not given: more cars spread the batch's numpy cost
 #: further, and the cars left without an episode at the end are parked where the batch can
@@ -345,7 +344,12 @@ def _episodes(envs: gym.vector.VectorEnv, policy: Policy, env_id: str, n_episode
               seed: int, act: Callable[..., np.ndarray], progress: bool,
               desc: str, collector: Any, check_resets: bool = False,
               steps: Any = None) -> list[EpisodeRecord]:
-    """``_play`` the episodes on ``envs`` (closed at the end) after checking the spaces."""
+    """Episodes 0..n_episodes-1 (episode i seeded ``seed + i``) through the runner
+    (``runner.run_jobs``) on ``envs`` (closed at the end), after checking the spaces; the
+    records in episode order. ``act(obs, episode_of, steps)``: the cars' actions
+    (``episode_of``: each car's episode, -1 for none; ``steps``: the steps each car's episode
+    has run); ``steps`` (or None) is told of every reset and step, ``collector`` (or None)
+    gets every captured frame."""
     bar = None
     try:
         _check_spaces(policy, envs.single_observation_space, env_id)
@@ -353,76 +357,28 @@ def _episodes(envs: gym.vector.VectorEnv, policy: Policy, env_id: str, n_episode
             from tqdm.auto import tqdm
 
             bar = tqdm(total=n_episodes, unit="episode", desc=desc, dynamic_ncols=True)
-        return _play(envs, env_id, n_episodes, seed, act, bar, collector, check_resets, steps)
+        tracks = _Tracks(envs.num_envs, _step_s(envs.metadata), bar)
+        hooks: list[Hooks] = [tracks]
+        if steps is not None:
+            hooks.append(_StepsHook(steps))
+        if collector is not None:
+            hooks.append(_CaptureHook(collector))
+
+        def by_episode(obs: Any, running: list[Job | None], steps: np.ndarray) -> np.ndarray:
+            episode_of = np.array([-1 if job is None else job.episode for job in running])
+            return act(obs, episode_of, steps)
+
+        jobs = [Job(i, seed + i) for i in range(n_episodes)]
+        try:
+            run_jobs(envs, jobs, by_episode, hooks, check_resets)
+        except ResetError as err:
+            raise EnvSetupError(f"{env_id}'s {err}, which --vectorization batched needs"
+                                ) from err
+        return sorted(tracks.records, key=lambda r: r.episode)
     finally:
         if bar is not None:
             bar.close()
         envs.close()
-
-
-def _play(envs: gym.vector.VectorEnv, env_id: str, n_episodes: int, seed: int,
-          act: Callable[..., np.ndarray], bar: Any, collector: Any,
-          check_resets: bool, steps: Any = None) -> list[EpisodeRecord]:
-    """Episodes 0..n_episodes-1 on the cars of ``envs``: each car runs the next episode not
-    started yet when its own ends; a car with none left is parked where the vector env can
-    (``park``), else stepped with zero actions, unread. ``act(obs, episode_of, steps)``: the
-    cars' actions (``episode_of``: each car's episode, -1 for none; ``steps``: the steps each
-    car's episode has run); ``steps`` (or None) is told of every reset and step."""
-    if collector is not None:
-        from smartcar_gym.viewers.capture import CAPTURE_KEY
-    n = envs.num_envs
-    step_s = _step_s(envs.metadata)
-    episode_of = np.arange(n)  # each car's episode, -1 once it has none left
-    obs, info = envs.reset(seed=[seed + i for i in range(n)])
-    tracks = _Tracks(n)
-    tracks.start(np.ones(n, dtype=bool), episode_of, seed, info, _goals(envs))
-    if steps is not None:
-        steps.begin(range(n), episode_of, obs, info)
-    if collector is not None:
-        for car in range(n):
-            collector.begin(car, car, seed + car, info[CAPTURE_KEY][car])
-    next_episode = n
-    records: list[EpisodeRecord] = []
-    park = getattr(envs.unwrapped, "park", None)
-    while (episode_of >= 0).any():
-        active = episode_of >= 0
-        actions = act(obs, episode_of, tracks.length)
-        if park is not None:  # where the batch can, a car with no episode is not simulated
-            park(~active)
-        obs, reward, terminated, truncated, info = envs.step(actions)
-        tracks.add(active, reward, info)
-        if steps is not None:
-            steps.step(np.flatnonzero(active), actions, obs, reward, terminated, truncated, info)
-        if collector is not None:
-            for car in np.flatnonzero(active):
-                collector.add(car, info[CAPTURE_KEY][car])
-        done = active & (terminated | truncated)
-        if not done.any():
-            continue
-        for car in np.flatnonzero(done):
-            records.append(tracks.record(car, info, step_s))
-        if bar is not None:
-            bar.update(int(done.sum()))
-        refill = np.flatnonzero(done)[:max(0, n_episodes - next_episode)]
-        episode_of[done] = -1
-        if refill.size == 0:
-            continue  # the cars left without an episode are not read again
-        episode_of[refill] = np.arange(next_episode, next_episode + refill.size)
-        next_episode += refill.size
-        mask = np.zeros(n, dtype=bool)
-        mask[refill] = True
-        seeds = [seed + int(e) if m else None for e, m in zip(episode_of, mask, strict=True)]
-        new_obs, new_info = _partial_reset(envs, env_id, seeds, mask, check_resets)
-        for array, new in _arrays(obs, new_obs):
-            array[mask] = new[mask]
-        tracks.start(mask, episode_of, seed, new_info, _goals(envs))
-        if steps is not None:
-            steps.begin(refill, episode_of[refill], new_obs, new_info)
-        if collector is not None:
-            for car in refill:
-                collector.begin(car, int(episode_of[car]), seed + int(episode_of[car]),
-                                new_info[CAPTURE_KEY][car])
-    return sorted(records, key=lambda r: r.episode)
 
 
 def _step_s(metadata: Mapping[str, Any]) -> float:
@@ -446,36 +402,9 @@ def _one_torch_thread() -> Iterator[None]:
         torch.set_num_threads(threads)
 
 
-def _partial_reset(envs: gym.vector.VectorEnv, env_id: str, seeds: list[int | None],
-                   mask: np.ndarray, check: bool) -> tuple[Any, dict[str, Any]]:
-    """Reset the masked cars with their seeds; with ``check``, one line if the vector env
-    cannot (a vector entry point that ignores the mask)."""
-    if not check:
-        return envs.reset(seed=seeds, options={"reset_mask": mask})
-    what = (f"{env_id}'s vector env ({type(envs.unwrapped).__name__}) cannot reset single cars "
-            "(reset(options={'reset_mask': mask}), Gymnasium's partial reset), which "
-            "--vectorization batched needs")
-    try:
-        obs, info = envs.reset(seed=seeds, options={"reset_mask": mask})
-    except (ValueError, TypeError, KeyError, AssertionError) as err:
-        raise EnvSetupError(f"{what}: {err}") from err
-    reset = info.get("_pose")
-    if reset is None or not np.array_equal(reset, mask):
-        raise EnvSetupError(f"{what}: it reset cars {np.flatnonzero(reset).tolist()}, "
-                            f"not {np.flatnonzero(mask).tolist()}")
-    return obs, info
-
-
 def _car(obs: np.ndarray | dict[str, np.ndarray], car: int) -> Any:
     """Car ``car``'s observation of a batch (a dict of batches for a Dict space)."""
     return {k: v[car] for k, v in obs.items()} if isinstance(obs, dict) else obs[car]
-
-
-def _arrays(obs: Any, new_obs: Any) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Pairs of (batch held, batch after the reset), one per Dict key."""
-    if isinstance(obs, Mapping):
-        return [(obs[k], new_obs[k]) for k in obs]
-    return [(obs, new_obs)]
 
 
 def _goals(envs: gym.vector.VectorEnv) -> np.ndarray:
@@ -489,10 +418,12 @@ def _goals(envs: gym.vector.VectorEnv) -> np.ndarray:
     return np.array([np.asarray(g, dtype=float)[:2] for g in goals])
 
 
-class _Tracks:
-    """Every car's episode so far."""
+class _Tracks(Hooks):
+    """Every car's episode so far, and the records of those that ended."""
 
-    def __init__(self, n: int) -> None:
+    def __init__(self, n: int, step_s: float, bar: Any) -> None:
+        self.step_s, self.bar = step_s, bar
+        self.records: list[EpisodeRecord] = []
         self.episode = np.zeros(n, dtype=np.int64)
         self.seed = np.zeros(n, dtype=np.int64)
         self.goal = np.zeros((n, 2))
@@ -501,40 +432,74 @@ class _Tracks:
         self.path: list[list[np.ndarray]] = [[] for _ in range(n)]
         self.odom: list[list[np.ndarray]] = [[] for _ in range(n)]
 
-    def start(self, mask: np.ndarray, episode_of: np.ndarray, seed: int,
-              info: dict[str, Any], goals: np.ndarray) -> None:
-        """The masked cars begin their episodes (``info``: their reset's)."""
-        pose, odom = _xy(info, "pose"), _xy(info, "odom_pose")
-        for car in np.flatnonzero(mask):
+    def begin(self, envs: gym.vector.VectorEnv, cars: np.ndarray, jobs: list[Job], obs: Any,
+              info: dict[str, Any]) -> None:
+        """The listed cars begin their jobs (``info``: their reset's)."""
+        pose, odom, goals = _xy(info, "pose"), _xy(info, "odom_pose"), _goals(envs)
+        for car, job in zip(cars.tolist(), jobs, strict=True):
             self.path[car], self.odom[car] = [pose[car]], [odom[car]]
-        self.episode[mask] = episode_of[mask]
-        self.seed[mask] = seed + episode_of[mask]
-        self.goal[mask] = goals[mask]
-        self.ret[mask] = 0.0
-        self.length[mask] = 0
+            self.episode[car], self.seed[car] = job.episode, job.seed
+            self.goal[car] = goals[car]
+            self.ret[car], self.length[car] = 0.0, 0
 
-    def add(self, active: np.ndarray, reward: np.ndarray, info: dict[str, Any]) -> None:
-        """One step of the active cars."""
-        self.ret[active] += np.asarray(reward, dtype=np.float64)[active]
-        self.length[active] += 1
+    def step(self, cars: np.ndarray, actions: np.ndarray, obs: Any, reward: np.ndarray,
+             terminated: np.ndarray, truncated: np.ndarray, info: dict[str, Any]) -> None:
+        """One step of the running cars."""
+        self.ret[cars] += np.asarray(reward, dtype=np.float64)[cars]
+        self.length[cars] += 1
         pose, odom = _xy(info, "pose"), _xy(info, "odom_pose")
-        for car in np.flatnonzero(active):
+        for car in cars.tolist():
             self.path[car].append(pose[car])
             self.odom[car].append(odom[car])
 
-    def record(self, car: int, info: dict[str, Any], step_s: float) -> EpisodeRecord:
+    def end(self, car: int, job: Job, info: dict[str, Any]) -> None:
         """Car ``car``'s episode, ended at this step (``info``: the step's)."""
         success = bool(info["is_success"][car])
         length = int(self.length[car])
-        return EpisodeRecord(
+        self.records.append(EpisodeRecord(
             episode=int(self.episode[car]), seed=int(self.seed[car]), success=success,
             episode_return=float(self.ret[car]), length=length,
-            time_to_goal_s=length * step_s if success else None,
+            time_to_goal_s=length * self.step_s if success else None,
             final_distance_m=float(info["distance"][car]),
             final_odom_error_m=float(info["odom_error"][car]),
             goal=(float(self.goal[car, 0]), float(self.goal[car, 1])),
-            path=np.array(self.path[car]), odom_path=np.array(self.odom[car]),
-        )
+            path=np.array(self.path[car]), odom_path=np.array(self.odom[car])))
+        if self.bar is not None:
+            self.bar.update(1)
+
+
+class _StepsHook(Hooks):
+    """Every reset and step told to a ``datasets.steps.EpisodeSteps``."""
+
+    def __init__(self, steps: Any) -> None:
+        self.steps = steps
+
+    def begin(self, envs: gym.vector.VectorEnv, cars: np.ndarray, jobs: list[Job], obs: Any,
+              info: dict[str, Any]) -> None:
+        self.steps.begin(cars, [job.episode for job in jobs], obs, info)
+
+    def step(self, cars: np.ndarray, actions: np.ndarray, obs: Any, reward: np.ndarray,
+             terminated: np.ndarray, truncated: np.ndarray, info: dict[str, Any]) -> None:
+        self.steps.step(cars, actions, obs, reward, terminated, truncated, info)
+
+
+class _CaptureHook(Hooks):
+    """The frames every sub-env captured (``viewers.capture``) to an ``EpisodeCollector``."""
+
+    def __init__(self, collector: Any) -> None:
+        from smartcar_gym.viewers.capture import CAPTURE_KEY
+
+        self.collector, self.key = collector, CAPTURE_KEY
+
+    def begin(self, envs: gym.vector.VectorEnv, cars: np.ndarray, jobs: list[Job], obs: Any,
+              info: dict[str, Any]) -> None:
+        for car, job in zip(cars.tolist(), jobs, strict=True):
+            self.collector.begin(car, job.episode, job.seed, info[self.key][car])
+
+    def step(self, cars: np.ndarray, actions: np.ndarray, obs: Any, reward: np.ndarray,
+             terminated: np.ndarray, truncated: np.ndarray, info: dict[str, Any]) -> None:
+        for car in cars.tolist():
+            self.collector.add(car, info[self.key][car])
 
 
 def _xy(info: dict[str, Any], key: str) -> np.ndarray:

@@ -30,8 +30,6 @@ from typing import Any
 
 import yaml
 
-from smartcar_gym.agents import moved
-
 ALGOS = ("ppo", "sac", "td3")
 # Keys of a zoo entry that configure the run, not the algorithm's constructor.
 RUN_KEYS = ("n_envs", "n_timesteps", "policy", "normalize", "env_wrapper", "vec_env_wrapper",
@@ -351,6 +349,3 @@ def _buffer_class(name: str) -> type:
 
 
 # the command line's value types moved to cli_args, output_path_error to atomic_files
-__getattr__ = moved("smartcar_gym.agents.cli_args", "smartcar_gym.agents.atomic_files",
-                    names=("key_value_arg", "non_negative_int_arg", "positive_int_arg",
-                           "output_path_error"))

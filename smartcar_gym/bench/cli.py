@@ -11,8 +11,9 @@ Every test world (0, 6, ..., 294; ``--worlds`` for others) K times (run k seeded
 rates of success, collision and timeout, the mean time of the successful runs and the mean
 score on both scales (docs/barn.md). ``--fail-under`` and ``--max-final-distance`` are
 smartcar-eval's pass marks (exit status 1 when one is missed).
-Where the engine batches (planar, MuJoCo) the ``--n-envs`` cars are one batched env
-(``SmartCarBatchVectorEnv``); elsewhere a row of single envs.
+The ``--n-envs`` cars are the id's vector env: one batched env where the engine batches
+(planar, MuJoCo: ``SmartCarBatchVectorEnv``), elsewhere a loop of single envs; the runs go
+through the episode runner (``bench.runs``).
 """
 
 from __future__ import annotations
@@ -24,21 +25,22 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import gymnasium as gym
-
-from smartcar_gym.agents.cli_args import distance_arg, key_value_arg, percent_arg
-from smartcar_gym.agents.cli_eval import check_marks
-from smartcar_gym.agents.env_factory import EnvSetupError, check_env
-from smartcar_gym.agents.hyperparams import (
+from smartcar_gym.agents.atomic_files import output_path_error
+from smartcar_gym.agents.cli_args import (
+    distance_arg,
+    key_value_arg,
     non_negative_int_arg,
-    output_path_error,
+    percent_arg,
     positive_int_arg,
 )
-from smartcar_gym.bench.batched import run_barn_vector
+from smartcar_gym.agents.cli_eval import check_marks
+from smartcar_gym.agents.env_factory import EnvSetupError, check_env
+from smartcar_gym.agents.vec_envs import make_batched_env
 from smartcar_gym.bench.drivers import DRIVERS, DriverError, PolicyDriver, make_driver
 from smartcar_gym.bench.report import plot_runs, summarize, table
-from smartcar_gym.bench.runner import RunRecord, barn_jobs, run_barn
-from smartcar_gym.envs.vector import CannotBatch, SmartCarBatchVectorEnv
+from smartcar_gym.bench.runs import RunRecord, barn_jobs, run_barn
+from smartcar_gym.envs.vector import SmartCarBatchVectorEnv
+from smartcar_gym.envs.vector.view import CarView
 from smartcar_gym.sim.engines import DEFAULT_ENGINE, add_engine_argument, on_engine
 from smartcar_gym.worlds.barn import TEST_WORLDS, BarnWorldError, load_worlds
 
@@ -107,31 +109,28 @@ def main(argv: Sequence[str] | None = None) -> int:
         driver, name, trained_with = _driver(args)
         kwargs = _env_kwargs(args, trained_with)
         check_env(ENV_ID, kwargs)  # a bad --env-kwargs: one line naming it
-        batch = _make_batch(args, kwargs)
-        envs = ([gym.make(ENV_ID, **kwargs) for _ in range(args.n_envs)] if batch is None
-                else [batch])
+        envs = make_batched_env(ENV_ID, args.n_envs, kwargs)
     except (BarnWorldError, DriverError, EnvSetupError) as err:
         parser.error(str(err))
-    barn = envs[0].unwrapped
+    batched = isinstance(envs.unwrapped, SmartCarBatchVectorEnv)
     try:
+        cars = CarView(envs)
         if isinstance(driver, PolicyDriver):
             try:
-                driver.check(ENV_ID, getattr(barn, "single_observation_space",
-                                             envs[0].observation_space))
+                driver.check(ENV_ID, envs.single_observation_space)
             except DriverError as err:
                 parser.error(str(err))
         plotted = set() if args.plot is None else set(args.plot_worlds or chosen[:4])
         jobs = barn_jobs(chosen, args.runs, args.seed)
-        run = run_barn if batch is None else run_barn_vector
-        records = run(envs if batch is None else batch, driver, jobs,
-                      keep=lambda job: job.world in plotted and job.run == 0,
-                      report=None if args.quiet else _report)
-        paths = {}  # the global paths every env of the row planned, by world
-        for env in envs:
-            paths.update(env.unwrapped.planned_paths)
+        records = run_barn(envs, driver, jobs,
+                           keep=lambda job: job.world in plotted and job.run == 0,
+                           report=None if args.quiet else _report)
+        paths = {}  # the global paths every car's task planned, by world
+        for task in cars.tasks():
+            paths.update(task.planned_paths)
+        scale = cars.task.protocol.scale
     finally:
-        for env in envs:
-            env.close()
+        envs.close()
     summary = summarize(records)
     marks = check_marks(summary, args)
     engine = args.engine or DEFAULT_ENGINE
@@ -140,18 +139,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     print(table(summary, name))
     if args.json is not None:
         payload = {"benchmark": "barn", "driver": name, "env": ENV_ID, "engine": engine,
-                   "vectorization": "single" if batch is None else "batched",
+                   "vectorization": "batched" if batched else "single",
                    "runs_per_world": args.runs, "seed": args.seed,
                    "env_kwargs": {k: v for k, v in kwargs.items() if k != "world_file"},
                    "worlds": list(chosen),
-                   "scale": barn.protocol.scale, "marks": marks,
+                   "scale": scale, "marks": marks,
                    "passed": all(m["held"] for m in marks), **summary,
                    "records": [r.to_dict() for r in records]}
         args.json.parent.mkdir(parents=True, exist_ok=True)
         args.json.write_text(json.dumps(payload, indent=2) + "\n")
         print(f"wrote {args.json}")
     if args.plot is not None:
-        plot_runs(records, worlds, barn.protocol.scale, args.plot,
+        plot_runs(records, worlds, scale, args.plot,
                   f"{name} on {engine}: {summary['success_rate']:.0%} success (dashed: the "
                   "global path)", paths)
         print(f"wrote {args.plot}")
@@ -198,18 +197,6 @@ def _env_kwargs(args: argparse.Namespace, trained_with: dict[str, Any]) -> dict[
             raise EnvSetupError(f"--env-kwargs: {key} is set by {option}, not here")
     return {**on_engine(kept, args.engine or DEFAULT_ENGINE), **given,
             "world_file": args.world_file}
-
-
-def _make_batch(args: argparse.Namespace, kwargs: dict[str, Any]
-                ) -> SmartCarBatchVectorEnv | None:
-    """The ``--n-envs`` cars as one batched env where the engine batches (None: it does not;
-    the row is single envs)."""
-    if SmartCarBatchVectorEnv.why_not(ENV_ID, kwargs) is not None:
-        return None
-    try:
-        return SmartCarBatchVectorEnv(ENV_ID, num_envs=args.n_envs, **kwargs)
-    except CannotBatch:  # a differential-drive model on a skid-steer batch
-        return None
 
 
 def _report(record: RunRecord) -> None:

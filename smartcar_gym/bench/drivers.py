@@ -1,9 +1,10 @@
 """What drives the cars in a benchmark: a trained policy, or a classical driver by name.
 
-A driver has ``reset(envs, indices)`` (the episodes of ``envs[i]``, i in ``indices``, have
-just started) and ``act(envs, obs, indices)`` (actions (N, 2) for N of the envs, their
-observations (N, ...) and their places among those ``reset`` was given). ``DRIVERS`` names the
-classical ones; ``PolicyDriver`` wraps a ``smartcar_gym.policy.Policy``.
+A driver has ``reset(cars, indices)`` (the episodes of the cars ``indices`` have just
+started) and ``act(cars, obs, indices)`` (the actions (K, 2) of those K cars from their
+observations (K, ...)), where ``cars`` is a ``envs.vector.view.CarView``: the cars' public
+state and task. ``DRIVERS`` names the classical ones; ``PolicyDriver`` wraps a
+``smartcar_gym.policy.Policy``.
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from smartcar_gym.navigation.dwa_driver import DWADriver
+from smartcar_gym.bench.dwa import DWADriver
 
 #: the classical drivers, by ``--driver`` name
 DRIVERS = {"dwa": DWADriver}
@@ -50,12 +51,12 @@ class PolicyDriver:
                               f"was trained on {trained}) but {env_id} gives "
                               f"{tuple(space.shape)}: train a policy on {env_id}")
 
-    def reset(self, envs: Sequence[Any], indices: Sequence[int] | None = None) -> None:
+    def reset(self, cars: Any, indices: Sequence[int] | None = None) -> None:
         """Nothing to prepare: a policy sees only its observations."""
 
-    def act(self, envs: Sequence[Any], obs: np.ndarray,
+    def act(self, cars: Any, obs: np.ndarray,
             indices: Sequence[int] | None = None) -> np.ndarray:
-        """One action per observation (``(N, 2)`` for ``obs`` ``(N, ...)``)."""
+        """One action per observation (``(K, 2)`` for ``obs`` ``(K, ...)``)."""
         from smartcar_gym.agents.episodes import act_batch
 
         return act_batch(self.policy, obs, deterministic=self.deterministic)

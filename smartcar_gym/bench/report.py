@@ -8,8 +8,8 @@ from typing import Any
 
 import numpy as np
 
-from smartcar_gym.bench.runner import RunRecord
-from smartcar_gym.envs.tasks.barn import OUTCOMES, SUCCESS
+from smartcar_gym.bench.runs import RunRecord
+from smartcar_gym.envs.tasks.barn.protocol import OUTCOMES, SUCCESS
 
 #: published results on the 50 test worlds (the metric of at most 0.25; docs/barn.md)
 PUBLISHED = (("move_base + DWA (Jackal)", 0.1693, 0.88), ("DRL-VO (2022)", 0.2339, None),

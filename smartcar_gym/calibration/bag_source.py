@@ -95,7 +95,7 @@ class BagError(ValueError):
 
 def missing_library() -> str | None:
     """What is missing to read bags (None if nothing is): one line naming the extra."""
-    from smartcar_gym.agents import missing_modules
+    from smartcar_gym.extras import missing_modules
 
     missing = missing_modules(("rosbags", "mcap"))
     if missing:

@@ -39,7 +39,7 @@ CODE_PERMALINK = "https://github.com/smartcar-gym/smartcar-gym"
 
 def missing_minari() -> str | None:
     """One line naming what the ``minari`` extra would bring, or None if it is installed."""
-    from smartcar_gym.agents import missing_modules
+    from smartcar_gym.extras import missing_modules
 
     missing = missing_modules(("minari", "h5py"))
     if not missing:

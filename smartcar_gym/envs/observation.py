@@ -1,16 +1,17 @@
-"""An observation declared once: named entries with bounds, each reading its values from inputs.
+"""An observation declared once: named entries with bounds, their values given as columns.
 
-The space, ``observation_names``, the docstring's table and the vector itself all come from the
-same ``Entry`` list, so they cannot disagree. Entries read from ``Readings``: what the robot
-knows (odometry, wheel joint states, sensors), the goal in the ``odom`` frame and the previous
-action; the ROS bridge fills the same ``Readings`` from messages, so a node and the env build
-bit-identical observations.
+The space, ``observation_names``, the docstring's table and the vectors themselves all come
+from the same ``Entry`` list, so they cannot disagree. A task computes every entry's values as
+columns over its cars from their state (``Task.columns``: what the robot knows, the goal in
+the ``odom`` frame, the previous action, the sensors); the ROS bridge fills a one-car state
+from messages and calls the same task, so a node and the env build bit-identical
+observations.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -18,23 +19,12 @@ from gymnasium import spaces
 
 
 @dataclass(frozen=True)
-class Readings:
-    """What an observation may be built from (no ground truth)."""
-
-    odometry: Any  # smartcar_gym.controller.Odometry, or anything with x, y, theta, v, omega
-    joint_position: Sequence[float]  # rad, wheel order
-    joint_velocity: Sequence[float]  # rad/s, wheel order
-    goal: Sequence[float]  # (x, y) in the odom frame
-    previous_action: Sequence[float]
-    extra: Mapping[str, Sequence[float]] = field(default_factory=dict)  # sensors, by name
-
-
-@dataclass(frozen=True)
 class Entry:
     """One row of the observation table: ``len(names)`` values sharing bounds, unit and meaning.
 
-    ``key`` names the row for composing observations; ``bounds_doc`` writes the bounds as the
-    docstring shows them (e.g. ``("-2A", "2A")``).
+    ``key`` names the row for composing observations and its columns
+    (``Observation.build``); ``bounds_doc`` writes the bounds as the docstring shows them
+    (e.g. ``("-2A", "2A")``).
     """
 
     key: str
@@ -43,7 +33,6 @@ class Entry:
     high: float
     unit: str
     doc: str
-    read: Callable[[Readings], Sequence[float] | np.ndarray]
     bounds_doc: tuple[str, str] | None = None
 
     @property
@@ -66,17 +55,21 @@ class Observation:
         self.low = np.concatenate([[e.low] * e.size for e in self.entries]).astype(np.float32)
         self.space = spaces.Box(self.low, self.high, dtype=np.float32)
 
-    def build(self, readings: Readings) -> np.ndarray:
-        """The observation for ``readings``: float32, clipped into the bounds."""
-        values: list[float] = []
+    def build(self, columns: Mapping[str, Sequence[Any]]) -> np.ndarray:
+        """Every car's observation from each entry's ``columns`` (by key: one float64 array or
+        number per name, over the N cars): (N, D) float32, each value rounded once, clipped
+        into the bounds."""
+        first = columns[self.entries[0].key][0]
+        obs = np.empty((np.size(first), len(self.names)), dtype=np.float32)
+        k = 0
         for entry in self.entries:
-            values.extend(entry.read(readings))
-        if len(values) != len(self.names):
-            raise ValueError(
-                f"observation entries gave {len(values)} values for {len(self.names)} names"
-            )
-        # as float64 first, then float32: each value is rounded once
-        obs = np.array(values, dtype=np.float64).astype(np.float32)
+            values = columns[entry.key]
+            if len(values) != entry.size:
+                raise ValueError(f"observation entry {entry.key!r} gave {len(values)} columns "
+                                 f"for its {entry.size} names")
+            for column in values:
+                obs[:, k] = column
+                k += 1
         return np.minimum(np.maximum(obs, self.low, out=obs), self.high, out=obs)
 
     @classmethod

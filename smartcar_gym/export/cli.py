@@ -38,7 +38,8 @@ ONNX_EXTRA = 'pip install "smartcar-gym[onnx]"'
 
 def build_parser() -> argparse.ArgumentParser:
     """The ``smartcar-export`` argument parser."""
-    from smartcar_gym.agents.hyperparams import ALGOS, key_value_arg
+    from smartcar_gym.agents.cli_args import key_value_arg
+    from smartcar_gym.agents.hyperparams import ALGOS
 
     parser = argparse.ArgumentParser(
         prog=PROG, description="Write a trained policy as an ONNX model with its observation "

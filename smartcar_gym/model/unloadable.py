@@ -1,6 +1,6 @@
 """Why a simulator may have rejected a URDF file: missing, not a URDF, or a missing mesh.
 
-``smartcar_gym.sim.loading`` asks this when pybullet refuses a file (pybullet only says
+``smartcar_gym.sim.pybullet.loading`` asks this when pybullet refuses a file (pybullet only says
 ``Cannot load URDF file.``), to raise a ``ModelError`` naming the file and the reason.
 """
 

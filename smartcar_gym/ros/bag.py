@@ -48,7 +48,7 @@ TOPICS = {  # topic (resolved, as rosbag record writes it) -> message type
 
 def missing_library() -> str | None:
     """What is missing to write bags (None if nothing is): one line naming the extra."""
-    from smartcar_gym.agents import missing_modules
+    from smartcar_gym.extras import missing_modules
 
     missing = missing_modules(("rosbags", "mcap"))
     if missing:

@@ -64,7 +64,7 @@ LATCHED = ("/robot_description", "/tf_static")
 
 def missing_library() -> str | None:
     """What is missing to write ROS 2 bags (None if nothing is): one line naming the extra."""
-    from smartcar_gym.agents import missing_modules
+    from smartcar_gym.extras import missing_modules
 
     missing = missing_modules(("rosbags",))
     if missing:

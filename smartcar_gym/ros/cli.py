@@ -29,7 +29,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from smartcar_gym.agents.model_files import PRETRAINED_POLICIES
+from smartcar_gym.agents.models import PRETRAINED_POLICIES
 from smartcar_gym.ros.debian import RosUnavailable, import_ros
 from smartcar_gym.ros.driving import STOP_ON
 from smartcar_gym.ros.package import package_folder
@@ -54,7 +54,7 @@ def _positive(text: str) -> float:
 
 def build_parser() -> argparse.ArgumentParser:
     """The ``smartcar-ros`` argument parser."""
-    from smartcar_gym.agents.hyperparams import key_value_arg
+    from smartcar_gym.agents.cli_args import key_value_arg
 
     parser = argparse.ArgumentParser(
         prog=PROG, description="The simulated smartcar and trained policies as ROS 1 nodes "

@@ -1,11 +1,12 @@
 """The policy node's decisions, free of rospy: messages in, a twist and a log line out.
 
 ``GoalDriver`` keeps the latest odometry, wheel joint states and goal, and for each decision
-builds the observation with the env's own ``Observation`` from the same ``Readings`` the env
-fills, asks the policy for an action and scales it as ``SmartCarEnv.step`` does. It never
-drives blind: no goal, a goal in another frame than the odometry's, a malformed message, stale
-odometry or joint states, or a car outside the arena the policy was trained in give a zero
-twist (or nothing at all when there is no goal) and one log line saying why.
+builds the observation with the env's own task from a one-car state filled as the env fills
+its own (``envs.state.CarState``), asks the policy for an action and scales it as
+``SmartCarEnv.step`` does. It never drives blind: no goal, a goal in another frame than the
+odometry's, a malformed message, stale odometry or joint states, or a car outside the arena
+the policy was trained in give a zero twist (or nothing at all when there is no goal) and one
+log line saying why.
 
 Each goal starts an episode as the env's ``reset`` does: the policy sees the odometry pose
 the car had when the goal came as the origin facing +x (odometry and goal are rewritten in
@@ -20,7 +21,6 @@ knows), or, with a simulated robot, when its true pose does (``"ground_truth"``,
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -28,11 +28,20 @@ from typing import Any
 
 import numpy as np
 
-from smartcar_gym.envs.observation import Readings
+from smartcar_gym.envs.state import CarState
 from smartcar_gym.ros import messages as m
 from smartcar_gym.ros.settings import PolicySettings
 
 STOP = (0.0, 0.0)
+
+
+@dataclass
+class _Car:
+    """The robot as the task sees it (``tasks.base.Cars``): its state, no threads."""
+
+    state: CarState
+    threads: int = 1
+
 STOP_ON = ("odometry", "ground_truth")
 
 
@@ -61,6 +70,8 @@ class GoalDriver:
         self.stop_on = stop_on
         self.settings = settings
         self.observation = settings.observation
+        #: the one car the task sees: its state, filled from the messages
+        self.cars = _Car(CarState.zeros(1, len(settings.wheel_joints)))
         self.act = act
         self.stale_after_ns = round(stale_after_s * m.NS_PER_S)
         self.goal: m.GoalReading | None = None
@@ -154,10 +165,13 @@ class GoalDriver:
             return c * dx + s * dy, -s * dx + c * dy
 
         x, y = local(odom.x, odom.y)
-        readings = Readings(dataclasses.replace(odom, x=x, y=y, theta=odom.theta - otheta),
-                            self.wheels.position, self.wheels.velocity,
-                            list(local(goal.x, goal.y)), self.previous_action.tolist())
-        self.last_observation = self.observation.build(readings)
+        state = self.cars.state
+        state.odometry[0] = (x, y, odom.theta - otheta, odom.v, odom.omega)
+        state.wheel_position[0] = self.wheels.position
+        state.wheel_velocity[0] = self.wheels.velocity
+        state.goal[0] = local(goal.x, goal.y)
+        state.previous_action[0] = self.previous_action
+        self.last_observation = self.settings.task.observe(self.cars)[0]
         action = np.asarray(self.act(self.last_observation), dtype=np.float64)
         if action.shape != (2,) or not np.all(np.isfinite(action)):
             return self._stop("action", "error", f"the policy gave the action {action.tolist()} "

@@ -21,7 +21,7 @@ from typing import Any, Literal
 import gymnasium as gym
 import numpy as np
 
-from smartcar_gym.agents import missing_modules
+from smartcar_gym.extras import missing_modules
 from smartcar_gym.runtime.metadata import METADATA_KEY, check_metadata
 from smartcar_gym.runtime.numpy_graph import NumpyGraph
 from smartcar_gym.runtime.onnx_file import OnnxFormatError, read_model

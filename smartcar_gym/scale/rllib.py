@@ -31,7 +31,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from smartcar_gym.agents.hyperparams import key_value_arg, non_negative_int_arg, positive_int_arg
+from smartcar_gym.agents.cli_args import key_value_arg, non_negative_int_arg, positive_int_arg
 from smartcar_gym.scale.ray_session import (
     RayUnavailableError,
     ResourceError,

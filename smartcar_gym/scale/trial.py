@@ -26,9 +26,9 @@ from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.logger import KVWriter
 
 from smartcar_gym.agents.callbacks import atomic_write_text
+from smartcar_gym.agents.cli_train import build_parser
 from smartcar_gym.agents.hyperparams import HyperparamsError
-from smartcar_gym.agents.run_folder import new_run, resume_config, saved_models
-from smartcar_gym.agents.train import build_parser
+from smartcar_gym.agents.runs import new_run, resume_config, saved_models
 from smartcar_gym.agents.training import RunSetupError, train
 from smartcar_gym.scale.space import Sweep
 

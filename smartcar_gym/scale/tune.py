@@ -23,7 +23,8 @@ from typing import Any
 
 import yaml
 
-from smartcar_gym.agents.hyperparams import key_value_arg, output_path_error, positive_int_arg
+from smartcar_gym.agents.atomic_files import output_path_error
+from smartcar_gym.agents.cli_args import key_value_arg, positive_int_arg
 from smartcar_gym.scale import results as results_mod
 from smartcar_gym.scale.ray_session import (
     RayUnavailableError,

@@ -76,8 +76,9 @@ class CarBatch(Protocol):
 
     # -- SmartCarNav-v0: a world per episode, the laser and the clearance -------------------
     def load(self, car: int, env: Any) -> None:
-        """Car ``car`` becomes the world ``env`` (a single Nav env of the engine, just reset
-        for this car's episode) has built: its obstacles, the car at its spawn."""
+        """Car ``car`` becomes the world ``env`` (a single env of the engine, just reset for
+        this car's episode) has built: its obstacles (``env.sim``, ``env.obstacle_bodies``),
+        the car at its spawn (``env.robot``)."""
 
     def cast(self, idx: np.ndarray, laser: Any) -> tuple[np.ndarray, np.ndarray]:
         """The listed cars' laser beams (``laser``: a ``SimulatedLaser``, its ``beams`` and

@@ -203,12 +203,3 @@ def add_engine_argument(parser: argparse.ArgumentParser | Any, default: str | No
     parser.add_argument("--engine", choices=engine_names(), default=default,
                         help=f"physics engine of {what} simulation (default: {DEFAULT_ENGINE}; "
                              f"{notes})")
-
-
-def __getattr__(name: str) -> Any:
-    """``ENGINES``: the registered engines' names (as ``engine_names()``), read when asked."""
-    if name == "ENGINES":
-        return engine_names()
-    if name == "MUJOCO_EXTRA":
-        return get_engine("mujoco").extra
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -18,7 +18,7 @@ RERUN_EXTRA = 'pip install "smartcar-gym[rerun]"'
 
 def missing_rerun() -> str | None:
     """One line naming the extra if ``rerun-sdk`` is not installed, else None."""
-    from smartcar_gym.agents import missing_modules
+    from smartcar_gym.extras import missing_modules
 
     if missing_modules(("rerun",)):
         return f"rerun-sdk not installed; recording needs the rerun extra: {RERUN_EXTRA}"

@@ -34,8 +34,8 @@ from typing import Any
 
 import numpy as np
 
-from smartcar_gym.envs.nav_env import OBSTACLE_HEIGHT_M
 from smartcar_gym.envs.robots.smartcar import pose_from
+from smartcar_gym.envs.world import OBSTACLE_HEIGHT_M
 from smartcar_gym.model.kinematics import matrix_quaternion
 from smartcar_gym.viewers.capture import Episode, Scene
 from smartcar_gym.viewers.packing import Packet, Table, pack

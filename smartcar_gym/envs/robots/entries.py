@@ -1,27 +1,25 @@
-"""The robot's part of an observation: odometry and wheel joint states, as ROS publishes them.
+"""The robot's part of an observation: odometry and wheel joint states, as ROS publishes them,
+and the previous action: their entries and their columns over the cars' state.
 
-Module-level so that code without a simulator (the ROS policy node) declares the same entries.
+Module-level so that code without a simulator (the ROS policy node) declares the same entries
+and computes the same values from a state it fills from messages.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import Any
 
-from smartcar_gym.envs.observation import Entry, Readings
+import numpy as np
+
+from smartcar_gym.envs.observation import Entry
+from smartcar_gym.envs.state import CarState
 
 MAX_SPEED_M_S = 5.0  # odometry twist bounds: far above the car's 0.84 m/s
 MAX_TURN_RAD_S = 50.0
 MAX_WHEEL_RAD_S = 200.0
 TWO_PI = 2 * math.pi
-
-
-def _heading(r: Readings) -> tuple[float, float]:
-    return math.cos(r.odometry.theta), math.sin(r.odometry.theta)
-
-
-def _wrapped(r: Readings) -> list[float]:
-    return [(p + math.pi) % TWO_PI - math.pi for p in r.joint_position]
 
 
 def robot_entries(wheel_joints: Sequence[str], position_bound_m: float,
@@ -34,18 +32,45 @@ def robot_entries(wheel_joints: Sequence[str], position_bound_m: float,
     b, doc = position_bound_m, position_doc
     return [
         Entry("odom_position", ("odom_x", "odom_y"), -b, b, "m",
-              "odom pose x, y (``odom`` -> ``base_link``)",
-              lambda r: (r.odometry.x, r.odometry.y), (f"-{doc}", doc)),
+              "odom pose x, y (``odom`` -> ``base_link``)", (f"-{doc}", doc)),
         Entry("odom_heading", ("odom_cos_yaw", "odom_sin_yaw"), -1.0, 1.0, "",
-              "cos, sin of odom yaw", _heading),
+              "cos, sin of odom yaw"),
         Entry("odom_linear", ("odom_v",), -MAX_SPEED_M_S, MAX_SPEED_M_S, "m/s",
-              "odom twist linear.x", lambda r: (r.odometry.v,)),
+              "odom twist linear.x"),
         Entry("odom_angular", ("odom_omega",), -MAX_TURN_RAD_S, MAX_TURN_RAD_S, "rad/s",
-              "odom twist angular.z", lambda r: (r.odometry.omega,)),
+              "odom twist angular.z"),
         Entry("wheel_positions", tuple(f"{j}.position" for j in joints), -math.pi, math.pi,
-              "rad", "wheel joint positions, wrapped (left then right, front then back)",
-              _wrapped),
+              "rad", "wheel joint positions, wrapped (left then right, front then back)"),
         Entry("wheel_velocities", tuple(f"{j}.velocity" for j in joints), -MAX_WHEEL_RAD_S,
-              MAX_WHEEL_RAD_S, "rad/s", "wheel joint velocities (same order)",
-              lambda r: r.joint_velocity),
+              MAX_WHEEL_RAD_S, "rad/s", "wheel joint velocities (same order)"),
     ]
+
+
+def previous_action_entry() -> Entry:
+    """The action of the previous step (zeros after reset), as the agent sent it."""
+    return Entry("previous_action", ("prev_linear", "prev_angular"), -1.0, 1.0, "",
+                 "previous action")
+
+
+def heading(state: CarState) -> tuple[np.ndarray, np.ndarray]:
+    """The cosine and sine of every car's odometry heading."""
+    theta = state.odometry[:, 2]
+    return np.cos(theta), np.sin(theta)
+
+
+def robot_columns(state: CarState, cos: np.ndarray, sin: np.ndarray) -> dict[str, Any]:
+    """The columns of ``robot_entries`` and ``previous_action_entry`` over the cars
+    (``cos``, ``sin``: ``heading(state)``)."""
+    odometry = state.odometry
+    wrapped = (state.wheel_position + math.pi) % TWO_PI - math.pi
+    wheels = range(wrapped.shape[1])
+    previous = state.previous_action
+    return {
+        "odom_position": (odometry[:, 0], odometry[:, 1]),
+        "odom_heading": (cos, sin),
+        "odom_linear": (odometry[:, 3],),
+        "odom_angular": (odometry[:, 4],),
+        "wheel_positions": [wrapped[:, k] for k in wheels],
+        "wheel_velocities": [state.wheel_velocity[:, k] for k in wheels],
+        "previous_action": (previous[:, 0], previous[:, 1]),
+    }

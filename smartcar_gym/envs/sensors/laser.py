@@ -81,6 +81,8 @@ class SimulatedLaser:
         self.latest: LaserScan | None = None
         self.hit_points = np.zeros((0, 3))
         self.origin = np.zeros(3)  # where the latest scan was taken from (world frame)
+        #: when the latest scan was taken (ns of simulated time)
+        self.stamp_ns = 0
         self._next_ns = 0
 
     @property
@@ -134,6 +136,7 @@ class SimulatedLaser:
         ranges = self.ranges(hits.fraction, hits.hit, self.rng)
         finite = np.isfinite(ranges)
         self.origin = origin
+        self.stamp_ns = self.sim.now_ns
         self.hit_points = origin + directions[finite] * ranges[finite, None]
         return LaserScan(
             stamp_s=self.sim.time_s, frame_id=config.frame_id, angle_min=config.angle_min,

@@ -14,9 +14,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from smartcar_gym import checks
-from smartcar_gym.envs.observation import Entry, Readings
+from smartcar_gym.envs.observation import Entry
 
-SCAN_KEY = "scan"  # the name of the scan in ``Readings.extra`` and of its observation entry
+SCAN_KEY = "scan"  # the name of the scan's observation entry
 
 
 @dataclass(frozen=True)
@@ -109,16 +109,12 @@ def sector_names(sectors: int) -> tuple[str, ...]:
 
 
 def scan_entry(config: LaserConfig, sectors: int) -> Entry:
-    """The observation entry of a scan read from ``Readings.extra["scan"]`` (raw ranges)."""
+    """The observation entry of a scan's sectors (``scan_sectors`` of its ranges)."""
     checks.positive_int("scan_sectors", sectors, config.beams,
                         f"the laser has {config.beams} beams")
     range_max = config.range_max
-
-    def read(r: Readings) -> np.ndarray:
-        return scan_sectors(r.extra[SCAN_KEY], range_max, sectors)
-
     width = math.degrees(config.angle_increment * config.beams / sectors)
     return Entry(SCAN_KEY, sector_names(sectors), 0.0, range_max, "m",
                  f"laser: nearest range in each of {sectors} sectors of about {width:g} deg, "
                  "from angle_min counter-clockwise (nothing within range_max: range_max)",
-                 read, ("0", "range_max"))
+                 ("0", "range_max"))

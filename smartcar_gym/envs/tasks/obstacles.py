@@ -138,8 +138,9 @@ def clearance(obstacles: Sequence[Obstacle], point: np.ndarray) -> float:
 
 # -- user layouts ----------------------------------------------------------------------------
 def read_layout(value: Any, name: str = "obstacles") -> tuple[Obstacle, ...]:
-    """A user's layout: a list of ``{"shape", "position", "size", "yaw"}`` dicts, or the path of
-    a YAML/JSON file holding such a list (alone or under an ``obstacles`` key).
+    """A user's layout: a list of ``{"shape", "position", "size", "yaw"}`` dicts (or of
+    ``Obstacle``s), or the path of a YAML/JSON file holding such a list (alone or under an
+    ``obstacles`` key).
 
     ``name`` says where the value came from in error messages.
     """
@@ -173,6 +174,8 @@ def _read_file(path: Path, name: str) -> tuple[Obstacle, ...]:
 
 
 def _obstacle(item: Any, where: str) -> Obstacle:
+    if isinstance(item, Obstacle):  # one read already
+        return item
     if not isinstance(item, Mapping):
         raise ValueError(f"{where} must be a mapping with keys shape, position, size (and yaw), "
                          f"got {item!r}")

@@ -1,100 +1,190 @@
-"""Goal reaching: goal sampling, success, failure and reward as pure functions of arrays.
+"""Reaching a goal on the ground: SmartCar-v0's task (and SmartCarSim-v0's, SmartCarArrive-v0's).
 
-The functions take ``(..., 2)`` positions, so they work on one state or a batch of them. The task
-also declares its part of the observation: the goal as the robot sees it through odometry.
+``ReachTask`` draws a goal per episode, rewards progress towards it and ends the episode on
+reaching it, flipping over or leaving the arena, for any number of cars.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
-from smartcar_gym.envs.observation import Entry, Readings
+from smartcar_gym import checks
+from smartcar_gym.envs.exact import exact_hypot, planar_norms, wrap_angles
+from smartcar_gym.envs.observation import Entry, Observation
+from smartcar_gym.envs.robots.entries import (
+    heading,
+    previous_action_entry,
+    robot_columns,
+    robot_entries,
+)
+from smartcar_gym.envs.tasks.base import Cars, Score, Task
 
 FLIP_UP_Z = 0.5  # base_link's z axis tilted more than 60 degrees: flipped over
+#: the rows of SmartCar-v0's observation, in order (entries come from robot, task and env)
+OBSERVATION_ORDER = (
+    "odom_position", "odom_heading", "odom_linear", "odom_angular", "wheel_positions",
+    "wheel_velocities", "goal_base", "goal_distance", "previous_action", "goal_odom",
+)
 
 
-def _goal_in_base(r: Readings) -> tuple[float, float, float]:
-    odom = r.odometry
-    dx, dy = r.goal[0] - odom.x, r.goal[1] - odom.y
-    c, s = math.cos(odom.theta), math.sin(odom.theta)
-    return c * dx + s * dy, -s * dx + c * dy, math.hypot(dx, dy)
+class ReachTask(Task):
+    """## Observation Space
 
+    ``Box(low, high, (21,), float32)`` with finite bounds (values are clipped into them):
 
-@dataclass(frozen=True)
-class Outcome:
-    """What one step did for the task: reward, success, failure and the new distance (m)."""
+    {observation_table}
 
-    reward: float
-    success: bool
-    failure: bool
-    distance: float
-    odometry_error: float = 0.0  # m between odometry and truth (with ``stop_speed_m_s``)
+    where A = ``arena_size / 2``. Wheels are listed left then right, front then back, as the
+    model's wheels are found (``env.unwrapped.observation_names`` names every entry, e.g.
+    ``left_back_wheel_joint.velocity``); ``info`` has nothing the observation needs.
 
+    ## Rewards
 
-@dataclass(frozen=True)
-class GoalReachingTask:
-    """Drive base_link to within ``goal_tolerance_m`` of a goal on the ground.
+    ``10 * (d_prev - d) - 0.01 - 0.01 * |a|^2``, plus ``+10`` on reaching the goal and ``-10``
+    on flipping over or leaving the arena, where d is the ground-truth distance (m) from
+    base_link to the goal. With ``stop_speed`` the +10 needs the car at rest (below), each
+    step within ``goal_tolerance`` also costs ``1.0 * |v|`` (the true speed, m/s) and each
+    step ``20 * (e - e_prev)``, e the odometry's distance (m) from the truth.
 
-    Reward per step: ``progress_weight`` x (metres the robot got closer to the goal)
-    - ``time_cost`` - ``action_cost`` x |action|^2, plus ``success_bonus`` on reaching the goal
-    and minus ``failure_penalty`` on flipping over or leaving the arena.
+    ## Starting State
 
-    With ``stop_speed_m_s`` (None: not asked) the goal is reached only at rest and where the
-    odometry says so too: within the tolerance in ground truth and by odometry, the base's true
-    speed under ``stop_speed_m_s``. While within it each step also costs ``speed_cost`` x speed
-    (m/s), so that stopping there pays before the bonus is ever found, and every step costs
-    ``odometry_cost`` x (metres the odometry drifted further from the truth): an episode pays
-    ``odometry_cost`` x its final odometry error, so that it is driven the way the odometry
-    follows (the car turns in place with little error, on arcs its wheels slip).
+    The car at the origin facing +x, left to settle for 0.1 s, and the controller starts: the
+    start pose is the odometry origin. The goal is drawn with the env's ``np_random`` at a
+    uniform distance in ``goal_range`` and a uniform bearing. ``reset(options={"goal": (x,
+    y)})`` sets it instead (the only option). With ``randomize``, the robot, the ground and the
+    true start pose are then drawn from ``np_random`` (after the goal: the goals are the
+    nominal env's for the same seed).
+
+    ## Episode End
+
+    Terminated when the ground-truth distance is under ``goal_tolerance`` (success; with
+    ``stop_speed`` the odometry's distance too, and the true speed of base_link under
+    ``stop_speed``: at rest), when the car flips over (base_link z axis tilted more than 60
+    degrees) or when it leaves the square arena. Truncated by the ``TimeLimit`` (200 steps =
+    20 s for SmartCar-v0).
+
+    ``info``: ``is_success`` (bool), ``distance`` (ground truth, m), ``pose`` (ground-truth
+    x, y, yaw), ``odom_pose`` (odometry x, y, yaw), ``odom_error`` (m between the two), and
+    with ``randomize`` ``randomization``: this episode's draw (factor -> value, ``noise_seed``).
+
+    ## Arguments
+
+    The env's (``SmartCarEnv``: the car, its controller, the engine), and the task's:
+
+    | kwarg             | default        | meaning                                              |
+    |-------------------|----------------|------------------------------------------------------|
+    | goal_range        | (0.5, 1.5)     | min, max goal distance from the start (m)            |
+    | goal_tolerance    | 0.1            | success radius (m)                                   |
+    | arena_size        | 5.0            | side of the square arena centred on the start (m)    |
+    | stop_speed        | None           | m/s: success only at rest (speed under this) inside  |
+    |                   |                | the tolerance; None: on entering it (docs/ros.md)    |
+
+    SmartCarSim-v0 is this task with ``controller_mode="sim"``; SmartCarArrive-v0 with goals
+    0.3-2 m away, ``stop_speed=0.01`` and the calibrated controller YAML.
     """
 
-    goal_range_m: tuple[float, float] = (0.5, 1.5)
-    goal_tolerance_m: float = 0.1
-    arena_half_size_m: float = 2.5
-    progress_weight: float = 10.0
-    success_bonus: float = 10.0
-    failure_penalty: float = 10.0
-    time_cost: float = 0.01
-    action_cost: float = 0.01
-    stop_speed_m_s: float | None = None
-    speed_cost: float = 1.0
-    odometry_cost: float = 20.0
+    option_keys = ("goal",)
+    #: per step: the progress's weight, the time and action costs, the bonus and penalty
+    progress_weight = 10.0
+    success_bonus = 10.0
+    failure_penalty = 10.0
+    time_cost = 0.01
+    action_cost = 0.01
+    #: with ``stop_speed``: the cost of speed near the goal, and of the odometry's drift
+    speed_cost = 1.0
+    odometry_cost = 20.0
 
-    def __post_init__(self) -> None:
-        if self.stop_speed_m_s is not None and not (
-                math.isfinite(self.stop_speed_m_s) and self.stop_speed_m_s > 0):
-            raise ValueError(f"stop_speed must be None or a speed > 0 m/s, got "
-                             f"{self.stop_speed_m_s!r}")
+    def __init__(self, goal_range: tuple[float, float] = (0.5, 1.5),
+                 goal_tolerance: float = 0.1, arena_size: float = 5.0,
+                 stop_speed: float | None = None) -> None:
+        self.goal_range_m = checks.number_pair("goal_range", goal_range)
+        self.goal_tolerance_m = checks.positive_number("goal_tolerance", goal_tolerance)
+        self.arena_half_size_m = checks.positive_number("arena_size", arena_size) / 2.0
+        self.stop_speed_m_s = (None if stop_speed is None
+                               else checks.positive_number("stop_speed", stop_speed))
         lo, hi = self.goal_range_m
         if not (0.0 <= lo <= hi and math.isfinite(hi)):
-            raise ValueError(
-                "goal_range must be (min, max) metres with 0 <= min <= max, "
-                f"got {self.goal_range_m}"
-            )
-        if not self.goal_tolerance_m > 0:
-            raise ValueError(f"goal_tolerance must be > 0 m, got {self.goal_tolerance_m}")
+            raise ValueError("goal_range must be (min, max) metres with 0 <= min <= max, "
+                             f"got {self.goal_range_m}")
         if not hi < self.arena_half_size_m:
-            raise ValueError(
-                f"goal_range max ({hi} m) must lie inside the arena (half size "
-                f"{self.arena_half_size_m} m): raise arena_size or lower goal_range"
-            )
+            raise ValueError(f"goal_range max ({hi} m) must lie inside the arena (half size "
+                             f"{self.arena_half_size_m} m): raise arena_size or lower "
+                             "goal_range")
         if not self.goal_tolerance_m < self.arena_half_size_m:
-            raise ValueError(
-                f"goal_tolerance ({self.goal_tolerance_m} m) must be smaller than the arena "
-                f"(half size {self.arena_half_size_m} m): every position would be a success"
-            )
+            raise ValueError(f"goal_tolerance ({self.goal_tolerance_m} m) must be smaller than "
+                             f"the arena (half size {self.arena_half_size_m} m): every position "
+                             "would be a success")
 
-    # -- goals ---------------------------------------------------------------------------------
-    def sample_goal(self, rng: np.random.Generator, origin: np.ndarray) -> np.ndarray:
-        """A goal at a uniform distance in ``goal_range_m``, uniform bearing, from ``origin``."""
-        distance = rng.uniform(*self.goal_range_m)
-        bearing = rng.uniform(-math.pi, math.pi)
-        return np.asarray(origin, dtype=float) + distance * np.array(
-            [math.cos(bearing), math.sin(bearing)]
-        )
+    @property
+    def needs_speed(self) -> bool:  # type: ignore[override]
+        """``stop_speed``'s success needs the true speed."""
+        return self.stop_speed_m_s is not None
+
+    @staticmethod
+    def limits(kwargs: Any) -> str | None:
+        if kwargs.get("stop_speed") is not None:
+            return "stop_speed (the true speed, which a car batch does not read)"
+        return None
+
+    # -- observation ---------------------------------------------------------------------------
+    def declare(self) -> Observation:
+        return self.compose(OBSERVATION_ORDER)
+
+    def compose(self, order: Sequence[str], *more: Sequence[Entry]) -> Observation:
+        """The entries of the robot, the goal, the previous action and ``more``, in ``order``."""
+        bound = 2 * self.arena_half_size_m
+        return Observation.compose(order, robot_entries(self.car.wheel_joints, bound),
+                                   self.goal_entries(), [previous_action_entry()], *more)
+
+    def goal_entries(self) -> list[Entry]:
+        """The goal as the robot sees it through odometry (A = ``arena_half_size_m``)."""
+        a = self.arena_half_size_m
+        return [
+            Entry("goal_base", ("goal_x_base", "goal_y_base"), -4 * a, 4 * a, "m",
+                  "goal in the odometry base_link frame (ahead, left)", ("-4A", "4A")),
+            Entry("goal_distance", ("goal_distance",), 0.0, 4 * a, "m",
+                  "goal distance from the odometry pose", ("0", "4A")),
+            Entry("goal_odom", ("goal_x_odom", "goal_y_odom"), -2 * a, 2 * a, "m",
+                  "goal in the ``odom`` frame (as a goal is given in ROS)", ("-2A", "2A")),
+        ]
+
+    def columns(self, cars: Cars) -> dict[str, Any]:
+        state = cars.state
+        cos, sin = heading(state)
+        goal, odometry = state.goal, state.odometry
+        gx, gy = goal[:, 0] - odometry[:, 0], goal[:, 1] - odometry[:, 1]
+        return {**robot_columns(state, cos, sin),
+                "goal_base": (cos * gx + sin * gy, -sin * gx + cos * gy),
+                "goal_distance": (np.hypot(gx, gy),),
+                "goal_odom": (goal[:, 0], goal[:, 1])}
+
+    # -- cars ----------------------------------------------------------------------------------
+    def attach(self, num: int) -> None:
+        super().attach(num)
+        #: each car's ground-truth distance to its goal (m), as of the last step
+        self.distance = np.zeros(num)
+        #: each car's odometry error (m; ``stop_speed``), as of the last step
+        self.odometry_error = np.zeros(num)
+
+    # -- reset ---------------------------------------------------------------------------------
+    def check_option(self, key: str, value: Any, vector: bool) -> list[Any]:
+        if key != "goal":
+            return super().check_option(key, value, vector)
+        if not vector:
+            return [self.check_goal(value)]
+        goal = np.asarray(value, dtype=float)
+        if goal.shape not in ((2,), (self.num, 2)):
+            raise ValueError(f"options['goal'] must be (x, y) or an ({self.num}, 2) array, "
+                             f"got shape {goal.shape}")
+        rows = [self.check_goal(g) for g in goal.reshape(-1, 2)]
+        return rows if len(rows) == self.num else rows * self.num
+
+    def options_help(self) -> str:
+        return "'goal'"
 
     def check_goal(self, value: object) -> np.ndarray:
         """A user's goal (``reset(options={"goal": ...})``): a finite (x, y) in the arena."""
@@ -105,112 +195,91 @@ class GoalReachingTask:
             raise ValueError(expected) from None
         if goal.shape != (2,) or not np.all(np.isfinite(goal)):
             raise ValueError(expected)
-        if self.is_outside(goal):
-            raise ValueError(
-                f"options['goal'] {goal.tolist()} lies outside the arena (|x|, |y| <= "
-                f"{self.arena_half_size_m} m): raise arena_size"
-            )
+        half = self.arena_half_size_m
+        if np.any(np.abs(goal) > half):
+            raise ValueError(f"options['goal'] {goal.tolist()} lies outside the arena (|x|, "
+                             f"|y| <= {half} m): raise arena_size")
         return goal
 
-    # -- pure functions ------------------------------------------------------------------------
-    @staticmethod
-    def distance(position: np.ndarray, goal: np.ndarray) -> np.ndarray:
-        """Euclidean distance (m) between ``(..., 2)`` positions and goals."""
-        d = np.asarray(position, dtype=float) - np.asarray(goal, dtype=float)
-        return np.sqrt(np.add.reduce(d * d, axis=-1))  # np.linalg.norm's own sum, without it
+    def sample_goal(self, rng: np.random.Generator) -> np.ndarray:
+        """A goal at a uniform distance in ``goal_range_m``, uniform bearing, from the
+        origin."""
+        distance = rng.uniform(*self.goal_range_m)
+        bearing = rng.uniform(-math.pi, math.pi)
+        return np.zeros(2) + distance * np.array([math.cos(bearing), math.sin(bearing)])
 
-    def is_success(self, distance: np.ndarray, speed: np.ndarray | float = 0.0) -> np.ndarray:
+    def start(self, cars: Cars, idx: np.ndarray, options: list[dict[str, Any]]) -> None:
+        """Each listed car's goal: given, or drawn from its generator."""
+        goal = cars.state.goal
+        for i in idx.tolist():
+            given = options[i].get("goal")
+            goal[i] = given if given is not None else self.sample_goal(cars.rng(i))
+
+    def begin(self, cars: Cars, idx: np.ndarray) -> None:
+        state = cars.state
+        d = state.pose[idx, :2] - state.goal[idx]
+        self.distance[idx] = np.sqrt(np.add.reduce(d * d, axis=-1))
+        if self.stop_speed_m_s is not None:
+            odometry, pose = state.odometry[idx], state.pose[idx]
+            self.odometry_error[idx] = exact_hypot(odometry[:, 0] - pose[:, 0],
+                                                   odometry[:, 1] - pose[:, 1])
+
+    # -- step ----------------------------------------------------------------------------------
+    def score(self, cars: Cars, action: np.ndarray) -> Score:
+        """Progress, time and action costs, the success bonus and the failure penalty (and
+        ``stop_speed``'s arrival terms) from each car's true position."""
+        state = cars.state
+        px, py = state.pose[:, 0], state.pose[:, 1]
+        gx, gy = state.goal[:, 0], state.goal[:, 1]
+        dx, dy = px - gx, py - gy
+        distance = np.sqrt(dx * dx + dy * dy)
+        success = distance < self.goal_tolerance_m
+        arrival = None
+        if self.stop_speed_m_s is not None:
+            success, arrival = self._arrival(state, px, py, success)
+        half = self.arena_half_size_m
+        failure = (state.up_z < FLIP_UP_Z) | (np.abs(px) > half) | (np.abs(py) > half)
+        reward = (self.progress_weight * (self.distance - distance) - self.time_cost
+                  - self.action_cost * (action[:, 0] * action[:, 0]
+                                        + action[:, 1] * action[:, 1])
+                  + self.success_bonus * success.astype(np.float64)
+                  - self.failure_penalty * failure.astype(np.float64))
+        if arrival is not None:
+            reward = reward - arrival
+        self.distance = distance
+        return reward, success, failure
+
+    def _arrival(self, state: Any, px: np.ndarray, py: np.ndarray,
+                 success: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``stop_speed``: success at rest and by odometry too, and the arrival cost."""
+        ox, oy = state.odometry[:, 0], state.odometry[:, 1]
+        odometry_error = exact_hypot(ox - px, oy - py)
+        inside = success & (exact_hypot(ox - state.goal[:, 0], oy - state.goal[:, 1])
+                            < self.goal_tolerance_m)
+        speed = np.abs(state.speed)
+        arrival = (self.speed_cost * speed * inside.astype(np.float64)
+                   + self.odometry_cost * (odometry_error - self.odometry_error))
+        self.odometry_error = odometry_error
+        return inside & (speed < self.stop_speed_m_s), arrival
+
+    def is_success(self, distance: np.ndarray | float,
+                   speed: np.ndarray | float = 0.0) -> np.ndarray:
         """True where the distance to the goal is under the tolerance (and, with
-        ``stop_speed_m_s``, the speed (m/s) under it)."""
+        ``stop_speed``, the speed (m/s) under it): the ROS node's judge."""
         inside = np.asarray(distance) < self.goal_tolerance_m
         if self.stop_speed_m_s is None:
             return inside
         return inside & (np.abs(np.asarray(speed)) < self.stop_speed_m_s)
 
-    def is_outside(self, position: np.ndarray) -> np.ndarray:
-        """True where a ``(..., 2)`` position has left the square arena."""
-        return np.any(np.abs(np.asarray(position)) > self.arena_half_size_m, axis=-1)
-
-    @staticmethod
-    def is_flipped(up_z: np.ndarray) -> np.ndarray:
-        """True where base_link's z axis has tilted more than 60 degrees (``up_z < 0.5``)."""
-        return np.asarray(up_z) < FLIP_UP_Z
-
-    def is_failure(self, position: np.ndarray, up_z: np.ndarray) -> np.ndarray:
-        """True where the robot flipped over or left the arena."""
-        return self.is_flipped(up_z) | self.is_outside(position)
-
-    def reward(
-        self,
-        previous_distance: np.ndarray,
-        distance: np.ndarray,
-        action: np.ndarray,
-        success: np.ndarray,
-        failure: np.ndarray,
-    ) -> np.ndarray:
-        """Dense reward: progress, minus time and action costs, plus success/failure terms
-        (the arrival terms of ``stop_speed_m_s`` are ``evaluate``'s)."""
-        action = np.asarray(action, dtype=float)
-        return (
-            self.progress_weight * (np.asarray(previous_distance) - np.asarray(distance))
-            - self.time_cost
-            - self.action_cost * np.sum(action * action, axis=-1)
-            + self.success_bonus * np.asarray(success, dtype=float)
-            - self.failure_penalty * np.asarray(failure, dtype=float)
-        )
-
-    def evaluate(self, previous_distance: float, position: np.ndarray, up_z: float,
-                 goal: np.ndarray, action: np.ndarray, speed: float = 0.0,
-                 odometry: tuple[float, float] = (0.0, 0.0),
-                 previous_odometry_error: float = 0.0) -> Outcome:
-        """One step's outcome from the ground-truth position and uprightness (and with
-        ``stop_speed_m_s`` the true speed (m/s), the odometry's (x, y) and the odometry error of
-        the step before).
-
-        The per-step path: the same arithmetic as ``distance``, ``is_success``, ``is_failure``
-        and ``reward``, in the same order on Python floats (bit for bit the same, tested),
-        without numpy's cost per call on 2-element arrays.
-        """
-        x, y = float(position[0]), float(position[1])
-        dx, dy = x - float(goal[0]), y - float(goal[1])
-        distance = math.sqrt(dx * dx + dy * dy)
-        success = distance < self.goal_tolerance_m
-        arrival, odometry_error = 0.0, 0.0
-        if self.stop_speed_m_s is not None:
-            ox, oy = float(odometry[0]), float(odometry[1])
-            odometry_error = math.hypot(ox - x, oy - y)
-            inside = success and math.hypot(ox - float(goal[0]),
-                                             oy - float(goal[1])) < self.goal_tolerance_m
-            speed = abs(float(speed))
-            success = inside and speed < self.stop_speed_m_s
-            arrival = (self.speed_cost * speed * float(inside) + self.odometry_cost
-                       * (odometry_error - float(previous_odometry_error)))
-        half = self.arena_half_size_m
-        failure = float(up_z) < FLIP_UP_Z or abs(x) > half or abs(y) > half
-        a0, a1 = float(action[0]), float(action[1])
-        reward = (
-            self.progress_weight * (float(previous_distance) - distance)
-            - self.time_cost
-            - self.action_cost * (a0 * a0 + a1 * a1)
-            + self.success_bonus * float(success)
-            - self.failure_penalty * float(failure)
-        )
-        if self.stop_speed_m_s is not None:
-            reward -= arrival
-        return Outcome(reward, success, failure, distance, odometry_error)
-
-    # -- observation ---------------------------------------------------------------------------
-    def observation_entries(self) -> list[Entry]:
-        """The goal as the robot sees it through odometry (A = ``arena_half_size_m``)."""
-        a = self.arena_half_size_m
-        return [
-            Entry("goal_base", ("goal_x_base", "goal_y_base"), -4 * a, 4 * a, "m",
-                  "goal in the odometry base_link frame (ahead, left)",
-                  lambda r: _goal_in_base(r)[:2], ("-4A", "4A")),
-            Entry("goal_distance", ("goal_distance",), 0.0, 4 * a, "m",
-                  "goal distance from the odometry pose", lambda r: _goal_in_base(r)[2:],
-                  ("0", "4A")),
-            Entry("goal_odom", ("goal_x_odom", "goal_y_odom"), -2 * a, 2 * a, "m",
-                  "goal in the ``odom`` frame (as a goal is given in ROS)",
-                  lambda r: r.goal, ("-2A", "2A")),
-        ]
+    def info(self, cars: Cars, success: np.ndarray) -> dict[str, np.ndarray]:
+        """Success, the distance, the true and odometry poses and their gap."""
+        state = cars.state
+        odometry, pose = state.odometry, state.pose
+        return {
+            "is_success": success.copy(),
+            "distance": self.distance.copy(),
+            "pose": pose.copy(),
+            "odom_pose": np.stack([odometry[:, 0], odometry[:, 1], wrap_angles(odometry[:, 2])],
+                                  axis=1),
+            "odom_error": planar_norms(odometry[:, 0] - pose[:, 0], odometry[:, 1] - pose[:, 1]),
+        }

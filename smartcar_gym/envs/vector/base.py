@@ -3,10 +3,11 @@
 ``CarsVectorEnv`` is what the numpy kinematic env (``SmartCarSimVectorEnv``) and the batched
 physics env (``SmartCarBatchVectorEnv``) share: Gymnasium's vector API with the smartcar
 conventions (docs/vector.md): autoreset ``"NextStep"`` or ``"SameStep"``, car i seeded
-``s + i``, partial resets by ``reset_mask``, the ``goal`` reset option, ``info`` per car with
+``s + i``, partial resets by ``reset_mask``, the task's reset options, ``info`` per car with
 its ``_key`` masks, ``(N, 2)`` actions checked in one line, top-down ``render()`` tiles, a
-closed env reopened by ``reset()``, and copies. A subclass says how its cars are reset
-(``_reset_cars``), stepped (``_advance``) and observed (``_observe``, ``_info_values``).
+closed env reopened by ``reset()``, and copies. Both run one task object over all their cars
+(``envs.tasks.base.Task``) on their public state (``state``); a subclass says how its cars
+are reset (``_reset_cars``) and how a period runs (``_run``).
 """
 
 from __future__ import annotations
@@ -19,7 +20,8 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
-from smartcar_gym.envs.observation import Observation
+from smartcar_gym.envs.state import CarState
+from smartcar_gym.envs.tasks.base import Task
 from smartcar_gym.envs.vector.common import check_actions, check_seeds, vector_info
 from smartcar_gym.envs.vector.render import top_down_tiles
 
@@ -28,22 +30,26 @@ class CarsVectorEnv(gym.vector.VectorEnv):
     """N smartcars as arrays, under Gymnasium's vector API (see the module)."""
 
     metadata = {"render_modes": ["rgb_array"], "autoreset_mode": AutoresetMode.NEXT_STEP}
-    #: attributes taken from ``settings`` (lambdas inside): a copy takes them again
-    from_settings: tuple[str, ...] = ("observation",)
     # set by the subclass's __init__ before the first reset
     num_envs: int
     autoreset_mode: AutoresetMode
     max_episode_steps: int | None
     #: what the env calls itself in its error lines
     label: str
+    #: the worker threads a task may split per-car work over
+    threads = 1
+    #: every car's public state (one row a car): what the task reads and writes
+    state: CarState
+    #: the task, run over every car
+    task: Task
 
     def _take_settings(self, s: Any) -> None:
-        """The task, observation, spaces and metadata of the single env (or its settings)
-        ``s`` that every car shares."""
+        """The task, spaces and metadata of the single env ``s`` that every car is."""
         self.settings = s
-        self.task, self.observation = s.task, s.observation
+        self.task = s.task.for_cars(self.num_envs)
         self.observation_names = s.observation_names
         self.render_mode = s.render_mode
+        self.max_linear, self.max_angular = s.max_linear, s.max_angular
         self.metadata = {**self.metadata, "render_fps": s.controller_config.rate_hz,
                          "autoreset_mode": self.autoreset_mode}
         self.single_observation_space = s.observation_space
@@ -51,43 +57,38 @@ class CarsVectorEnv(gym.vector.VectorEnv):
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
 
-    def _allocate_episodes(self, n: int) -> None:
-        """Per car: its generator, steps, goal, distance, last action and episode flags."""
+    def _allocate_episodes(self, n: int, wheels: int, sensors: dict[str, Any]) -> None:
+        """Per car: its generator, its state and its episode flags."""
         self._rngs: list[np.random.Generator | None] = [None] * n
-        self._steps = np.zeros(n, dtype=np.int64)
-        self.goal = np.zeros((n, 2))
-        self._distance = np.zeros(n)
-        self._prev_action = np.zeros((n, 2), dtype=np.float32)
+        self.state = CarState.zeros(n, wheels, sensors)
         self._autoreset = np.zeros(n, dtype=bool)
-        #: cars not simulated until a reset names them (``park`` where the subclass has it)
-        self._parked = np.zeros(n, dtype=bool)
         self._needs_reset = True
 
-    # -- copies --------------------------------------------------------------------------------
-    def __getstate__(self) -> dict[str, Any]:
-        """Everything but what is taken from ``settings`` (the single env's own copy keeps
-        its settings and declares its observation again)."""
-        state = self.__dict__.copy()
-        for key in self.from_settings:
-            state.pop(key, None)
-        return state
+    def __getattr__(self, name: str) -> Any:
+        """What the task exports (``obstacles``, ``compute_reward``, ...), read here."""
+        task = self.__dict__.get("task")
+        if task is not None and name in task.exports:
+            return getattr(task, name)
+        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
 
-    def __setstate__(self, state: dict[str, Any]) -> None:
-        self.__dict__.update(state)
-        for key in self.from_settings:
-            setattr(self, key, getattr(self.settings, key))
+    @property
+    def goal(self) -> np.ndarray:
+        """Every car's goal (N, 2), odom frame."""
+        return self.state.goal
 
-    # -- gymnasium API -------------------------------------------------------------------------
+    # -- what the task sees (``tasks.base.Cars``) ------------------------------------------------
+    def rng(self, car: int) -> np.random.Generator:
+        """Car ``car``'s generator (created from entropy if it had none)."""
+        if self._rngs[car] is None:
+            self._rngs[car], _ = seeding.np_random(None)
+        return self._rngs[car]
+
     @property
     def np_random(self) -> tuple[np.random.Generator, ...]:
         """Each car's generator (created from entropy if it had none)."""
-        return tuple(self._rng(i) for i in range(self.num_envs))
+        return tuple(self.rng(i) for i in range(self.num_envs))
 
-    def _rng(self, i: int) -> np.random.Generator:
-        if self._rngs[i] is None:
-            self._rngs[i], _ = seeding.np_random(None)
-        return self._rngs[i]
-
+    # -- gymnasium API -------------------------------------------------------------------------
     def reset(self, *, seed: int | list[int | None] | None = None,
               options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
         n = self.num_envs
@@ -99,8 +100,8 @@ class CarsVectorEnv(gym.vector.VectorEnv):
         for i, s in enumerate(seeds):
             if mask[i] and (s is not None or self._rngs[i] is None):
                 self._rngs[i], _ = seeding.np_random(s)
-        goals = self._check_options(options)
-        self._reset_cars(mask, goals)
+        checked = self.task.check_options(options, vector=True)
+        self._reset_cars(mask, checked)
         self._autoreset[mask] = False
         self._needs_reset = False
         return self._observe(), self._info(mask, np.zeros(n, dtype=bool))
@@ -113,17 +114,22 @@ class CarsVectorEnv(gym.vector.VectorEnv):
         if self._needs_reset:
             raise gym.error.ResetNeeded(f"{self.label}: call reset() before step()")
         a = check_actions(actions, self.num_envs)
-        restart = self._autoreset & ~self._parked \
+        state, task = self.state, self.task
+        parked = state.parked
+        restart = self._autoreset & ~parked \
             if self.autoreset_mode == AutoresetMode.NEXT_STEP \
             else np.zeros(self.num_envs, dtype=bool)
-        reward, success, failure = self._advance(a)
+        self._run(a[:, 0] * self.max_linear, a[:, 1] * self.max_angular)
+        state.steps += 1
+        reward, success, failure = task.score(self, a)
+        state.previous_action[:] = a
         terminated = success | failure
-        truncated = self._cut_short() | (
-            self._steps >= self.max_episode_steps if self.max_episode_steps is not None
+        truncated = task.truncated(self) | (
+            state.steps >= self.max_episode_steps if self.max_episode_steps is not None
             else np.zeros(self.num_envs, dtype=bool))
         # a parked car has no episode: it never ends, so it is never autoreset
-        terminated &= ~self._parked
-        truncated &= ~self._parked
+        terminated &= ~parked
+        truncated &= ~parked
         if self.autoreset_mode == AutoresetMode.NEXT_STEP:
             if restart.any():
                 self._reset_cars(restart, None)
@@ -138,7 +144,7 @@ class CarsVectorEnv(gym.vector.VectorEnv):
             if done.any():
                 final_obs = np.full(self.num_envs, None, dtype=object)
                 for i in np.flatnonzero(done):
-                    final_obs[i] = self._car_obs(obs, i)
+                    final_obs[i] = task.car_obs(obs, i)
                 final_info = self._info(done, success)
                 self._reset_cars(done, None)
                 obs = self._observe()
@@ -152,8 +158,8 @@ class CarsVectorEnv(gym.vector.VectorEnv):
         if self.render_mode is None:
             gym.logger.warn("render() called without render_mode='rgb_array'")
             return None
-        s = self.settings
-        return top_down_tiles(self._pose[:16, :2], self._pose[:16, 2], self.goal[:16],
+        s, pose = self.settings, self.state.pose
+        return top_down_tiles(pose[:16, :2], pose[:16, 2], self.state.goal[:16],
                               s.task.goal_tolerance_m, s.task.arena_half_size_m,
                               s.render_width, s.render_height)
 
@@ -181,70 +187,22 @@ class CarsVectorEnv(gym.vector.VectorEnv):
                                         "reset_mask)")
         return options or None, mask.copy()
 
-    def _check_options(self, options: Any) -> np.ndarray | None:
-        """The ``goal`` option as one goal per car ((N, 2); None: each car draws its own)."""
-        if options is None:
-            return None
-        if not isinstance(options, dict) or set(options) - {"goal"}:
-            raise ValueError(f"reset options must be {{'goal': (x, y) or an ({self.num_envs}, 2) "
-                             f"array}}, got {options!r}")
-        if "goal" not in options:
-            return None
-        goal = np.asarray(options["goal"], dtype=float)
-        rows = goal.reshape(-1, 2) if goal.shape in ((2,), (self.num_envs, 2)) else None
-        if rows is None:
-            raise ValueError(f"options['goal'] must be (x, y) or an ({self.num_envs}, 2) array, "
-                             f"got shape {goal.shape}")
-        checked = np.array([self.task.check_goal(g) for g in rows])
-        return np.broadcast_to(checked, (self.num_envs, 2))
-
-    def _draw_goals(self, idx: np.ndarray, goals: np.ndarray | None) -> None:
-        """Each listed car's goal: given, or drawn from its generator as its single env
-        draws it."""
-        origin = np.zeros(2)
-        for i in idx:
-            self.goal[i] = (goals[i] if goals is not None
-                            else self.task.sample_goal(self._rng(i), origin))
-
-    def _reset_cars(self, mask: np.ndarray, goals: np.ndarray | None) -> None:
-        """The masked cars afresh, each with a new goal (``goals``, or drawn)."""
+    def _reset_cars(self, mask: np.ndarray, options: list[dict[str, Any]] | None) -> None:
+        """The masked cars afresh, each with its episode's ``options`` (None: none)."""
         raise NotImplementedError
 
-    # -- steps ---------------------------------------------------------------------------------
-    def _advance(self, a: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """One controller period for every car: reward, success and failure."""
+    def _run(self, linear_x: np.ndarray, angular_z: np.ndarray) -> None:
+        """Every car's ``cmd_vel`` now, one controller period, and the state read after it."""
         raise NotImplementedError
-
-    def _cut_short(self) -> np.ndarray:
-        """Which cars the env itself truncates this step (none here: only the time limit)."""
-        return np.zeros(self.num_envs, dtype=bool)
 
     # -- observations and infos ----------------------------------------------------------------
     def _observe(self) -> Any:
-        """Every car's observation: ``Observation.build``'s values, in its order and rounding."""
-        return self._build(self.observation, self._columns())
+        """Every car's observation, the task's."""
+        return self.task.observe(self)
 
-    def _car_obs(self, obs: Any, i: int) -> Any:
-        """Car ``i``'s observation, copied out of the batch (``final_obs``)."""
-        return obs[i].copy()
-
-    def _columns(self) -> dict[str, Any]:
-        """Each observation entry's values as columns over cars (by the entry's key)."""
-        raise NotImplementedError
-
-    def _build(self, observation: Observation, columns: dict[str, Any]) -> np.ndarray:
-        """``observation.build`` for every car from the entries' ``columns``."""
-        obs = np.empty((self.num_envs, len(observation.names)), dtype=np.float32)
-        k = 0
-        for entry in observation.entries:
-            for col in columns[entry.key]:
-                obs[:, k] = col  # each float64 value rounded once to float32
-                k += 1
-        return np.minimum(np.maximum(obs, observation.low, out=obs), observation.high, out=obs)
-
-    def _info_values(self, success: np.ndarray) -> dict[str, np.ndarray]:
-        """Every car's ``info`` values (as the single env's ``_info``) by key."""
-        raise NotImplementedError
+    def _info_values(self, success: np.ndarray) -> dict[str, Any]:
+        """Every car's ``info`` values (the task's) by key."""
+        return self.task.info(self, success)
 
     def _info(self, mask: np.ndarray, success: np.ndarray) -> dict[str, Any]:
         values = self._info_values(success)

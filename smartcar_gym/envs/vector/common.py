@@ -153,13 +153,11 @@ def vector_info(values: dict[str, Any], mask: np.ndarray) -> dict[str, Any]:
 
 def batch_limits(kwargs: dict[str, Any]) -> str | None:
     """What no physics batch runs of these single-env kwargs (None: nothing): the batched env
-    (``SmartCarBatchVectorEnv``, whatever its engine) falls back to the loop for them.
-    ``randomize`` is the batch's to say: it runs where a single env builds each car's
-    episode (``TaskPart.keeps_single``)."""
+    (``SmartCarBatchVectorEnv``, whatever its engine) falls back to the loop for them. What a
+    task cannot run batched is its own to say (``Task.limits``), and ``randomize`` the
+    batch's: it runs where a single env builds each car's episode (``Task.builds_worlds``)."""
     if kwargs.get("render_mode") == "human":
         return "render_mode='human' is a GUI"
-    if kwargs.get("stop_speed") is not None:
-        return "stop_speed's arrival terms (SmartCarArrive-v0) are the single env's"
     if kwargs.get("controller_mode") not in (None, "hardware"):
         return "controller_mode='sim' steps no physics (SmartCarSim-v0 is batched in numpy)"
     return None

@@ -9,6 +9,7 @@ from gymnasium.vector import AutoresetMode
 
 from smartcar_gym.controller import KINEMATIC
 from smartcar_gym.controller.batched import BatchedArbotix
+from smartcar_gym.envs.exact import wrap_angles
 from smartcar_gym.envs.smartcar_env import SmartCarEnv
 from smartcar_gym.envs.vector.base import CarsVectorEnv
 from smartcar_gym.envs.vector.common import (
@@ -16,8 +17,6 @@ from smartcar_gym.envs.vector.common import (
     check_max_episode_steps,
     check_num_envs,
 )
-from smartcar_gym.envs.vector.exact import planar_norms, wrap_angles
-from smartcar_gym.envs.vector.parts import reach_columns, reach_score
 from smartcar_gym.sim.clock import NS_PER_S, seconds_to_ns
 
 #: measured: 4096 cars hold about 9 MiB of arrays; the margin covers the per-car generators
@@ -28,7 +27,6 @@ class _Settings(SmartCarEnv):
     """SmartCarEnv's argument checks, model, config, task and observation, without a world."""
 
     def _open(self) -> None:
-        self.sim = None
         self._needs_reset = True
 
 
@@ -39,7 +37,7 @@ def supports(kwargs: dict[str, Any]) -> str | None:
     if kwargs.get("render_mode") == "human":
         return "render_mode='human' is the pybullet GUI"
     if kwargs.get("stop_speed") is not None:
-        return "stop_speed's arrival terms (SmartCarArrive-v0) are the single env's"
+        return "stop_speed's arrival terms (SmartCarArrive-v0) need the true speed"
     return None
 
 
@@ -53,7 +51,8 @@ class SmartCarSimVectorEnv(CarsVectorEnv):
     ``info["pose"]``'s yaw: here the body's exact heading, in the single env pybullet's float32
     quaternion's, within 1e-6 rad of it (docs/vector.md). The controller is
     ``controller.batched.BatchedArbotix``; the ground-truth position is rounded to float32 as the
-    single env's pybullet body stores it.
+    single env's pybullet body stores it. The task is the single env's, one ``ReachTask``
+    over all the cars.
 
     Made by ``gym.make_vec("SmartCarSim-v0", num_envs=N, vectorization_mode="vector_entry_point",
     **kwargs)`` with SmartCarEnv's kwargs (``max_substep_s``, ``physics_hz`` and
@@ -64,9 +63,8 @@ class SmartCarSimVectorEnv(CarsVectorEnv):
     commanded twist over the whole period, then the controller fires once, as
     ``SmartCarRobot._move_kinematically``), no engine (no world to copy, reset or step), the
     controller is the kinematic mode's (no boards, no motors), and the pose is pybullet's
-    float32 body's, not an engine's. What both share, the vector conventions below, is their
-    common base ``CarsVectorEnv``; reaching the goal is the same arithmetic
-    (``parts.reach_score``, ``parts.reach_columns``).
+    float32 body's, not an engine's. What both share, the vector conventions below and the
+    task, is their common base ``CarsVectorEnv``.
 
     ## Conventions (Gymnasium 1.x)
 
@@ -87,7 +85,7 @@ class SmartCarSimVectorEnv(CarsVectorEnv):
       holds every car's, ``info`` the reset cars' (its ``_key`` masks are ``mask``), and a
       reset car is not autoreset at the next step.
     - **info**: per car ``is_success``, ``distance``, ``pose``, ``odom_pose``, ``odom_error``
-      (as SmartCar-v0, with its arithmetic: ``vector.exact``), each with its ``_key`` mask.
+      (as SmartCar-v0, with its arithmetic: ``envs.exact``), each with its ``_key`` mask.
     - **Actions**: ``(N, 2)`` real numbers in [-1, 1] (clipped); another shape, complex
       numbers or NaN is one error line.
     - **render()**: with ``render_mode="rgb_array"``, a top-down view of the first cars (up to
@@ -101,15 +99,15 @@ class SmartCarSimVectorEnv(CarsVectorEnv):
 
     def __init__(self, num_envs: int = 1, max_episode_steps: int | None = None,
                  autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
-                 **kwargs: Any) -> None:
+                 env_id: str = "SmartCarSim-v0", **kwargs: Any) -> None:
         why = supports(kwargs)
         if why is not None:
             raise ValueError(f"SmartCarSimVectorEnv cannot run {why}; use "
                              "vectorization_mode='sync' (or the vector_entry_point falls back)")
-        self.num_envs = check_num_envs(num_envs, "SmartCarSim-v0", BYTES_PER_CAR)
+        self.num_envs = check_num_envs(num_envs, env_id, BYTES_PER_CAR)
         self.autoreset_mode = check_autoreset_mode(autoreset_mode)
         #: steps before a car's episode is truncated (None: no limit)
-        self.max_episode_steps = check_max_episode_steps(max_episode_steps, "SmartCarSim-v0")
+        self.max_episode_steps = check_max_episode_steps(max_episode_steps, env_id)
         kwargs.setdefault("controller_mode", KINEMATIC)
         s = _Settings(**kwargs)
         if s.controller_mode != KINEMATIC:
@@ -131,41 +129,39 @@ class SmartCarSimVectorEnv(CarsVectorEnv):
         self._duration = self.period_ns / NS_PER_S
         self.base = BatchedArbotix(config, KINEMATIC, model.wheel_radius_m, num_cars=n)
         self.label = type(self).__name__
-        self._allocate(len(groups))
+        self._allocate_episodes(n, len(wheels), {})
+        self._body = np.zeros((n, 3))  # the body's x, y, yaw in doubles
+        self._wheels = np.zeros((n, len(groups)))
+        self._wheel_speed = np.zeros((n, len(groups)))
 
-    def _allocate(self, groups: int) -> None:
-        n = self.num_envs
-        self._allocate_episodes(n)
-        self._pose = np.zeros((n, 3))  # the body's x, y, yaw in doubles
-        self._wheels = np.zeros((n, groups))
-        self._wheel_speed = np.zeros((n, groups))
+    def clearances(self, cars: np.ndarray, max_distance_m: float) -> np.ndarray:
+        """No obstacles: every car is ``max_distance_m`` from any."""
+        return np.full(len(cars), max_distance_m)
 
     # -- the model -----------------------------------------------------------------------------
-    def _reset_cars(self, mask: np.ndarray, goals: np.ndarray | None) -> None:
+    def _reset_cars(self, mask: np.ndarray, options: list[dict[str, Any]] | None) -> None:
         """Spawn the masked cars afresh at the origin, each with a goal from its generator."""
         idx = np.flatnonzero(mask)
-        self._draw_goals(idx, goals)
-        self._steps[idx] = 0
-        self._pose[idx] = 0.0
+        state = self.state
+        self.task.start(self, idx, options or [{} for _ in range(self.num_envs)])
+        state.steps[idx] = 0
+        self._body[idx] = 0.0
         self._wheels[idx] = 0.0
         self._wheel_speed[idx] = 0.0
-        self._prev_action[idx] = 0.0
+        state.previous_action[idx] = 0.0
         self.base.reset(0.0, None, mask)
-        # the position is float32 in pybullet: (0, 0) exactly
-        g = self.goal[idx]
-        dx, dy = 0.0 - g[:, 0], 0.0 - g[:, 1]
-        self._distance[idx] = np.sqrt(dx * dx + dy * dy)
+        self._read(state.steps)
+        self.task.begin(self, idx)
 
-    def _advance(self, a: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """One controller period for every car: SmartCarEnv.step's arithmetic, in arrays."""
-        s = self.settings
-        now_s = (self._steps * self.period_ns).astype(np.float64) / NS_PER_S
-        self.base.cmd_vel(a[:, 0] * s.max_linear, a[:, 1] * s.max_angular, now_s)
-        self._steps += 1
-        # the body moves with the commanded twist (SmartCarRobot._move_kinematically) ...
+    def _run(self, linear_x: np.ndarray, angular_z: np.ndarray) -> None:
+        """One controller period for every car: the twist commanded now, the body moved with
+        it (``SmartCarRobot._move_kinematically``), then the controller fires."""
+        steps = self.state.steps
+        self.base.cmd_vel(linear_x, angular_z,
+                          (steps * self.period_ns).astype(np.float64) / NS_PER_S)
         v, w = self.base.commanded_twist()
         duration = self._duration
-        x, y, th = self._pose[:, 0], self._pose[:, 1], self._pose[:, 2]
+        x, y, th = self._body[:, 0], self._body[:, 1], self._body[:, 2]
         x += v * np.cos(th) * duration
         y += v * np.sin(th) * duration
         th += w * duration
@@ -173,27 +169,20 @@ class SmartCarSimVectorEnv(CarsVectorEnv):
                         (v + w * self._half_track)[:, None])
         self._wheel_speed = side / self._wheel_radius * self._wheel_sign
         self._wheels += self._wheel_speed * duration
-        # ... then the controller fires
-        self.base.update((self._steps * self.period_ns).astype(np.float64) / NS_PER_S)
-        # the task, on the position as pybullet stores it (float32)
-        px = x.astype(np.float32).astype(np.float64)
-        py = y.astype(np.float32).astype(np.float64)
-        return reach_score(self, px, py, a)
+        after = steps + 1
+        self.base.update((after * self.period_ns).astype(np.float64) / NS_PER_S)
+        self._read(after)
 
-    def _columns(self) -> dict[str, Any]:
-        """SmartCar-v0's entries as columns over cars (``parts.reach_columns``)."""
-        return reach_columns(self)
-
-    def _info_values(self, success: np.ndarray) -> dict[str, np.ndarray]:
-        b, pose = self.base, self._pose
-        px = pose[:, 0].astype(np.float32).astype(np.float64)
-        py = pose[:, 1].astype(np.float32).astype(np.float64)
-        return {
-            "is_success": success.copy(),
-            "distance": self._distance.copy(),
-            # the body's exact heading, wrapped; the single env's is pybullet's float32
-            # quaternion's, within 1e-6 rad of it (docs/vector.md): the one inexact value
-            "pose": np.stack([px, py, wrap_angles(pose[:, 2])], axis=1),
-            "odom_pose": np.stack([b.x, b.y, wrap_angles(b.theta)], axis=1),
-            "odom_error": planar_norms(b.x - px, b.y - py),
-        }
+    def _read(self, steps: np.ndarray) -> None:
+        """The state: the position as pybullet stores it (float32), the exact heading, the
+        odometry, the wheels; each car's clock at ``steps`` periods."""
+        state, b, body = self.state, self.base, self._body
+        state.pose[:, 0] = body[:, 0].astype(np.float32)
+        state.pose[:, 1] = body[:, 1].astype(np.float32)
+        state.pose[:, 2] = wrap_angles(body[:, 2])
+        odometry = state.odometry
+        odometry[:, 0], odometry[:, 1], odometry[:, 2] = b.x, b.y, b.theta
+        odometry[:, 3], odometry[:, 4] = b.odom_v, b.odom_w
+        state.wheel_position[:] = self._wheels[:, self._wheel_group]
+        state.wheel_velocity[:] = self._wheel_speed[:, self._wheel_group]
+        state.now_ns[:] = steps * self.period_ns

@@ -93,7 +93,7 @@ class MujocoCars:
         self.batch.load(car, env.sim)
         # nearest_distance's order: per obstacle, per car geom, per obstacle geom
         self._pairs[car] = np.array(
-            [(g1, g2) for body in env._obstacle_bodies for g1 in self._car_geoms
+            [(g1, g2) for body in env.obstacle_bodies for g1 in self._car_geoms
              for g2 in body._ids.collision_geoms], dtype=np.int64).reshape(-1, 2)
 
     def cast(self, idx: np.ndarray, laser: Any) -> tuple[np.ndarray, np.ndarray]:

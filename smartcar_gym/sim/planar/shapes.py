@@ -18,7 +18,7 @@ import numpy as np
 BOX, CIRCLE = 0, 1
 #: ``Obstacle.shape`` -> kind (an upright cylinder's projection is a circle)
 OBSTACLE_KINDS = {"box": BOX, "cylinder": CIRCLE}
-#: the nav task's obstacles' height (m): ``envs.nav_env.OBSTACLE_HEIGHT_M``
+#: the nav task's obstacles' height (m): ``envs.world.OBSTACLE_HEIGHT_M``
 OBSTACLE_HEIGHT_M = 0.3
 
 

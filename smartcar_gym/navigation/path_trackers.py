@@ -1,4 +1,4 @@
-"""N robots' ``barn.PathTracker`` at once: the batched BARN env's waypoints and path progress,
+"""N robots' ``paths.PathTracker`` at once: the batched BARN env's waypoints and path progress,
 and the DWA driver's local goals and path windows.
 
 ``PathTrackers`` keeps N paths (padded rows) and each robot's nearest point. With numba (the
@@ -6,7 +6,7 @@ and the DWA driver's local goals and path windows.
 its ``PathTracker``. Both give ``PathTracker``'s numbers bit for bit
 (``tests/test_barn_env.py``): the same searches, the same float operations in the same order,
 ``np.interp``'s rule for a point between two of the path's, and ``math.cos`` where
-``barn_env.to_base_frame`` takes it.
+``paths.to_base_frame`` takes it.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ try:
 except ImportError:  # the fast extra is not installed
     numba = None
 
-from smartcar_gym.envs.tasks.barn import PathTracker
+from smartcar_gym.navigation.paths import PathTracker, to_base_frame
 
 #: whether the compiled passes are used (numba installed and ``SMARTCAR_GYM_NUMBA`` not ``0``)
 COMPILED = numba is not None and os.environ.get("SMARTCAR_GYM_NUMBA", "1") != "0"
@@ -90,11 +90,10 @@ class PathTrackers:
 
     def waypoints_in_base(self, slots: Sequence[int], poses: np.ndarray) -> np.ndarray:
         """(K, 2): each robot's next waypoint in the base frame of ``poses`` (K, 3), as
-        ``barn_env.to_base_frame`` turns it (``math.cos``)."""
+        ``paths.to_base_frame`` turns it (``math.cos``)."""
         poses = np.asarray(poses, dtype=float).reshape(-1, 3)
         slots = self._rows(slots)
         if not self.compiled:
-            from smartcar_gym.envs.barn_env import to_base_frame
             return np.array([to_base_frame(self.trackers[i].waypoint(p[:2]), *map(float, p))
                              for i, p in zip(slots.tolist(), poses, strict=True)]
                             ).reshape(-1, 2)
@@ -188,7 +187,7 @@ def _waypoints_loops(slots, xy, path, arc, size, index, lookahead, window, out):
 
 
 def _to_base_frame_loops(points, poses):
-    """``barn_env.to_base_frame`` of each row of ``points``, in place."""
+    """``paths.to_base_frame`` of each row of ``points``, in place."""
     for k in range(len(points)):
         dx, dy = points[k, 0] - poses[k, 0], points[k, 1] - poses[k, 1]
         c, s = math.cos(poses[k, 2]), math.sin(poses[k, 2])

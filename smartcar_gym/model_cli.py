@@ -160,7 +160,7 @@ def _urdf(args: argparse.Namespace) -> int:
 
 
 def _show(args: argparse.Namespace) -> int:
-    from smartcar_gym.sim.snapshot import write_png  # pybullet only when rendering
+    from smartcar_gym.sim.pybullet.snapshot import write_png  # pybullet only when rendering
 
     if args.width < 1 or args.height < 1:
         raise ValueError(f"--width/--height must be positive, got {args.width}x{args.height}")

@@ -1,11 +1,9 @@
-"""The BARN task: the challenge's protocol scaled to the car, its score, and the path's waypoint.
+"""The BARN challenge's protocol scaled to the car, its score and its clock.
 
 Pure arithmetic, no simulator. ``BarnProtocol`` scales the challenge (``worlds.barn``: a goal
 10 m ahead, success within 1 m, 100 s at the Jackal's 2 m/s) by ``scale`` = the car's width /
 the Jackal's, with time at this car's top speed. ``barn_score`` is the challenge's score of a
 run. ``RunClock`` times a run as the challenge does (from when the robot has moved).
-``PathTracker`` gives the global path's next waypoint: the point ``lookahead_m`` along the path
-beyond the robot's nearest point, the nearest point never going back.
 """
 
 from __future__ import annotations
@@ -107,48 +105,3 @@ class RunClock:
     def elapsed_s(self, now_s: float) -> float:
         """AT: seconds since the car moved (0 if it never did)."""
         return 0.0 if self.started_s is None else now_s - self.started_s
-
-
-class PathTracker:
-    """The waypoint ``lookahead_m`` along a polyline ``path`` (M, 2) beyond the point of it
-    nearest the robot, searched from the last one found up to ``window_m`` further on (the
-    robot's progress along the path never goes back)."""
-
-    def __init__(self, path: np.ndarray, lookahead_m: float, window_m: float = 1.0) -> None:
-        self.path = np.asarray(path, dtype=float).reshape(-1, 2)
-        if len(self.path) == 0:
-            raise ValueError("a path needs at least one point")
-        steps = np.linalg.norm(np.diff(self.path, axis=0), axis=1)
-        self.arc = np.concatenate([[0.0], np.cumsum(steps)])
-        self.lookahead_m = lookahead_m
-        self.window_m = window_m
-        self.index = 0
-
-    @property
-    def length_m(self) -> float:
-        return float(self.arc[-1])
-
-    def waypoint(self, xy: np.ndarray) -> np.ndarray:
-        """The next waypoint (x, y) for a robot at ``xy``; advances the nearest point."""
-        self._advance(xy)
-        return self.point_at(self.arc[self.index] + self.lookahead_m)
-
-    def to_go(self, xy: np.ndarray) -> float:
-        """How far a robot at ``xy`` is from the path's end along it: its distance to the
-        nearest point (advanced as ``waypoint`` does) plus the path beyond that point."""
-        d = self._advance(xy)
-        return float(self.length_m - self.arc[self.index]) + d
-
-    def _advance(self, xy: np.ndarray) -> float:
-        """Move the nearest point on (within ``window_m``); the robot's distance to it."""
-        end = int(np.searchsorted(self.arc, self.arc[self.index] + self.window_m, side="right"))
-        d = np.linalg.norm(self.path[self.index:end] - np.asarray(xy, dtype=float), axis=1)
-        nearest = int(np.argmin(d))
-        self.index += nearest
-        return float(d[nearest])
-
-    def point_at(self, s: float) -> np.ndarray:
-        """The point ``s`` metres along the path (clipped to its ends)."""
-        s = min(max(s, 0.0), self.length_m)
-        return np.array([np.interp(s, self.arc, self.path[:, 0]),
-                         np.interp(s, self.arc, self.path[:, 1])])

@@ -1,15 +1,17 @@
-"""The single env's ``info`` arithmetic on arrays of cars, to the bit.
+"""Arithmetic on arrays of cars that gives Python's ``math`` bits, to the bit.
 
-``SmartCarEnv._info`` works on Python floats (``math``); a batch works on numpy arrays. Where
-numpy's function is not libm's (``np.hypot``, ``np.arctan2`` and ``np.remainder(x + pi, 2 pi)
-- pi`` each differ from ``math.hypot``, ``math.atan2`` and ``math.remainder`` in the last bit
-for some inputs), the batch needs either the same arithmetic on both sides or an array
-function that is exact by construction:
+Tasks work on numpy arrays of cars. Where numpy's function is not libm's (``np.hypot``,
+``np.arctan2`` and ``np.remainder(x + pi, 2 pi) - pi`` each differ from ``math.hypot``,
+``math.atan2`` and ``math.remainder`` in the last bit for some inputs), a value that must be
+the one the ``math`` function gives (the odometry's heading as ROS would wrap it, the
+figures recorded before the tasks were written on arrays) takes an array function that is
+exact by construction:
 
 - ``wrap_angles``: ``math.remainder(theta, 2 pi)`` (IEEE remainder, an exact result) from
   ``np.fmod`` (exact) and one subtraction that Sterbenz's lemma makes exact;
-- ``planar_norms``: ``sqrt(dx * dx + dy * dy)``, which the single env computes the same way
-  (every operation is IEEE-rounded, so floats and arrays give the same bits on any machine).
+- ``planar_norms``: ``sqrt(dx * dx + dy * dy)`` (every operation is IEEE-rounded, so floats
+  and arrays give the same bits on any machine);
+- ``exact_hypot``: ``math.hypot`` itself, pair by pair (for a few values).
 """
 
 from __future__ import annotations
@@ -43,3 +45,10 @@ def planar_norms(dx: np.ndarray, dy: np.ndarray) -> np.ndarray:
     """``sqrt(dx * dx + dy * dy)`` per element: the bits of ``math.sqrt(dx * dx + dy * dy)``
     on each pair of floats (``np.hypot`` and ``math.hypot`` disagree in the last bit)."""
     return np.sqrt(dx * dx + dy * dy)
+
+
+def exact_hypot(dx: np.ndarray, dy: np.ndarray) -> np.ndarray:
+    """``math.hypot`` of each pair, to its bit (``np.hypot`` is libm's, which differs): for
+    the few values a task takes it of (``stop_speed``'s distances)."""
+    return np.array([math.hypot(a, b) for a, b in zip(np.ravel(dx).tolist(),
+                                                     np.ravel(dy).tolist(), strict=True)])

@@ -1,11 +1,13 @@
-"""The DWA baseline as a driver of smartcar envs: move_base's local planner on the car's laser.
+"""The DWA baseline as a driver of smartcar cars: move_base's local planner on the car's laser.
 
-``DWADriver`` drives N laser-carrying envs (SmartCarBARN-v0, or SmartCarNav-v0 with a path
-given) at once: it reads what a ROS robot's move_base reads (the odometry, the latest
-``/scan``, the global path; with SmartCarBARN-v0's ``localize=True`` the path is followed
-from the pose on the map, as amcl's transform gives it to move_base), plans with
-``DWAPlanner`` and returns the envs' actions, the cmd_vel (v, w) over ``max_linear`` and
-``max_angular``, which go through the same emulated ArbotiX controller as a policy's.
+``DWADriver`` drives the N laser-carrying cars of a vector env (SmartCarBARN-v0, or
+SmartCarNav-v0 with paths given) at once: it reads what a ROS robot's move_base reads, from
+the cars' public state and their task (``envs.vector.view.CarView``): the odometry, the
+latest ``/scan``, the global path; with SmartCarBARN-v0's ``localize=True`` the path is
+followed from the pose on the map, as amcl's transform gives it to move_base. It plans with
+``navigation.dwa.DWAPlanner`` and returns the cars' actions, the cmd_vel (v, w) over
+``max_linear`` and ``max_angular``, which go through the same emulated ArbotiX controller as
+a policy's.
 """
 
 from __future__ import annotations
@@ -15,13 +17,15 @@ from typing import Any
 
 import numpy as np
 
-from smartcar_gym.envs.barn_env import car_width, footprint_half_extents
-from smartcar_gym.envs.tasks.path_trackers import PathTrackers
+from smartcar_gym.envs.state import SCAN
 from smartcar_gym.envs.vector.common import check_num_threads
+from smartcar_gym.envs.vector.view import CarView
+from smartcar_gym.model.footprint import car_width, footprint_half_extents
 from smartcar_gym.navigation.dwa import DWAConfig, DWAPlanner
 from smartcar_gym.navigation.footprint import COMPILED as FOOTPRINT_COMPILED
 from smartcar_gym.navigation.footprint import FAR_M
 from smartcar_gym.navigation.obstacles import ObstacleLayers
+from smartcar_gym.navigation.path_trackers import PathTrackers
 from smartcar_gym.worlds.barn import JACKAL_TOP_SPEED_M_S, JACKAL_WIDTH_M
 
 PATH_BEHIND_M = 0.2  # the path's window starts this far behind the nearest point
@@ -45,13 +49,13 @@ def turn_command(v: np.ndarray, w: np.ndarray) -> np.ndarray:
 
 
 class DWADriver:
-    """DWA on N envs: ``reset(envs, paths)`` once their episodes start, then ``act(envs)`` per
-    step. ``config``: None, the challenge's set scaled to the first env's car;
-    ``compensate_turns``: command the turn DWA plans through the car's measured response
-    (``turn_command``), else pass DWA's angular.z as it is; ``clearing``: each scan clears
-    the obstacle layer's cells its beams pass through (costmap_2d's ``clearing: true``, as
-    the challenge's Jackal; ``obstacles.ObstacleLayers``), else cells stay marked until they
-    age out."""
+    """DWA on N cars: ``reset(cars, indices)`` once their episodes start, then ``act(cars,
+    obs, indices)`` per step (``cars``: a ``CarView``). ``config``: None, the challenge's set
+    scaled to the cars' car; ``compensate_turns``: command the turn DWA plans through the
+    car's measured response (``turn_command``), else pass DWA's angular.z as it is;
+    ``clearing``: each scan clears the obstacle layer's cells its beams pass through
+    (costmap_2d's ``clearing: true``, as the challenge's Jackal; ``obstacles.ObstacleLayers``),
+    else cells stay marked until they age out."""
 
     name = "dwa"
     #: cars per ``act`` call in a batched benchmark (None: all at once): numpy's footprint
@@ -72,58 +76,59 @@ class DWADriver:
         self.trackers: PathTrackers | None = None  # the global paths' local goals, windows
         self.layers: ObstacleLayers | None = None  # the local costmaps' obstacle layers
 
-    def config_for(self, env: Any) -> DWAConfig:
-        """The challenge's set for ``env``'s car: its width over the Jackal's, its top speed
+    @staticmethod
+    def config_for(cars: CarView) -> DWAConfig:
+        """The challenge's set for the cars' car: its width over the Jackal's, its top speed
         over the Jackal's, its controller period and its footprint as simulated."""
-        half_length, half_width = footprint_half_extents(env.robot_model, env.wheel_contact)
+        car = cars.task.car
+        half_length, half_width = footprint_half_extents(car.robot_model, car.wheel_contact)
         return DWAConfig.challenge(
-            scale=car_width(env.robot_model) / JACKAL_WIDTH_M,
-            speed_scale=env.max_linear / JACKAL_TOP_SPEED_M_S,
-            sim_period=env.robot.update_period_ns * 1e-9,
+            scale=car_width(car.robot_model) / JACKAL_WIDTH_M,
+            speed_scale=car.max_linear / JACKAL_TOP_SPEED_M_S, sim_period=car.period_s,
             half_length=half_length, half_width=half_width)
 
-    def reset(self, envs: Sequence[Any], indices: Sequence[int] | None = None,
+    def reset(self, cars: CarView, indices: Sequence[int] | None = None,
               paths: Sequence[np.ndarray] | None = None) -> None:
-        """Start following the paths of ``envs[i]`` for i in ``indices`` (None: all of them):
-        ``paths[i]`` (odom frame), or by default each env's ``global_path``."""
-        envs = [getattr(env, "unwrapped", env) for env in envs]
+        """Start following the paths of the cars ``indices`` (None: all of them):
+        ``paths[i]`` (odom frame), or by default each car's global path (the task's)."""
         if self.planner is None:
-            self.planner = DWAPlanner(self.config or self.config_for(envs[0]),
+            self.planner = DWAPlanner(self.config or self.config_for(cars),
                                       compiled=self.compiled, threads=self.threads)
         config = self.planner.config
-        if self.layers is None or len(self.layers.size) != len(envs):
-            self.trackers = PathTrackers(len(envs), config.local_goal_m,
+        if self.layers is None or len(self.layers.size) != cars.num:
+            self.trackers = PathTrackers(cars.num, config.local_goal_m,
                                          2.0 * config.local_goal_m, compiled=self.compiled)
-            self.layers = ObstacleLayers(len(envs), compiled=self.compiled,
+            self.layers = ObstacleLayers(cars.num, compiled=self.compiled,
                                          clearing=self.clearing, threads=self.threads)
-        for i in range(len(envs)) if indices is None else indices:
-            self.trackers.start(i, envs[i].global_path if paths is None else paths[i])
+        given = cars.per_car("global_paths") if paths is None else paths
+        for i in range(cars.num) if indices is None else indices:
+            self.trackers.start(i, given[i])
             self.layers.clear(i)
 
-    def act(self, envs: Sequence[Any], obs: Any = None,
+    def act(self, cars: CarView, obs: Any = None,
             indices: Sequence[int] | None = None) -> np.ndarray:
-        """The actions (N, 2) of ``envs``, the ones at ``indices`` of those ``reset`` was
-        given (None: all). ``obs``, a policy's input, is unused: DWA reads the odometry, the
-        scan and the path as move_base does."""
-        envs = [getattr(env, "unwrapped", env) for env in envs]
+        """The actions (K, 2) of the cars ``indices`` (None: all). ``obs``, a policy's input,
+        is unused: DWA reads the odometry, the scan and the path as move_base does."""
         config = self.planner.config
-        slots = range(len(envs)) if indices is None else indices
-        odometry = [env.robot.odometry for env in envs]
-        poses = np.array([(o.x, o.y, o.theta) for o in odometry], dtype=float).reshape(-1, 3)
-        velocity = np.array([(o.v, o.omega) for o in odometry], dtype=float).reshape(-1, 2)
-        laser = envs[0].laser
+        slots = list(range(cars.num) if indices is None else indices)
+        state = cars.state
+        odometry = state.odometry[slots]
+        poses, velocity = odometry[:, :3].astype(float), odometry[:, 3:5].astype(float)
+        config_laser, mount = cars.task.laser
         obstacles, counts = self.layers.update(
-            list(slots), np.array([env.laser.latest.ranges for env in envs], dtype=float),
-            laser.config.angles, laser.mount, poses, config.reach_m)
-        if any(getattr(env, "localize", False) for env in envs):  # the path from the map pose
-            poses = np.array([env.map_pose for env in envs], dtype=float).reshape(-1, 3)
+            slots, np.array(state.readings[SCAN][slots], dtype=float), config_laser.angles,
+            mount, poses, config.reach_m)
+        if getattr(cars.task, "localize", False):  # the path from the pose on the map
+            poses = np.array([cars.per_car("map_poses")[i] for i in slots],
+                             dtype=float).reshape(-1, 3)
         cos, sin = np.cos(poses[:, 2]), np.sin(poses[:, 2])
-        d = self.trackers.waypoints(list(slots), poses[:, :2]) - poses[:, :2]
+        d = self.trackers.waypoints(slots, poses[:, :2]) - poses[:, :2]
         goals = np.stack([cos * d[:, 0] + sin * d[:, 1], -sin * d[:, 0] + cos * d[:, 1]], -1)
-        windows = self.trackers.windows(list(slots), poses, cos, sin, PATH_BEHIND_M,
+        windows = self.trackers.windows(slots, poses, cos, sin, PATH_BEHIND_M,
                                         2.0 * config.local_goal_m, FAR_M)
         cmd = self.planner.plan(velocity, obstacles, windows, goals, counts=counts)
         if self.compensate_turns:
             cmd[:, 1] = turn_command(cmd[:, 0], cmd[:, 1])
-        scale = np.array([[env.max_linear, env.max_angular] for env in envs])
+        car = cars.task.car
+        scale = np.array([car.max_linear, car.max_angular])
         return np.clip(cmd / scale, -1.0, 1.0).astype(np.float32)

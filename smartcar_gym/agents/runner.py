@@ -1,0 +1,159 @@
+"""The one episode runner: jobs (an episode's seed and reset options) handed to the cars of a
+vector env, in turn.
+
+``run_jobs`` keeps every car busy: the cars start the first jobs, and a car whose episode
+ends takes the next job not started yet at once (Gymnasium's partial reset,
+``reset(seed=[...], options={"reset_mask": mask, ...})``); a car with no job left is parked
+where the vector env can (``park``: not simulated), else stepped with zero actions and not
+read. So the records do not depend on how many cars ran them. What happens along the way is
+the hooks' (``Hooks``): the evaluations' records, the benchmark's runs, a classical
+driver's start, captured frames, dataset steps. Every evaluation, the benchmark, videos and
+bags run their episodes here.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+#: ``act(obs, jobs, steps)``: every car's action ((N, 2) float32) from the batch of
+#: observations, the job each car runs (None: none) and the steps its episode has run
+Act = Callable[[Any, list["Job | None"], np.ndarray], np.ndarray]
+
+
+@dataclass(frozen=True)
+class Job:
+    """One episode to run: its index among the jobs, its reset's seed and options."""
+
+    episode: int
+    seed: int | None
+    options: Mapping[str, Any] | None = None
+
+
+class Hooks:
+    """What a caller does along the episodes (each method does nothing here)."""
+
+    def begin(self, envs: gym.vector.VectorEnv, cars: np.ndarray, jobs: list[Job], obs: Any,
+              info: dict[str, Any]) -> None:
+        """The listed cars have just been reset for ``jobs`` (``obs``, ``info``: the reset's,
+        every car's observation, the reset cars' info)."""
+
+    def step(self, cars: np.ndarray, actions: np.ndarray, obs: Any, reward: np.ndarray,
+             terminated: np.ndarray, truncated: np.ndarray, info: dict[str, Any]) -> None:
+        """One step of the listed cars (those running a job)."""
+
+    def end(self, car: int, job: Job, info: dict[str, Any]) -> None:
+        """Car ``car``'s job ended at this step (``info``: the step's, every car's)."""
+
+
+class ResetError(ValueError):
+    """A vector env that cannot reset single cars (``reset_mask``), which the runner needs."""
+
+
+def run_jobs(envs: gym.vector.VectorEnv, jobs: Sequence[Job], act: Act,
+             hooks: Sequence[Hooks] = (), check_resets: bool = False) -> None:
+    """Run every job on the cars of ``envs`` (see the module); ``check_resets``: one line
+    (``ResetError``) if the vector env resets other cars than it is asked to."""
+    n = envs.num_envs
+    queue = list(jobs)
+    running: list[Job | None] = [None] * n
+    for car in range(min(n, len(queue))):
+        running[car] = queue.pop(0)
+    first = [job for job in running if job is not None]
+    obs, info = envs.reset(seed=[None if j is None else j.seed for j in running],
+                           options=_options(running, first, np.ones(n, dtype=bool)))
+    started = np.flatnonzero([job is not None for job in running])
+    for hook in hooks:
+        hook.begin(envs, started, [running[i] for i in started], obs, info)
+    steps = np.zeros(n, dtype=np.int64)
+    park = getattr(envs.unwrapped, "park", None)
+    while any(job is not None for job in running):
+        active = np.array([job is not None for job in running])
+        actions = act(obs, running, steps)
+        if park is not None:  # where the env can, a car with no job is not simulated
+            park(~active)
+        obs, reward, terminated, truncated, info = envs.step(actions)
+        steps[active] += 1
+        cars = np.flatnonzero(active)
+        for hook in hooks:
+            hook.step(cars, actions, obs, reward, terminated, truncated, info)
+        done = active & (terminated | truncated)
+        if not done.any():
+            continue
+        for car in np.flatnonzero(done).tolist():
+            for hook in hooks:
+                hook.end(car, running[car], info)
+            running[car] = None
+        refill = np.flatnonzero(done)[:len(queue)]
+        if refill.size == 0:
+            continue  # the cars left without a job are not read again
+        mask = np.zeros(n, dtype=bool)
+        mask[refill] = True
+        for car in refill.tolist():
+            running[car] = queue.pop(0)
+        steps[refill] = 0
+        new = [running[car] for car in refill.tolist()]
+        new_obs, new_info = _partial_reset(envs, running, new, mask, check_resets)
+        obs = _merge(obs, new_obs, mask)
+        for hook in hooks:
+            hook.begin(envs, refill, new, obs, new_info)
+
+
+def _options(running: list[Job | None], reset: list[Job], mask: np.ndarray
+             ) -> dict[str, Any] | None:
+    """The vector reset's options for the ``reset`` jobs: one value when they share it, else
+    one per car (the cars not reset get the first job's); with ``reset_mask`` unless every
+    car is reset."""
+    options: dict[str, Any] = {}
+    first = reset[0].options or {} if reset else {}
+    for key in {k for job in reset for k in (job.options or {})}:
+        values = [(job.options or {}).get(key) for job in reset]
+        if all(_same(v, values[0]) for v in values):
+            options[key] = values[0]
+        else:
+            options[key] = [(job.options or {}).get(key) if job is not None and m
+                             else first.get(key) for job, m in zip(running, mask, strict=True)]
+    if not mask.all():
+        options["reset_mask"] = mask
+    return options or None
+
+
+def _same(a: Any, b: Any) -> bool:
+    return a is b or (np.shape(a) == np.shape(b) and bool(np.all(np.asarray(a) == b)))
+
+
+def _partial_reset(envs: gym.vector.VectorEnv, running: list[Job | None], new: list[Job],
+                   mask: np.ndarray, check: bool) -> tuple[Any, dict[str, Any]]:
+    """Reset the masked cars for their new jobs; with ``check``, one line if the vector env
+    cannot (a vector entry point that ignores the mask)."""
+    seeds = [job.seed if m and job is not None else None
+             for job, m in zip(running, mask, strict=True)]
+    options = _options(running, new, mask)
+    if not check:
+        return envs.reset(seed=seeds, options=options)
+    what = (f"the vector env ({type(envs.unwrapped).__name__}) cannot reset single cars "
+            "(reset(options={'reset_mask': mask}), Gymnasium's partial reset)")
+    try:
+        obs, info = envs.reset(seed=seeds, options=options)
+    except (ValueError, TypeError, KeyError, AssertionError) as err:
+        raise ResetError(f"{what}: {err}") from err
+    reset = info.get("_pose")
+    if reset is None or not np.array_equal(reset, mask):
+        raise ResetError(f"{what}: it reset cars {np.flatnonzero(reset).tolist()}, not "
+                         f"{np.flatnonzero(mask).tolist()}")
+    return obs, info
+
+
+def _merge(obs: Any, new: Any, mask: np.ndarray) -> Any:
+    """The batch of observations with the masked cars' from ``new`` (a dict of batches for a
+    ``Dict`` space)."""
+    if isinstance(obs, Mapping):
+        for key in obs:
+            obs[key][mask] = new[key][mask]
+        return obs
+    obs[mask] = new[mask]
+    return obs

@@ -1,0 +1,369 @@
+"""SmartCarBARN-v0's task: the BARN worlds with the challenge's protocol, for any number of cars."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+from smartcar_gym import checks
+from smartcar_gym.envs.observation import Entry, Observation
+from smartcar_gym.envs.sensors.scan import LaserConfig, scan_entry
+from smartcar_gym.envs.state import SCAN, SCAN_TIME
+from smartcar_gym.envs.tasks.barn.protocol import (
+    COLLISION,
+    FAILURE,
+    SUCCESS,
+    TIMEOUT,
+    BarnProtocol,
+    RunClock,
+    barn_score,
+)
+from smartcar_gym.envs.tasks.base import Cars, CarSettings, Score
+from smartcar_gym.envs.tasks.nav import NAV_OBSERVATION_ORDER, NavTask
+from smartcar_gym.envs.tasks.obstacles import Obstacle
+from smartcar_gym.model.footprint import car_width, footprint_half_extents
+from smartcar_gym.navigation.grid_planner import distance_grid, plan_path
+from smartcar_gym.navigation.localization import (
+    IDENTITY,
+    Localizer,
+    Pose,
+    ScanMatcher,
+    beam_geometry,
+)
+from smartcar_gym.navigation.path_trackers import PathTrackers
+from smartcar_gym.parallel import run_chunks
+from smartcar_gym.sim.clock import NS_PER_S
+from smartcar_gym.worlds.barn import (
+    GOAL_XY,
+    JACKAL_WIDTH_M,
+    TRAIN_WORLDS,
+    BarnWorld,
+    load_worlds,
+    to_car_frame,
+)
+
+PROGRESS = ("goal", "path")  # what the progress reward measures
+BARN_OBSERVATION_ORDER = (*NAV_OBSERVATION_ORDER, "waypoint_base")
+GRID_RESOLUTION_M = 0.02  # the global planner's map
+MAP_MARGIN_M = 0.3  # free map around the cylinders, the start and the goal
+#: the keywords the protocol sets
+PROTOCOL = "the BARN protocol sets the goal, the arena and the obstacles"
+PROTOCOL_KWARGS = ("goal_range", "goal_tolerance", "arena_size", "obstacles", "obstacle_size",
+                   "obstacle_clearance", "obstacle_layout")
+
+
+def waypoint_entry(arena_half_size_m: float) -> Entry:
+    """The global path's next waypoint in the base_link frame of the pose on the map (the
+    odometry's, through the localization's correction if any)."""
+    a = arena_half_size_m
+    return Entry("waypoint_base", ("waypoint_x_base", "waypoint_y_base"), -4 * a, 4 * a, "m",
+                 "the global path's next waypoint in the base_link frame (ahead, left), "
+                 "through odometry (or localize's pose on the map)", ("-4A", "4A"))
+
+
+class BarnTask(NavTask):
+    """## Description
+
+    SmartCarNav-v0 in the BARN worlds (Benchmark for Autonomous Robot Navigation, the ICRA BARN
+    Challenge): 300 fields of 0.15 m cylinders, scaled so that the car's width is to the gaps
+    what the Jackal's 0.43 m is (the shipped car: 0.18 m, scale 0.4186). The car starts in the
+    world's entry corridor at the origin facing +x (the challenge's start and heading); the
+    goal is the challenge's, 10 m ahead (4.19 m). A run ends in ``success`` (within the scaled
+    1 m of the goal), ``collision`` (touching a cylinder), ``timeout`` (the challenge's 100 s
+    at the Jackal's 2 m/s, for the scaled way at this car's top speed: 167.4 s) or
+    ``failure`` (flipped over, left the arena). docs/barn.md says what differs from the
+    Jackal's contest.
+
+    ## Observation Space
+
+    SmartCarNav-v0's (odometry, wheels, the goal through odometry, the previous action, the
+    scan's sectors), then ``waypoint_base``: the global path's next waypoint (``lookahead``
+    metres along it beyond the point nearest the odometry pose) in the odometry base_link
+    frame. No ground truth. The global path is planned once per world on its occupancy grid
+    (0.02 m cells) with the cylinders inflated by half the simulated car's width (0.105 m: the
+    default ``wheel_contact="sphere"`` makes the wheels spheres), Dijkstra as move_base's
+    navfn: ``env.unwrapped.global_path`` (the map frame, where odometry starts), the same
+    path the DWA driver follows.
+
+    With ``localize=True`` the waypoint is taken from the pose on the map instead, as amcl
+    gives move_base on a known map: each scan is matched to the world's known cylinders
+    (``navigation.localization.ScanMatcher``: its hits brought onto the cylinders' outlines)
+    to correct the map -> odom transform (``env.unwrapped.correction``; the pose on the map
+    ``env.unwrapped.map_pose``), which starts as the identity (the known start). The
+    odometry entries and the goal stay odometry's. DWA follows the path from the same pose.
+
+    ## Episodes
+
+    ``reset(options={"world": i})`` picks world i (0-299); without it a world is drawn with
+    ``self.np_random`` from the 250 training worlds (the test worlds are 0, 6, ..., 294).
+    Batched, ``world`` is one index for every reset car or one per car.
+
+    ## Info
+
+    SmartCarNav-v0's keys plus ``world``, ``outcome`` (None until the run ends), ``run_time_s``
+    (AT: from when the car has moved 0.1 m scaled), ``optimal_time_s`` (OT: the challenge's
+    path length, scaled, at ``max_linear``), ``score`` (``OT / clip(AT, 2 OT, 8 OT)`` on
+    success, at most 0.5) and ``score_025`` (the metric before 2024, clip from 4 OT: at most
+    0.25); the scores are 0 until a success.
+
+    ## Arguments
+
+    SmartCarNav-v0's but those the protocol sets (goal, arena, obstacles), and
+    ``lookahead`` (0.5 m), ``world_file`` (None: the shipped worlds) and ``progress``:
+    ``"goal"`` (the default) rewards the progress towards the goal as SmartCarNav-v0 does,
+    ``"path"`` the progress along the global path instead (the same weight, on the car's
+    ground-truth distance to go: its distance to the path's nearest point plus the path
+    beyond it), which does not pull the car at the cylinders between it and the goal.
+    ``localize`` (False) takes the waypoint from the scan-matched pose on the map (above); it
+    needs the laser at the controller's rate (the shipped 10 Hz).
+    """
+
+    option_keys = ("world",)
+    per_car = ("obstacles", "world_index", "optimal", "global_paths", "matchers")
+    exports = ("obstacles", "clearance", "collision", "laser_config", "scan_sectors", "mount",
+               "worlds", "protocol", "timeout_steps", "global_paths", "global_path",
+               "planned_paths", "waypoints", "localize", "corrections", "correction",
+               "map_poses", "map_pose", "world", "world_index", "outcome", "lookahead_m",
+               "progress", "path_progress_weight")
+    refused_keywords = {name: PROTOCOL for name in PROTOCOL_KWARGS}
+    bytes_per_car = 64 * 1024  # its obstacles, latest scan, global path and tracker
+    pillars = True  # 0.3 m cylinders: on pybullet capsules, their scans 2.6x faster
+
+    def __init__(self, world_file: str | os.PathLike | None = None, lookahead: float = 0.5,
+                 collision_penalty: float = 10.0,
+                 laser: Mapping[str, Any] | LaserConfig | None = None,
+                 laser_mount: Sequence[float] | None = None, scan_sectors: int = 36,
+                 progress: str = "goal", localize: bool = False) -> None:
+        if not (checks.is_real(lookahead) and np.isfinite(lookahead) and lookahead > 0):
+            raise ValueError(f"lookahead must be a distance > 0 m, got {lookahead!r}")
+        self.worlds = load_worlds(world_file)
+        self.lookahead_m = float(lookahead)
+        if progress not in PROGRESS:
+            raise ValueError(f"progress must be one of {', '.join(PROGRESS)}, got {progress!r}")
+        self.progress = progress
+        if not isinstance(localize, bool):
+            raise ValueError(f"localize must be True or False, got {localize!r}")
+        #: whether the waypoint follows the pose on the map (scan matching), else odometry
+        self.localize = localize
+        #: the global paths planned so far, by world
+        self.planned_paths: dict[int, np.ndarray] = {}
+        # the reaching task's goal and arena come from the protocol, once the car is known
+        super().__init__(obstacles=0, obstacle_clearance=0.0,
+                         collision_penalty=collision_penalty, laser=laser,
+                         laser_mount=laser_mount, scan_sectors=scan_sectors)
+
+    def bind(self, car: CarSettings) -> None:
+        """The protocol for this car (its width and top speed), then Nav's settings."""
+        #: the challenge's protocol scaled to the car
+        self.protocol = BarnProtocol(car_width(car.robot_model) / JACKAL_WIDTH_M,
+                                     car.max_linear)
+        goal = self.protocol.goal_distance_m
+        self.goal_range_m = (goal, goal)
+        self.goal_tolerance_m = self.protocol.success_radius_m
+        self.arena_half_size_m = 2.5 * goal / 2.0
+        super().bind(car)
+        #: steps before a run times out
+        self.timeout_steps = self.protocol.timeout_steps(car.period_s)
+        rate = car.controller_config.rate_hz
+        if self.localize and self.laser_config.rate_hz != rate:
+            raise ValueError(f"localize=True matches each scan with the odometry of its instant: "
+                             f"the laser's rate_hz ({self.laser_config.rate_hz:g}) must be the "
+                             f"controller's ({rate:g})")
+        #: the weight of the progress along the global path (0: the progress to the goal)
+        self.path_progress_weight = 0.0
+        if self.progress == "path":
+            self.path_progress_weight, self.progress_weight = self.progress_weight, 0.0
+        self._half_width = footprint_half_extents(car.robot_model, car.wheel_contact)[1]
+        self._beams = beam_geometry(self.laser_config.angles, self.mount)
+
+    def declare(self) -> Observation:
+        return self.compose(BARN_OBSERVATION_ORDER,
+                            [scan_entry(self.laser_config, self.scan_sectors)],
+                            [waypoint_entry(self.arena_half_size_m)])
+
+    def attach(self, num: int) -> None:
+        super().attach(num)
+        #: each car's world, its OT, its global path (odom frame) and its map's matcher
+        self.world_index = np.zeros(num, dtype=np.int64)
+        self.optimal = np.zeros(num)
+        self.global_paths: list[np.ndarray] = [np.zeros((0, 2))] * num
+        self.matchers: list[ScanMatcher | None] = [None] * num
+        #: each car's next waypoint in its base_link frame on the map, (N, 2), and base_link
+        #: on the map (x, y, yaw) as the last observation saw it, (N, 3)
+        self.waypoints = np.zeros((num, 2))
+        self.map_poses = np.zeros((num, 3))
+        self.outcome = np.full(num, None, dtype=object)
+        self._trackers = PathTrackers(num, self.lookahead_m)
+        #: each car's ground-truth distance to go along its path (``progress="path"``)
+        self._reward_trackers = PathTrackers(num, 0.0)
+        self._to_go = np.zeros(num)
+        self._clocks = [RunClock(np.zeros(2), self.protocol.moved_m) for _ in range(num)]
+        self._localizers: list[Localizer | None] = [None] * num
+        #: each car's AT and scores, (3, N)
+        self._timing = np.zeros((3, num))
+        self._timeout = np.zeros(num, dtype=bool)
+
+    # -- what a single env shows of its car ----------------------------------------------------
+    @property
+    def world(self) -> BarnWorld:
+        """The first car's world (a single env's)."""
+        return self.worlds.world(int(self.world_index[0]))
+
+    @property
+    def global_path(self) -> np.ndarray:
+        """The first car's global path (a single env's)."""
+        return self.global_paths[0]
+
+    @property
+    def corrections(self) -> list[Pose]:
+        """Each car's map -> odom correction (the identity without ``localize``)."""
+        return [IDENTITY if loc is None else loc.correction for loc in self._localizers]
+
+    @property
+    def correction(self) -> Pose:
+        """map -> odom (x, y, yaw) of the first car (a single env's)."""
+        return self.corrections[0]
+
+    @property
+    def map_pose(self) -> Pose:
+        """Base_link on the map of the first car (a single env's), as its last observation
+        saw it."""
+        return tuple(float(v) for v in self.map_poses[0])
+
+    # -- reset ---------------------------------------------------------------------------------
+    def options_help(self) -> str:
+        return "'world'"
+
+    def check_option(self, key: str, value: Any, vector: bool) -> list[Any]:
+        if key != "world":
+            return super().check_option(key, value, vector)
+        if vector and isinstance(value, list | tuple | np.ndarray):
+            chosen = list(value)
+            if len(chosen) != self.num:
+                raise ValueError(f"options['world'] must be a world index or {self.num} of them "
+                                 f"(one per car), got {len(chosen)}")
+        else:
+            chosen = [value] * self.num
+        return [self.worlds.world(index).index for index in chosen]
+
+    def start(self, cars: Cars, idx: np.ndarray, options: list[dict[str, Any]]) -> None:
+        """Each car's world (given, or drawn from the training worlds) and the goal the
+        protocol sets."""
+        goal = to_car_frame(np.array(GOAL_XY), self.protocol.scale)
+        for i in idx.tolist():
+            index = options[i].get("world")
+            if index is None:
+                index = self.worlds.world(int(cars.rng(i).choice(TRAIN_WORLDS))).index
+            self.world_index[i] = index
+            cars.state.goal[i] = goal
+
+    def build(self, cars: Cars, idx: np.ndarray, options: list[dict[str, Any]]) -> None:
+        """Each car's cylinders, its global path and OT, and its map's scan matcher."""
+        scale = self.protocol.scale
+        for i in idx.tolist():
+            world = self.worlds.world(int(self.world_index[i]))
+            centres, radii = to_car_frame(world.centres, scale), world.radii * scale
+            layout = tuple(Obstacle("cylinder", (float(x), float(y)), (2.0 * float(r),))
+                           for (x, y), r in zip(centres, radii, strict=True))
+            self.obstacles[i] = layout
+            cars.place_obstacles(i, layout, self.pillars)
+            self.global_paths[i] = self._plan(world.index, centres, radii,
+                                              cars.state.goal[i])
+            self.optimal[i] = self.protocol.optimal_time_s(world.path_length_m * scale)
+            self.matchers[i] = ScanMatcher(centres, radii) if self.localize else None
+
+    def _plan(self, index: int, centres: np.ndarray, radii: np.ndarray,
+              goal: np.ndarray) -> np.ndarray:
+        """World ``index``'s global path (cached): Dijkstra on its grid, cylinders inflated by
+        half the simulated car's width, from the start to the goal."""
+        if index not in self.planned_paths:
+            low = np.minimum(centres.min(axis=0), [0.0, 0.0]) - MAP_MARGIN_M
+            high = np.maximum(centres.max(axis=0), goal) + MAP_MARGIN_M
+            grid = distance_grid(centres, radii, low, high, GRID_RESOLUTION_M)
+            self.planned_paths[index] = plan_path(grid, np.zeros(2), goal, self._half_width)
+        return self.planned_paths[index]
+
+    def begin(self, cars: Cars, idx: np.ndarray) -> None:
+        """A fresh run: its clock, no outcome, the path followed from its start."""
+        super().begin(cars, idx)
+        for i in idx.tolist():
+            self._clocks[i] = RunClock(np.zeros(2), self.protocol.moved_m)
+            self._trackers.start(i, self.global_paths[i])
+            self._reward_trackers.start(i, self.global_paths[i])
+            self._to_go[i] = self._reward_trackers.to_go([i], np.zeros((1, 2)))[0]
+            matcher = self.matchers[i]
+            self._localizers[i] = None if matcher is None else Localizer(matcher, *self._beams)
+        if len(idx):
+            self._follow(cars, idx)
+        self.outcome[idx] = None
+        self._timeout[idx] = False
+
+    def _follow(self, cars: Cars, idx: np.ndarray) -> None:
+        """Cars ``idx``' next waypoints from their odometry, or their pose on the map after
+        matching a new scan."""
+        state = cars.state
+        poses = state.odometry[idx, :3].astype(float)
+        if self.localize:
+            odoms = [tuple(row) for row in poses.tolist()]
+            scans = state.readings[SCAN_TIME][idx].tolist()  # each car's scan's key: its time
+            ranges = state.readings[SCAN][idx]
+            localizers = [self._localizers[i] for i in idx.tolist()]
+
+            def match(a: int, z: int) -> None:  # the cars split over threads (the compiled
+                for k in range(a, z):           # matcher frees the GIL)
+                    localizers[k].match(odoms[k], scans[k], ranges[k])
+
+            run_chunks(match, len(idx), cars.threads)
+            for k, localizer in enumerate(localizers):
+                poses[k] = localizer.locate(odoms[k], scans[k], ranges[k])
+        self.map_poses[idx] = poses
+        self.waypoints[idx] = self._trackers.waypoints_in_base(idx, poses)
+
+    # -- step ----------------------------------------------------------------------------------
+    def score(self, cars: Cars, action: np.ndarray) -> Score:
+        """Nav's terms (and the progress along the path), the run's clock and outcome, the
+        timeout and the next waypoint (a parked car stands: as timed and followed)."""
+        reward, success, failure = super().score(cars, action)
+        state = cars.state
+        pose, now = state.pose, state.now_ns
+        if self.path_progress_weight:
+            to_go = self._reward_trackers.to_go(np.arange(self.num), pose[:, :2])
+            reward = reward + self.path_progress_weight * (self._to_go - to_go)
+            self._to_go = to_go
+        running = np.flatnonzero(~state.parked)
+        for i in running.tolist():
+            self._clocks[i].update(pose[i, :2], int(now[i]) / NS_PER_S)
+        self._follow(cars, running)
+        collision = self.collision
+        ended = collision | success | failure
+        self._timeout = ~ended & (state.steps >= self.timeout_steps)
+        for outcome, mask in ((TIMEOUT, self._timeout), (FAILURE, failure),
+                              (SUCCESS, success), (COLLISION, collision)):
+            self.outcome[mask] = outcome  # the last one written wins
+        return reward, success, failure
+
+    def truncated(self, cars: Cars) -> np.ndarray:
+        return self._timeout.copy()
+
+    def columns(self, cars: Cars) -> dict[str, Any]:
+        columns = super().columns(cars)
+        columns["waypoint_base"] = (self.waypoints[:, 0], self.waypoints[:, 1])
+        return columns
+
+    def info(self, cars: Cars, success: np.ndarray) -> dict[str, np.ndarray]:
+        """Nav's, and the world, outcome, AT, OT and both scores (a parked car's as they
+        were: its clock stands)."""
+        state = cars.state
+        run_time, score, score_025 = self._timing
+        for i in np.flatnonzero(~state.parked).tolist():
+            run_time[i] = at = self._clocks[i].elapsed_s(int(state.now_ns[i]) / NS_PER_S)
+            won = self.outcome[i] == SUCCESS
+            score[i] = barn_score(won, at, self.optimal[i])
+            score_025[i] = barn_score(won, at, self.optimal[i], floor=4.0)
+        return {**super().info(cars, success), "world": self.world_index.copy(),
+                "outcome": self.outcome.copy(), "run_time_s": run_time.copy(),
+                "optimal_time_s": self.optimal.copy(), "score": score.copy(),
+                "score_025": score_025.copy()}

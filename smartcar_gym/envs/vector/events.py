@@ -1,0 +1,131 @@
+"""Every car's clock in a batch: the single env's event stepping (``Simulator.run_until``) for
+N cars, each on its own clock from its own reset.
+
+At each of a car's events (the controller every 0.1 s, the board's PID frame every 35 ms while
+it drives, the laser's scans) the batched ArbotiX fires for the cars that are due, their
+motor outputs go to the engine, and every car steps to its own next event in the fewest equal
+substeps no longer than ``max_substep_s``. After autoresets cars are at different points of
+the 35 ms frame cycle, so no common schedule is assumed.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+
+from smartcar_gym.controller.batched import BatchedArbotix
+from smartcar_gym.controller.latency import CommandDelay
+from smartcar_gym.envs.state import CarState
+from smartcar_gym.envs.vector.laser import BatchLaser
+from smartcar_gym.sim.clock import MAX_FIRINGS_PER_INSTANT, NS_PER_S
+
+_NEVER = np.iinfo(np.int64).max
+
+
+class Clocks:
+    """The events of ``state``'s cars: ``base``'s boards, the engine's ``cars`` and the task's
+    ``laser`` (None: none); ``report`` issues the engine's warnings of unstable cars."""
+
+    def __init__(self, state: CarState, base: BatchedArbotix, cars: Any, period_ns: int,
+                 max_substep_ns: int, laser: BatchLaser | None,
+                 report: Callable[[Sequence[Warning]], None]) -> None:
+        self.state, self.base, self.cars = state, base, cars
+        self.period_ns, self.max_substep_ns = period_ns, max_substep_ns
+        self.laser, self.report = laser, report
+        #: each car's next controller update (ns on its clock)
+        self.next_update = np.zeros(state.num, dtype=np.int64)
+        #: per car whose robot delays its commands (``randomize``'s latency): the delay
+        self.delays: dict[int, CommandDelay] = {}
+
+    def reset(self, idx: np.ndarray) -> None:
+        """The listed cars' clocks at t = 0, their controllers first due one period on."""
+        self.state.now_ns[idx] = 0
+        self.next_update[idx] = self.period_ns
+
+    def command(self, linear_x: np.ndarray, angular_z: np.ndarray) -> None:
+        """Every car's ``cmd_vel`` now (``SmartCarRobot.cmd_vel``): a delayed car's into its
+        line, the others' to the boards."""
+        now = self.state.now_ns
+        now_s = now / NS_PER_S
+        if not self.delays:
+            self.base.cmd_vel(linear_x, angular_z, now_s)
+            return
+        direct = np.ones(self.state.num, dtype=bool)
+        for i, delay in self.delays.items():
+            delay.publish(float(linear_x[i]), float(angular_z[i]), int(now[i]))
+            direct[i] = False
+        self.base.cmd_vel(linear_x, angular_z, now_s, direct)
+
+    def _deliver(self, updated: np.ndarray, now_s: np.ndarray) -> None:
+        """The delayed commands that arrive at the updates just run (``on_event``)."""
+        now = self.state.now_ns
+        for i in np.flatnonzero(updated).tolist():
+            delay = self.delays.get(i)
+            if delay is None:
+                continue
+            for linear_x, angular_z in delay.arrivals(int(now[i])):
+                one = np.zeros(self.state.num, dtype=bool)
+                one[i] = True
+                self.base.cmd_vel(linear_x, angular_z, now_s, one)
+
+    def _fire(self, mask: np.ndarray) -> None:
+        """Every masked car's events due at its clock: controller update, then PID frame (the
+        robot's), then the laser, in the single env's order."""
+        now, cars, base = self.state.now_ns, self.cars, self.base
+        for _ in range(MAX_FIRINGS_PER_INSTANT):
+            firing = mask & (self._robot_due() <= now)
+            if not firing.any():
+                if self.laser is not None:
+                    self.laser.fire(cars, self.state, mask)
+                return
+            now_s = now / NS_PER_S
+            angles = cars.encoder_angles()
+            update = firing & (now >= self.next_update)
+            if update.any():
+                base.update(now_s, angles, update)
+                if self.delays:
+                    self._deliver(update, now_s)
+                self.next_update[update] += self.period_ns
+            base.board_tick(now_s, angles, firing)
+            cars.set_drive(firing, base.drive_torque, base.damping)
+        raise RuntimeError("a car's board is still due after "
+                           f"{MAX_FIRINGS_PER_INSTANT} firings at one instant")
+
+    def _next_due(self) -> np.ndarray:
+        """Each car's next event (ns on its clock), of any source."""
+        due = self._robot_due()
+        if self.laser is not None:
+            due = np.minimum(due, self.laser.next_scan)
+        return due
+
+    def _robot_due(self) -> np.ndarray:
+        """Each car's next robot event (ns on its clock): ``SmartCarRobot.next_event_ns``."""
+        frame = self.base.next_frame_ms()
+        now = self.state.now_ns
+        frame_ns = np.where(frame >= 0, np.maximum(now, frame * 1_000_000), _NEVER)
+        return np.minimum(self.next_update, frame_ns)
+
+    def run_period(self) -> None:
+        """``run_until(now + period)`` for every car not parked, from event to event."""
+        now = self.state.now_ns
+        end = now + self.period_ns
+        pending = ~self.state.parked
+        while True:
+            self._fire(pending)
+            active = pending & (now < end)
+            if not active.any():
+                return
+            cars = np.flatnonzero(active)
+            target = np.minimum(self._next_due()[cars], end[cars])
+            interval = target - now[cars]
+            nstep = -(-interval // self.max_substep_ns)
+            timestep = interval.astype(np.float64) / (nstep * NS_PER_S).astype(np.float64)
+            moving = interval > 0
+            self.cars.step(cars[moving], nstep[moving], timestep[moving])
+            unstable = self.cars.take_unstable()
+            if unstable:
+                self.report(unstable)
+            now[cars] = target
+            pending = active

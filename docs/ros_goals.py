@@ -139,7 +139,7 @@ def run_live(count: int, seed: int, speed: float) -> list[GoalResult]:
         ros_cli = [sys.executable, "-m", "smartcar_gym.ros"]
         start("bringup", [*ros_cli, "bringup", "--speed", f"{speed:g}"])
         start("policy", [*ros_cli, "policy", "--pretrained"])
-        from smartcar_gym.ros.settings import policy_settings
+        from smartcar_gym.envs.policy_settings import policy_settings
 
         half = policy_settings("SmartCarArrive-v0").task.arena_half_size_m - ARENA_MARGIN_M
         return _drive_live(count, seed, half)

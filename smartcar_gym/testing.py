@@ -2,7 +2,7 @@
 
 ::
 
-    from smartcar_gym.policy import Policy
+    from smartcar_gym.agents.policies import Policy
     from smartcar_gym.testing import assert_success, evaluate
 
     def test_my_policy_reaches_its_goals():
@@ -48,8 +48,8 @@ from smartcar_gym.agents.episodes import (
     evaluate_policy_episodes,
     summarize,
 )
+from smartcar_gym.agents.policies import DEFAULT_ENV_ID, Policy, as_policy
 from smartcar_gym.checks import distinct_figure
-from smartcar_gym.policy import DEFAULT_ENV_ID, Policy, as_policy
 
 __all__ = ["FunctionModel", "Metrics", "RandomPolicy", "assert_success", "evaluate"]
 

@@ -12,7 +12,7 @@ import pytest
 from smartcar_gym.controller import ArbotixConfig, load_controller_config
 from smartcar_gym.envs.robots import SmartCarRobot
 from smartcar_gym.model import RobotModel, load_model
-from smartcar_gym.sim import Simulator
+from smartcar_gym.sim.pybullet.simulator import Simulator
 
 
 @pytest.fixture

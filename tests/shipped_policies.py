@@ -6,7 +6,7 @@ import json
 from importlib import resources
 from typing import Any
 
-from smartcar_gym.agents.rollouts import evaluate_policy_episodes, summarize
+from smartcar_gym.agents.episodes import evaluate_policy_episodes, summarize
 from smartcar_gym.policy import PRETRAINED_POLICIES, Policy
 
 

@@ -7,7 +7,7 @@ import zipfile
 import pytest
 import yaml
 
-from smartcar_gym.agents import cli_eval, evaluate, train
+from smartcar_gym.agents import cli_eval, cli_train
 
 # One env in this process and a tiny network: model construction is the only cost.
 TINY = ["--n-envs", "1", "--timesteps", "64", "--eval-freq", "0", "--no-progress"]
@@ -39,7 +39,7 @@ def _exit_code(main, argv, capsys):
 ])
 def test_train_refuses_bad_input_and_leaves_nothing(argv, messages, tmp_path, capsys):
     run = tmp_path / "runs" / "run"
-    code, err = _exit_code(train.main, [*TINY, "--run-dir", str(run), *argv], capsys)
+    code, err = _exit_code(cli_train.main, [*TINY, "--run-dir", str(run), *argv], capsys)
     assert code == 2, err
     assert err.startswith("usage: smartcar-train") and "Traceback" not in err
     for message in messages:
@@ -50,7 +50,7 @@ def test_train_refuses_bad_input_and_leaves_nothing(argv, messages, tmp_path, ca
 def test_a_failed_start_in_the_default_folder_can_be_retried(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
     for _ in range(2):  # the second attempt is not refused as "already holds a run"
-        code, err = _exit_code(train.main, [*TINY, "--hyperparams", "learning_rate=-1"], capsys)
+        code, err = _exit_code(cli_train.main, [*TINY, "--hyperparams", "learning_rate=-1"], capsys)
         assert code == 2 and "Invalid learning rate" in err, err
         assert list(tmp_path.iterdir()) == []
 
@@ -63,9 +63,9 @@ def test_a_folder_left_by_a_failed_start_is_started_again(tmp_path, capsys):
     (run / "checkpoints").mkdir()
     (run / "config.yaml").write_text("algo: ppo\n")
     (run / "notes.txt").write_text("not ours")
-    code, err = _exit_code(train.main, ["--resume", str(run)], capsys)
+    code, err = _exit_code(cli_train.main, ["--resume", str(run)], capsys)
     assert code == 2 and "lacks the key(s)" in err
-    code, err = _exit_code(train.main, [*TINY, "--run-dir", str(run), "--hyperparams",
+    code, err = _exit_code(cli_train.main, [*TINY, "--run-dir", str(run), "--hyperparams",
                                         "learning_rate=-1"], capsys)
     assert code == 2 and "Invalid learning rate" in err, err
     assert "already holds a run" not in err
@@ -79,17 +79,17 @@ def test_a_folder_with_a_checkpoint_or_a_best_model_is_not_restarted(tmp_path, c
     (run / "checkpoints").mkdir(parents=True)
     (run / "config.yaml").write_text("algo: ppo\n")
     (run / "best_model.zip").write_bytes(b"zip")
-    code, err = _exit_code(train.main, [*TINY, "--run-dir", str(run)], capsys)
+    code, err = _exit_code(cli_train.main, [*TINY, "--run-dir", str(run)], capsys)
     assert code == 2 and "saved no checkpoint (it cannot be resumed) but has best_model.zip" in err
     (run / "checkpoints" / "ckpt_64_steps.zip").write_bytes(b"zip")
-    code, err = _exit_code(train.main, [*TINY, "--run-dir", str(run)], capsys)
+    code, err = _exit_code(cli_train.main, [*TINY, "--run-dir", str(run)], capsys)
     assert code == 2 and f"already holds a run; continue it with --resume {run}" in err
     assert (run / "config.yaml").read_text() == "algo: ppo\n"
 
 
 def test_run_dir_that_is_a_file(tmp_path, capsys):
     (tmp_path / "file").write_text("")
-    code, err = _exit_code(train.main, [*TINY, "--run-dir", str(tmp_path / "file")], capsys)
+    code, err = _exit_code(cli_train.main, [*TINY, "--run-dir", str(tmp_path / "file")], capsys)
     assert code == 2 and f"--run-dir: cannot create {tmp_path / 'file' / 'config.yaml'}" in err
 
 
@@ -101,21 +101,21 @@ def _write_config(run, **config):
 def test_resume_names_what_is_missing_or_broken(tmp_path, capsys):
     run = tmp_path / "run"
     _write_config(run, algo="ppo", env="SmartCar-v0", seed=0, hyperparams={"normalize": True})
-    code, err = _exit_code(train.main, ["--resume", str(run)], capsys)
+    code, err = _exit_code(cli_train.main, ["--resume", str(run)], capsys)
     assert code == 2
     assert (f"--resume: {run / 'config.yaml'} lacks the key(s) n_envs, n_timesteps, eval_freq, "
             "eval_episodes, checkpoint_freq") in err
     # keys given on the command line are not missing
-    code, err = _exit_code(train.main, ["--resume", str(run), "--timesteps", "64",
+    code, err = _exit_code(cli_train.main, ["--resume", str(run), "--timesteps", "64",
                                         "--eval-freq", "0"], capsys)
     assert "lacks the key(s) n_envs, eval_episodes, checkpoint_freq" in err
     (run / "config.yaml").write_text("algo: [ppo\n")
-    code, err = _exit_code(train.main, ["--resume", str(run)], capsys)
+    code, err = _exit_code(cli_train.main, ["--resume", str(run)], capsys)
     assert code == 2 and "is not valid YAML" in err
     _write_config(run, algo="ppo", env="SmartCar-v0", seed=0, n_envs=1, n_timesteps=64,
                   hyperparams={"normalize": True}, eval_freq=0, eval_episodes=1,
                   checkpoint_freq=0)
-    code, err = _exit_code(train.main, ["--resume", str(run)], capsys)
+    code, err = _exit_code(cli_train.main, ["--resume", str(run)], capsys)
     assert code == 2 and "no complete checkpoint" in err and "start it again" in err
 
 
@@ -140,7 +140,7 @@ def saved_models(tmp_path_factory):
     ("sac.zip", "ppo", "sac.zip holds a SAC model, not PPO: pass --algo sac"),
 ])
 def test_eval_model_of_another_algorithm(saved_models, model, algo, message, capsys):
-    code, err = _exit_code(evaluate.main, ["--model", str(saved_models / model), "--algo", algo,
+    code, err = _exit_code(cli_eval.main, ["--model", str(saved_models / model), "--algo", algo,
                                            "--episodes", "1", "--no-progress"], capsys)
     assert code == 2 and message in err, err
 
@@ -148,12 +148,12 @@ def test_eval_model_of_another_algorithm(saved_models, model, algo, message, cap
 def test_eval_model_that_is_not_a_model(tmp_path, capsys):
     text = tmp_path / "model.zip"
     text.write_text("not a zip")
-    code, err = _exit_code(evaluate.main, ["--model", str(text), "--algo", "ppo"], capsys)
+    code, err = _exit_code(cli_eval.main, ["--model", str(text), "--algo", "ppo"], capsys)
     assert code == 2 and f"--model: {text} is not a model (SB3 models are .zip files)" in err
     other = tmp_path / "other.zip"
     with zipfile.ZipFile(other, "w") as archive:
         archive.writestr("hello.txt", "a zip, but not a model")
-    code, err = _exit_code(evaluate.main, ["--model", str(other), "--algo", "ppo"], capsys)
+    code, err = _exit_code(cli_eval.main, ["--model", str(other), "--algo", "ppo"], capsys)
     assert code == 2 and f"--model: cannot load {other} as a PPO model" in err
 
 
@@ -184,7 +184,7 @@ def test_eval_bad_env_kwargs_and_outputs_fail_before_evaluating(argv, message, t
                                                                 no_evaluation):
     (tmp_path / "file").write_text("")
     argv = [a.format(tmp=tmp_path) for a in argv]
-    code, err = _exit_code(evaluate.main, ["--random", "--episodes", "1", "--no-progress", *argv],
+    code, err = _exit_code(cli_eval.main, ["--random", "--episodes", "1", "--no-progress", *argv],
                            capsys)
     assert code == 2, err
     assert "Traceback" not in err and message.format(tmp=tmp_path) in err, err
@@ -193,13 +193,13 @@ def test_eval_bad_env_kwargs_and_outputs_fail_before_evaluating(argv, message, t
 def test_eval_missing_vecnormalize_file(saved_models, capsys, no_evaluation):
     argv = ["--model", str(saved_models / "ppo.zip"), "--algo", "ppo", "--vecnormalize",
             "none.pkl"]
-    code, err = _exit_code(evaluate.main, argv, capsys)
+    code, err = _exit_code(cli_eval.main, argv, capsys)
     assert code == 2 and "--vecnormalize: no such file: none.pkl" in err
 
 
 @pytest.mark.parametrize("batched", [[], ["--vectorization", "batched"]], ids=["seq", "batched"])
 def test_the_box_policy_on_the_dict_goal_env_is_one_line(batched, capsys):
-    code, err = _exit_code(evaluate.main, ["--pretrained", "--env", "SmartCarGoal-v0",
+    code, err = _exit_code(cli_eval.main, ["--pretrained", "--env", "SmartCarGoal-v0",
                                            "--episodes", "1", "--no-progress", *batched], capsys)
     lines = [line for line in err.splitlines() if "error:" in line]
     assert code == 2 and "Traceback" not in err and len(lines) == 1

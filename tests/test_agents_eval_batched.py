@@ -10,10 +10,10 @@ import json
 import numpy as np
 import pytest
 
-from smartcar_gym.agents import evaluate
-from smartcar_gym.agents.batched_rollouts import RECORD_TOLERANCE, evaluate_batched_episodes
+from smartcar_gym.agents import cli_eval
+from smartcar_gym.agents.episodes import RECORD_TOLERANCE, evaluate_batched_episodes
 from smartcar_gym.agents.env_factory import EnvSetupError
-from smartcar_gym.agents.rollouts import evaluate_policy_episodes
+from smartcar_gym.agents.episodes import evaluate_policy_episodes
 from smartcar_gym.envs.vector import SmartCarSimVectorEnv
 from smartcar_gym.policy import Policy
 from smartcar_gym.testing import FunctionModel
@@ -113,9 +113,9 @@ def test_cli_batched_json_and_plot_match_the_sequential_evaluation(tmp_path, cap
     common = ["--pretrained", "mujoco", "--episodes", "4", "--seed", "2", "--no-progress",
               "--env-kwargs", "max_episode_steps=50"]
     batched, plain = tmp_path / "batched.json", tmp_path / "plain.json"
-    assert evaluate.main([*common, "--vectorization", "batched", "--n-envs", "3", "--json",
+    assert cli_eval.main([*common, "--vectorization", "batched", "--n-envs", "3", "--json",
                           str(batched), "--plot", str(tmp_path / "paths.png")]) == 0
-    assert evaluate.main([*common, "--json", str(plain)]) == 0
+    assert cli_eval.main([*common, "--json", str(plain)]) == 0
     got, want = json.loads(batched.read_text()), json.loads(plain.read_text())
     assert (got["vectorization"], got["n_envs"], want["vectorization"], want["n_envs"]) == (
         "batched", 3, "subproc", 1)
@@ -135,7 +135,7 @@ def test_cli_pass_marks_missed_exit_1_with_one_line_each(tmp_path, capsys):
     argv = ["--random", "--env", "SmartCarSim-v0", "--episodes", "3", "--no-progress",
             "--vectorization", "batched", "--env-kwargs", "max_episode_steps=10",
             "--fail-under", "50", "--max-final-distance", "0.05", "--json", str(out)]
-    assert evaluate.main(argv) == 1
+    assert cli_eval.main(argv) == 1
     data = json.loads(out.read_text())
     lines = [line for line in capsys.readouterr().err.splitlines() if "pass mark" in line]
     distance = data["mean_final_distance_m"]
@@ -156,7 +156,7 @@ def test_cli_pass_marks_held_exit_0_in_either_vectorization(tmp_path, capsys):
         argv = ["--random", "--env", "SmartCarSim-v0", "--episodes", "2", "--no-progress",
                 "--vectorization", vectorization, "--env-kwargs", "max_episode_steps=5",
                 "--fail-under", "0", "--max-final-distance", "50", "--json", str(out)]
-        assert evaluate.main(argv) == 0
+        assert cli_eval.main(argv) == 0
         data = json.loads(out.read_text())
         assert data["passed"] is True and [m["held"] for m in data["marks"]] == [True, True]
         err = capsys.readouterr().err
@@ -178,7 +178,7 @@ def test_cli_pass_marks_held_exit_0_in_either_vectorization(tmp_path, capsys):
 ])
 def test_bad_batched_and_mark_arguments_are_one_line(argv, line, capsys):
     with pytest.raises(SystemExit) as exit_info:
-        evaluate.main(["--random", "--episodes", "1", *argv])
+        cli_eval.main(["--random", "--episodes", "1", *argv])
     assert exit_info.value.code == 2
     assert line in capsys.readouterr().err.strip().splitlines()[-1]
 
@@ -192,7 +192,7 @@ def test_cli_batched_bag_records_the_first_episodes(tmp_path, capsys):
     argv = ["--random", "--episodes", "3", "--no-progress", "--vectorization", "batched",
             "--record-episodes", "2", "--env-kwargs", "max_episode_steps=6", "--bag", str(bag),
             "--json", str(out)]
-    assert evaluate.main(argv) == 0
+    assert cli_eval.main(argv) == 0
     data = json.loads(out.read_text())
     assert data["recorded_episodes"] == 2 and data["episodes"] == 3
     episodes = _episodes(_read_bag(bag)[1])
@@ -206,7 +206,7 @@ def test_cli_batched_bag_records_the_first_episodes(tmp_path, capsys):
                     reason='rerun-sdk not installed: pip install "smartcar-gym[rerun]"')
 def test_cli_batched_rerun_records_the_first_episodes(tmp_path, capsys):
     path = tmp_path / "first.rrd"
-    assert evaluate.main(["--random", "--env", "SmartCarSim-v0", "--episodes", "3",
+    assert cli_eval.main(["--random", "--env", "SmartCarSim-v0", "--episodes", "3",
                           "--no-progress", "--vectorization", "batched", "--record-episodes",
                           "1", "--env-kwargs", "max_episode_steps=5", "--rerun",
                           str(path)]) == 0

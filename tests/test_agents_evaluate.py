@@ -10,11 +10,11 @@ import imageio.v3 as iio
 import numpy as np
 import pytest
 
-from smartcar_gym.agents import evaluate, train
+from smartcar_gym.agents import cli_eval, cli_train
 from smartcar_gym.agents.export import export_run
-from smartcar_gym.agents.model_files import find_run_config, find_vecnormalize, load_model
+from smartcar_gym.agents.models import find_run_config, find_vecnormalize, load_model
 from smartcar_gym.agents.plots import plot_trajectories
-from smartcar_gym.agents.rollouts import (
+from smartcar_gym.agents.episodes import (
     EpisodeRecord,
     evaluate_policy_episodes,
     record_video,
@@ -31,7 +31,7 @@ def tiny_run(tmp_path_factory):
     argv = ["--n-envs", "1", "--timesteps", "128", "--run-dir", str(run_dir), "--eval-freq",
             "0", "--no-progress", "--env-kwargs", "max_episode_steps=30", "--hyperparams",
             "n_steps=64", "batch_size=64", "n_epochs=1", "policy_kwargs=dict(net_arch=[8])"]
-    assert train.main(argv) == 0
+    assert cli_train.main(argv) == 0
     return run_dir
 
 
@@ -52,7 +52,7 @@ def test_eval_cli_prints_and_writes_json_gif_and_plot(tiny_run, tmp_path, capsys
             "--seed", "7", "--json", str(out / "eval.json"), "--video", str(out / "run.gif"),
             "--video-episodes", "1", "--plot", str(out / "paths.png"), "--no-progress",
             "--env-kwargs", "render_width=64", "render_height=48"]
-    assert evaluate.main(argv) == 0
+    assert cli_eval.main(argv) == 0
     printed = capsys.readouterr().out
     for text in ("success rate", "mean return", "mean time to goal", "mean final distance",
                  "odometry error", "seeds 7..9"):
@@ -196,7 +196,7 @@ def test_export_packages_a_run_that_smartcar_eval_can_load(tiny_run, tmp_path, c
     # algo and env kwargs come from provenance.json beside the model
     argv = ["--model", str(tmp_path / "pretrained" / "policy.zip"), "--episodes", "1",
             "--no-progress", "--json", str(tmp_path / "e.json")]
-    assert evaluate.main(argv) == 0
+    assert cli_eval.main(argv) == 0
     data = json.loads((tmp_path / "e.json").read_text())
     assert data["algo"] == "ppo" and data["env_kwargs"] == SHORT
 
@@ -205,7 +205,7 @@ def test_random_baseline_is_seeded_and_writes_a_short_gif(tmp_path, capsys):
     out = []
     for _ in range(2):
         path = tmp_path / "random.json"
-        assert evaluate.main(["--random", "--episodes", "2", "--seed", "5", "--no-progress",
+        assert cli_eval.main(["--random", "--episodes", "2", "--seed", "5", "--no-progress",
                      "--json", str(path), "--env-kwargs", "max_episode_steps=20"]) == 0
         out.append(json.loads(path.read_text()))
     assert out[0]["algo"] == "random" and out[0]["success_rate"] == 0.0
@@ -213,7 +213,7 @@ def test_random_baseline_is_seeded_and_writes_a_short_gif(tmp_path, capsys):
     assert returns[0] == returns[1]  # the same seed, the same random actions
     assert [r["length"] for r in out[0]["episode_records"]] == [20, 20]
     gif = tmp_path / "random.gif"
-    assert evaluate.main(["--random", "--episodes", "1", "--no-progress", "--video", str(gif),
+    assert cli_eval.main(["--random", "--episodes", "1", "--no-progress", "--video", str(gif),
                  "--video-episodes", "1", "--env-kwargs", "max_episode_steps=10",
                  "render_width=160", "render_height=120"]) == 0
     frames = iio.imread(gif)  # pillow merges repeated frames, so count only a few

@@ -13,9 +13,9 @@ from pathlib import Path
 import pytest
 import yaml
 
-from smartcar_gym.agents import train, vec_envs
+from smartcar_gym.agents import cli_train, vec_envs
 from smartcar_gym.agents.callbacks import CheckpointCallback
-from smartcar_gym.agents.run_files import atomic_write_text, file_mode
+from smartcar_gym.agents.atomic_files import atomic_write_text, file_mode
 
 # A model's "data" as SB3 writes it: the policy class names the algorithm.
 PPO_DATA = {"policy_class": {"__module__": "stable_baselines3.common.policies"}}
@@ -23,7 +23,7 @@ PPO_DATA = {"policy_class": {"__module__": "stable_baselines3.common.policies"}}
 FULL_DISK = """
 import errno, sys
 from stable_baselines3.common.base_class import BaseAlgorithm
-from smartcar_gym.agents import train
+from smartcar_gym.agents import cli_train
 
 save = BaseAlgorithm.save
 
@@ -34,7 +34,7 @@ def save_on_a_full_disk(self, path, *args, **kwargs):
 
 if __name__ == "__main__":
     BaseAlgorithm.save = save_on_a_full_disk
-    sys.exit(train.main(sys.argv[1:]))
+    sys.exit(cli_train.main(sys.argv[1:]))
 """
 
 
@@ -66,7 +66,7 @@ def test_a_full_disk_stops_the_run_closes_the_workers_and_keeps_the_checkpoint(t
     finally:
         if _group_alive(proc.pid):
             os.killpg(proc.pid, signal.SIGKILL)
-    assert proc.returncode == train.FAILED_EXIT_CODE, err
+    assert proc.returncode == cli_train.FAILED_EXIT_CODE, err
     assert "Traceback" not in err
     [line] = [line for line in err.splitlines() if line.startswith("smartcar-train: error:")]
     checkpoint = run_dir / "checkpoints" / "ckpt_256_steps.zip"
@@ -109,7 +109,7 @@ def test_resume_with_a_config_of_another_algorithm_is_refused(tmp_path, capsys, 
     run_dir = tmp_path / "run"
     _fake_run(run_dir, algo="sac")
     with pytest.raises(SystemExit) as exc:
-        train.main(["--resume", str(run_dir), "--no-progress"])
+        cli_train.main(["--resume", str(run_dir), "--no-progress"])
     err = capsys.readouterr().err
     assert exc.value.code == 2 and "Traceback" not in err
     assert (f"--resume: {run_dir / 'config.yaml'} says algo: sac but "
@@ -127,7 +127,7 @@ def test_resume_into_a_read_only_folder_is_refused(tmp_path, capsys, no_workers,
     read_only = {run_dir / "monitor"}
     monkeypatch.setattr(runs.os, "access", lambda path, mode: Path(path) not in read_only)
     with pytest.raises(SystemExit) as exc:
-        train.main(["--resume", str(run_dir), "--no-progress"])
+        cli_train.main(["--resume", str(run_dir), "--no-progress"])
     err = capsys.readouterr().err
     assert exc.value.code == 2 and "Traceback" not in err
     assert (f"smartcar-train: error: --resume: {run_dir / 'monitor'} is not writable: the run "
@@ -142,7 +142,7 @@ def test_resume_into_a_read_only_folder_exits_2_with_one_line(tmp_path):
         folder.chmod(0o555)
     try:
         proc = subprocess.run(
-            [sys.executable, "-m", "smartcar_gym.agents.train", "--resume", str(run_dir),
+            [sys.executable, "-m", "smartcar_gym.agents.cli_train", "--resume", str(run_dir),
              "--no-progress"], capture_output=True, text=True, timeout=120)
     finally:
         for folder in (run_dir, run_dir / "checkpoints", run_dir / "monitor"):

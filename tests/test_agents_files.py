@@ -8,7 +8,7 @@ import zipfile
 import numpy as np
 import pytest
 
-from smartcar_gym.agents import evaluate, train
+from smartcar_gym.agents import cli_eval, cli_train
 from smartcar_gym.agents.callbacks import (
     CheckpointCallback,
     StopOnSigint,
@@ -77,7 +77,7 @@ def _exit_code(main, argv, capsys):
     (["--env", "Unknown-v0"], "unknown env id 'Unknown-v0'"),  # not the hyperparameters
 ])
 def test_train_argument_errors_exit_2_with_a_clear_message(argv, message, capsys, tmp_path):
-    code, err = _exit_code(train.main, [*argv, "--run-dir", str(tmp_path / "run")], capsys)
+    code, err = _exit_code(cli_train.main, [*argv, "--run-dir", str(tmp_path / "run")], capsys)
     assert code == 2
     assert message in err
     assert not (tmp_path / "run").exists()
@@ -104,11 +104,11 @@ def test_train_refuses_to_overwrite_or_resume_badly(tmp_path, capsys):
     run.mkdir()
     (run / "config.yaml").write_text("algo: ppo\n")
     (run / "model.zip").write_bytes(b"a finished run")
-    code, err = _exit_code(train.main, ["--run-dir", str(run), "--timesteps", "64"], capsys)
+    code, err = _exit_code(cli_train.main, ["--run-dir", str(run), "--timesteps", "64"], capsys)
     assert code == 2 and "already holds a run" in err and f"--resume {run}" in err
-    code, err = _exit_code(train.main, ["--resume", str(run), "--seed", "3"], capsys)
+    code, err = _exit_code(cli_train.main, ["--resume", str(run), "--seed", "3"], capsys)
     assert code == 2 and "--seed cannot be changed" in err
-    code, err = _exit_code(train.main, ["--resume", str(tmp_path / "nothing")], capsys)
+    code, err = _exit_code(cli_train.main, ["--resume", str(tmp_path / "nothing")], capsys)
     assert code == 2 and "config.yaml not found" in err
     assert sorted(p.name for p in run.iterdir()) == ["config.yaml", "model.zip"]
 
@@ -174,7 +174,7 @@ def test_checkpoints_keep_the_replay_buffer_of_the_latest_one_only(tmp_path):
     (["--pretrained", "--algo", "a2c"], "invalid choice: 'a2c'"),
 ])
 def test_eval_argument_errors_exit_2_with_a_clear_message(argv, message, capsys):
-    code, err = _exit_code(evaluate.main, argv, capsys)
+    code, err = _exit_code(cli_eval.main, argv, capsys)
     assert code == 2
     assert message in err
 
@@ -183,5 +183,5 @@ def test_eval_model_without_a_run_needs_algo(tmp_path, capsys):
     model = tmp_path / "lonely.zip"
     with zipfile.ZipFile(model, "w") as archive:
         archive.writestr("data", "not read before the algorithm is known")
-    code, err = _exit_code(evaluate.main, ["--model", str(model)], capsys)
+    code, err = _exit_code(cli_eval.main, ["--model", str(model)], capsys)
     assert code == 2 and "pass --algo" in err

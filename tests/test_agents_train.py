@@ -16,7 +16,7 @@ import pandas as pd
 import pytest
 import yaml
 
-from smartcar_gym.agents import run_folder, train
+from smartcar_gym.agents import cli_train, runs
 from smartcar_gym.agents.hyperparams import algo_class
 
 TINY_NET = "policy_kwargs=dict(net_arch=[16, 16])"
@@ -43,7 +43,7 @@ def _argv(algo: str, run_dir: Path, timesteps: int = 512) -> list[str]:
 @pytest.fixture(scope="module")
 def ppo_run(tmp_path_factory):
     run_dir = tmp_path_factory.mktemp("train") / "ppo"
-    assert train.main(_argv("ppo", run_dir)) == 0
+    assert cli_train.main(_argv("ppo", run_dir)) == 0
     return run_dir
 
 
@@ -103,7 +103,7 @@ def test_ppo_run_folder(ppo_run):
 @pytest.mark.parametrize("algo", ["sac", "td3"])
 def test_off_policy_run_folder(algo, tmp_path):
     run_dir = tmp_path / algo
-    assert train.main(_argv(algo, run_dir)) == 0
+    assert cli_train.main(_argv(algo, run_dir)) == 0
     _check_run_folder(run_dir, algo, 512)
     stats = yaml.safe_load((run_dir / "config.yaml").read_text())["hyperparams"]["normalize"]
     assert "'norm_reward': False" in stats
@@ -121,7 +121,7 @@ def test_resume_continues_steps_normaliser_and_logs(ppo_run, tmp_path):
     run_dir = tmp_path / "resumed"
     shutil.copytree(ppo_run, run_dir)
     count_before = _obs_count(run_dir / "vecnormalize.pkl")
-    assert train.main(["--resume", str(run_dir), "--timesteps", "1024", "--no-progress"]) == 0
+    assert cli_train.main(["--resume", str(run_dir), "--timesteps", "1024", "--no-progress"]) == 0
 
     model = algo_class("ppo").load(run_dir / "model.zip")
     assert model.num_timesteps == 1024
@@ -152,7 +152,7 @@ def test_resume_after_a_kill_counts_the_repeated_episodes_once(ppo_run, tmp_path
     shutil.copytree(ppo_run, run_dir)
     for path in (run_dir / "checkpoints").glob("ckpt_512_steps*"):
         path.unlink()
-    assert train.main(["--resume", str(run_dir), "--timesteps", "768", "--no-progress",
+    assert cli_train.main(["--resume", str(run_dir), "--timesteps", "768", "--no-progress",
                        "--eval-freq", "0"]) == 0
     [resume] = yaml.safe_load((run_dir / "config.yaml").read_text())["resumes"]
     assert resume["from_timesteps"] == 256
@@ -182,17 +182,17 @@ class _InterruptAt:
 
 @pytest.mark.slow
 def test_keyboard_interrupt_saves_a_checkpoint_that_resumes(tmp_path):
-    args = train.build_parser().parse_args(_argv("ppo", tmp_path / "x"))
-    config = run_folder.new_config(args, "test")
+    args = cli_train.build_parser().parse_args(_argv("ppo", tmp_path / "x"))
+    config = runs.new_config(args, "test")
     config["checkpoint_freq"] = 0
     run_dir = tmp_path / "interrupted"
-    result = train.train(config, run_dir, progress=False, extra_callbacks=[_InterruptAt(300)])
+    result = cli_train.train(config, run_dir, progress=False, extra_callbacks=[_InterruptAt(300)])
     assert result.interrupted and result.num_timesteps == 300
     assert (run_dir / "checkpoints" / "ckpt_300_steps.zip").is_file()
     assert (run_dir / "checkpoints" / "ckpt_300_steps_vecnormalize.pkl").is_file()
     assert algo_class("ppo").load(run_dir / "model.zip").num_timesteps == 300
     assert json.loads((run_dir / "summary.json").read_text())["interrupted"] is True
-    assert train.main(["--resume", str(run_dir), "--no-progress", "--eval-freq", "0"]) == 0
+    assert cli_train.main(["--resume", str(run_dir), "--no-progress", "--eval-freq", "0"]) == 0
     assert algo_class("ppo").load(run_dir / "model.zip").num_timesteps >= 512
 
 
@@ -207,7 +207,7 @@ def _buffer_pos(path: Path) -> int:
 def test_sac_resume_keeps_the_replay_buffer_only_if_it_was_saved(tmp_path, capsys):
     run_dir = tmp_path / "sac"
     argv = [*_argv("sac", run_dir, timesteps=256), "--eval-freq", "0", "--save-replay-buffer"]
-    assert train.main(argv) == 0
+    assert cli_train.main(argv) == 0
     assert yaml.safe_load((run_dir / "config.yaml").read_text())["save_replay_buffer"] is True
     assert _buffer_pos(run_dir / "checkpoints" / "ckpt_256_steps_replay_buffer.pkl") == 128
     without = tmp_path / "sac_without_buffer"
@@ -216,13 +216,13 @@ def test_sac_resume_keeps_the_replay_buffer_only_if_it_was_saved(tmp_path, capsy
     capsys.readouterr()
 
     # the choice is stored: no --save-replay-buffer needed; 2 envs x 192 steps in the buffer
-    assert train.main(["--resume", str(run_dir), "--timesteps", "384", "--no-progress"]) == 0
+    assert cli_train.main(["--resume", str(run_dir), "--timesteps", "384", "--no-progress"]) == 0
     assert "replay buffer" not in capsys.readouterr().err
     names = sorted(p.name for p in (run_dir / "checkpoints").glob("*replay_buffer.pkl"))
     assert names == ["ckpt_384_steps_replay_buffer.pkl"]
     assert _buffer_pos(run_dir / "checkpoints" / names[0]) == 192
 
-    assert train.main(["--resume", str(without), "--timesteps", "384", "--no-progress"]) == 0
+    assert cli_train.main(["--resume", str(without), "--timesteps", "384", "--no-progress"]) == 0
     assert ("SAC resumes with an empty replay buffer: no replay buffer was saved with "
             "ckpt_256_steps.zip") in capsys.readouterr().err
     assert _buffer_pos(without / "checkpoints" / "ckpt_384_steps_replay_buffer.pkl") == 64
@@ -233,14 +233,14 @@ def test_a_run_that_failed_to_start_is_simply_started_again(tmp_path, capsys):
     run_dir = tmp_path / "retry"
     argv = [*_argv("ppo", run_dir, timesteps=128), "--n-envs", "1", "--eval-freq", "0"]
     with pytest.raises(SystemExit) as exc:
-        train.main([*argv, "--hyperparams", "learning_rate=-1"])
+        cli_train.main([*argv, "--hyperparams", "learning_rate=-1"])
     assert exc.value.code == 2 and "Invalid learning rate" in capsys.readouterr().err
     assert not run_dir.exists()
     # a folder left behind by a start that failed before this was fixed
     (run_dir / "monitor").mkdir(parents=True)
     (run_dir / "monitor" / "seg0_0.monitor.csv").write_text('#{"t_start": 0}\nr,l,t\n')
     (run_dir / "config.yaml").write_text("algo: ppo\n")
-    assert train.main(argv) == 0
+    assert cli_train.main(argv) == 0
     assert "starting it again" in capsys.readouterr().err
     assert algo_class("ppo").load(run_dir / "model.zip").num_timesteps == 128
     assert yaml.safe_load((run_dir / "config.yaml").read_text())["n_timesteps"] == 128
@@ -248,7 +248,7 @@ def test_a_run_that_failed_to_start_is_simply_started_again(tmp_path, capsys):
 
 @pytest.mark.slow
 @pytest.mark.parametrize(("signum", "exit_code"), [
-    (signal.SIGINT, train.INTERRUPTED_EXIT_CODE), (signal.SIGTERM, train.TERMINATED_EXIT_CODE),
+    (signal.SIGINT, cli_train.INTERRUPTED_EXIT_CODE), (signal.SIGTERM, cli_train.TERMINATED_EXIT_CODE),
 ])
 def test_a_signal_to_the_process_group_saves_a_checkpoint(signum, exit_code, tmp_path):
     """Ctrl-C in a terminal (or ``timeout``, a batch system...) signals the whole process
@@ -256,7 +256,7 @@ def test_a_signal_to_the_process_group_saves_a_checkpoint(signum, exit_code, tmp
     run_dir = tmp_path / "signal"
     argv = _argv("ppo", run_dir, timesteps=1_000_000)
     proc = subprocess.Popen(
-        [sys.executable, "-m", "smartcar_gym.agents.train", *argv],
+        [sys.executable, "-m", "smartcar_gym.agents.cli_train", *argv],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
         # a background shell may have ignored SIGINT; give the child the default handler
         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),

@@ -13,8 +13,8 @@ import pytest
 import yaml
 
 from smartcar_gym import policy
-from smartcar_gym.agents import evaluate, train
-from smartcar_gym.agents.model_files import (
+from smartcar_gym.agents import cli_eval, cli_train
+from smartcar_gym.agents.models import (
     SHIPPED,
     TRAIN_RUN,
     ZOO_RUN,
@@ -22,7 +22,7 @@ from smartcar_gym.agents.model_files import (
     find_vecnormalize,
     locate_model,
 )
-from smartcar_gym.agents.zoo_folder import Unreadable, load_zoo_yaml
+from smartcar_gym.agents.zoo_runs import Unreadable, load_zoo_yaml
 
 EPISODES = ["--episodes", "2", "--no-progress"]
 
@@ -49,13 +49,13 @@ def tiny_run(tmp_path_factory):
     argv = ["--n-envs", "1", "--timesteps", "128", "--run-dir", str(run_dir), "--eval-freq",
             "0", "--no-progress", "--env-kwargs", "max_episode_steps=30", "--hyperparams",
             "n_steps=64", "batch_size=64", "n_epochs=1", "policy_kwargs=dict(net_arch=[8])"]
-    assert train.main(argv) == 0
+    assert cli_train.main(argv) == 0
     return run_dir
 
 
 def _eval(argv, tmp_path, capsys):
     out = tmp_path / "eval.json"
-    assert evaluate.main([*argv, *EPISODES, "--json", str(out)]) == 0
+    assert cli_eval.main([*argv, *EPISODES, "--json", str(out)]) == 0
     printed = capsys.readouterr()
     return json.loads(out.read_text()), printed.out, printed.err
 
@@ -209,7 +209,7 @@ def test_zoo_yaml_is_read_without_running_code(tiny_run, tmp_path, capsys):
         "env_kwargs\n    - null", f"env_kwargs\n    - !!python/object/apply:os.system ['touch "
                                   f"{marker}']"))
     with pytest.raises(SystemExit) as exc:
-        evaluate.main(["--model", str(run), *EPISODES])
+        cli_eval.main(["--model", str(run), *EPISODES])
     err = capsys.readouterr().err
     assert exc.value.code == 2 and not marker.exists()
     assert f"{args}: env_kwargs must be a mapping of plain values" in err
@@ -226,13 +226,13 @@ def test_zoo_yaml_keeps_ordered_dicts_and_tuples_as_plain_values(tmp_path):
 
 def test_a_folder_that_is_no_run_is_refused(tmp_path, capsys):
     with pytest.raises(SystemExit) as exc:
-        evaluate.main(["--model", str(tmp_path)])
+        cli_eval.main(["--model", str(tmp_path)])
     err = capsys.readouterr().err
     assert exc.value.code == 2
     assert f"--model: {tmp_path} is a folder but not a run folder" in err
 
 
-@pytest.mark.parametrize("parser", [evaluate.build_parser, train.build_parser])
+@pytest.mark.parametrize("parser", [cli_eval.build_parser, cli_train.build_parser])
 def test_help_says_model_and_normaliser_files_are_pickles(parser):
     text = " ".join(parser().format_help().split())
     assert "are pickles" in text and "trust" in text

@@ -219,11 +219,11 @@ def test_monitor_logs_the_requested_info_keys(tmp_path):
     ("normalize_kwargs={norm_reward: false}", "not a key of the zoo format"),
 ])
 def test_smartcar_train_refuses_bad_zoo_keys_in_one_line(override, message, tmp_path, capsys):
-    from smartcar_gym.agents import train
+    from smartcar_gym.agents import cli_train
 
     run = tmp_path / "runs" / "run"
     with pytest.raises(SystemExit) as exc:
-        train.main(["--n-envs", "1", "--timesteps", "64", "--eval-freq", "0", "--no-progress",
+        cli_train.main(["--n-envs", "1", "--timesteps", "64", "--eval-freq", "0", "--no-progress",
                     "--run-dir", str(run), "--hyperparams", override])
     err = capsys.readouterr().err
     assert exc.value.code == 2 and "Traceback" not in err

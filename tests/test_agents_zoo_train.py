@@ -10,7 +10,7 @@ import pytest
 import yaml
 from stable_baselines3 import PPO
 
-from smartcar_gym.agents import train
+from smartcar_gym.agents import cli_train
 from smartcar_gym.agents.hyperparams import default_hyperparams_file
 
 # A zoo file with only a `default` entry: every run key the zoo has, each with a visible effect.
@@ -42,7 +42,7 @@ def test_smartcar_train_applies_the_zoo_run_keys(tmp_path):
     path = tmp_path / "zoo.yaml"
     path.write_text(ZOO_FILE)
     run_dir = tmp_path / "run"
-    assert train.main([
+    assert cli_train.main([
         "--hyperparams-file", str(path), "--run-dir", str(run_dir), "--seed", "3",
         "--eval-freq", "32", "--eval-start", "0", "--eval-episodes", "2", "--no-progress",
         "--env-kwargs", "max_episode_steps=32",  # the command line wins over env_kwargs

@@ -16,7 +16,7 @@ import math
 import numpy as np
 import pytest
 
-from smartcar_gym.agents.evaluate import main as eval_main
+from smartcar_gym.agents.cli_eval import main as eval_main
 from smartcar_gym.calibration.bag_source import BagError, read_recordings
 from smartcar_gym.calibration.recording import replay
 from smartcar_gym.controller.config import load_controller_config
@@ -93,11 +93,11 @@ def test_a_bag_and_an_mcap_file_give_the_same_recordings(bags):
 
 # -- bags written here -------------------------------------------------------------------------
 class Bag:
-    """A ROS 1 bag of hand-made messages (rosbags' writer, the ROS 1 messages of ``ros.bag``)."""
+    """A ROS 1 bag of hand-made messages (rosbags' writer, the ROS 1 messages of ``bags.ros1``)."""
 
     def __init__(self) -> None:
-        from smartcar_gym.ros import messages as m
-        from smartcar_gym.ros.bag import typestore
+        from smartcar_gym.bags import messages as m
+        from smartcar_gym.bags.ros1 import typestore
 
         self.m, self.store = m, typestore()
         self.types = m.RosbagsTypes(self.store)

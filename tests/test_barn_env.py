@@ -11,7 +11,7 @@ from smartcar_gym.envs.barn_env import SmartCarBARNEnv, car_width, to_base_frame
 from smartcar_gym.envs.tasks.barn import SHIPPED_CAR_WIDTH_M, PathTracker, barn_score
 from smartcar_gym.envs.tasks.path_trackers import COMPILED as PATHS_COMPILED
 from smartcar_gym.envs.tasks.path_trackers import PathTrackers
-from smartcar_gym.navigation.dwa_driver import DWADriver
+from smartcar_gym.bench.dwa import DWADriver
 from smartcar_gym.registration import SPECS
 from smartcar_gym.worlds.barn import TRAIN_WORLDS, load_worlds, to_car_frame
 

@@ -13,7 +13,7 @@ from smartcar_gym.bench.batched import run_barn_vector
 from smartcar_gym.bench.cli import main
 from smartcar_gym.bench.runner import barn_jobs, run_barn
 from smartcar_gym.envs.vector import SmartCarBatchVectorEnv
-from smartcar_gym.navigation.dwa_driver import DWADriver
+from smartcar_gym.bench.dwa import DWADriver
 
 
 @pytest.mark.parametrize("kwargs", [{}, {"localize": True}])

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from smartcar_gym.agents.evaluate import build_parser
+from smartcar_gym.agents.cli_eval import build_parser
 
 pytest.importorskip("check_jsonschema", reason="check-jsonschema is in the test extra")
 tomllib = pytest.importorskip("tomllib", reason="Python 3.11 reads pyproject.toml")

@@ -7,7 +7,7 @@ import gymnasium as gym
 import pytest
 
 import smartcar_gym  # noqa: F401
-from smartcar_gym.agents import evaluate
+from smartcar_gym.agents import cli_eval
 from smartcar_gym.registration import ENV_IDS
 
 pytest.importorskip("stable_baselines3", reason="the CLIs need the train extra")
@@ -37,7 +37,7 @@ def test_eval_header_names_the_engine(engine, capsys, monkeypatch):
         pytest.importorskip("smartcar_gym.sim.mujoco", reason="needs the mujoco extra")
     monkeypatch.setenv("COLUMNS", "200")  # the table's title on one line
     argv = ["--pretrained", "--episodes", "2", "--seed", "3", *SHORT]
-    code, out, err = _run(evaluate.main, argv + (["--engine", engine] if engine else []), capsys)
+    code, out, err = _run(cli_eval.main, argv + (["--engine", engine] if engine else []), capsys)
     assert code == 0, err
     assert _header(out) == (f"policy.zip on SmartCar-v0 ({engine or 'pybullet'}): 2 episodes, "
                             "seeds 3..4, deterministic")
@@ -47,7 +47,7 @@ def test_eval_random_says_random_actions_and_one_episode(capsys, monkeypatch):
     monkeypatch.setenv("COLUMNS", "200")
     argv = ["--random", "--episodes", "1", "--env", "SmartCarSim-v0", "--fail-under", "0",
             "--max-final-distance", "10", *SHORT]
-    code, out, err = _run(evaluate.main, argv, capsys)
+    code, out, err = _run(cli_eval.main, argv, capsys)
     assert code == 0, err
     header = _header(out)
     assert header == "random-policy on SmartCarSim-v0 (pybullet): 1 episode, seed 0, random actions"
@@ -56,9 +56,9 @@ def test_eval_random_says_random_actions_and_one_episode(capsys, monkeypatch):
 
 
 def test_count_and_summary_title():
-    assert evaluate.count(1, "episode") == "1 episode"
-    assert evaluate.count(0, "episode") == "0 episodes"
-    assert evaluate.summary_title("m.zip", "SmartCarNav-v0", "mujoco", 100, 0, "stochastic") == (
+    assert cli_eval.count(1, "episode") == "1 episode"
+    assert cli_eval.count(0, "episode") == "0 episodes"
+    assert cli_eval.summary_title("m.zip", "SmartCarNav-v0", "mujoco", 100, 0, "stochastic") == (
         "m.zip on SmartCarNav-v0 (mujoco): 100 episodes, seeds 0..99, stochastic")
 
 
@@ -66,10 +66,10 @@ def test_count_and_summary_title():
                                                   ("SmartCarNav", "SmartCarNav-v0"),
                                                   ("Smartcar-v0", "SmartCar-v0")])
 def test_train_with_an_unknown_id_says_so_and_lists_the_ids(env_id, closest, capsys, tmp_path):
-    from smartcar_gym.agents import train
+    from smartcar_gym.agents import cli_train
 
     argv = ["--env", env_id, "--run-dir", str(tmp_path / "run"), "--no-progress"]
-    code, _, err = _run(train.main, argv, capsys)
+    code, _, err = _run(cli_train.main, argv, capsys)
     assert code == 2
     [line] = [x for x in err.splitlines() if x.startswith("smartcar-train: error:")]
     assert line.startswith(f"smartcar-train: error: unknown env id {env_id!r}")
@@ -118,12 +118,12 @@ def test_the_env_signature_stays_inspectable():
 
 @pytest.mark.parametrize("cli", ["smartcar-eval", "smartcar-train"])
 def test_the_clis_env_kwargs_name_the_closest_kwarg(cli, capsys, tmp_path):
-    from smartcar_gym.agents import train
+    from smartcar_gym.agents import cli_train
 
     if cli == "smartcar-eval":
-        main, argv = evaluate.main, ["--random", "--episodes", "1", "--no-progress"]
+        main, argv = cli_eval.main, ["--random", "--episodes", "1", "--no-progress"]
     else:
-        main, argv = train.main, ["--timesteps", "64", "--run-dir", str(tmp_path / "run"),
+        main, argv = cli_train.main, ["--timesteps", "64", "--run-dir", str(tmp_path / "run"),
                                   "--no-progress"]
     code, _, err = _run(main, [*argv, "--env-kwargs", "max_linar=0.2"], capsys)
     assert code == 2
@@ -133,7 +133,7 @@ def test_the_clis_env_kwargs_name_the_closest_kwarg(cli, capsys, tmp_path):
 
 
 def test_the_ros_policy_settings_name_the_closest_kwarg():
-    from smartcar_gym.ros.settings import policy_settings
+    from smartcar_gym.envs.policy_settings import policy_settings
 
     with pytest.raises(ValueError, match=r"^SmartCar-v0 got an unexpected keyword argument "
                                          r"'max_linar' \(did you mean 'max_linear'\?\)$"):
@@ -164,7 +164,7 @@ def test_a_fail_under_that_reads_as_a_fraction_gets_a_hint(capsys, tmp_path):
     out = tmp_path / "r.json"
     argv = ["--random", "--episodes", "2", "--env", "SmartCarSim-v0", "--fail-under", "0.95",
             "--vectorization", "batched", "--json", str(out), *SHORT]
-    code, _, err = _run(evaluate.main, argv, capsys)
+    code, _, err = _run(cli_eval.main, argv, capsys)
     hint = "--fail-under 0.95 is 0.95 %, a percentage; for 95 % pass --fail-under 95"
     assert code == 1 and f"smartcar-eval: warning: {hint}" in err
     import json
@@ -176,14 +176,14 @@ def test_a_fail_under_that_reads_as_a_fraction_gets_a_hint(capsys, tmp_path):
 
 @pytest.mark.parametrize("value", ["-1", "0"])
 def test_n_envs_says_positive_for_every_number_below_1(value, capsys):
-    code, _, err = _run(evaluate.main, ["--random", "--n-envs", value], capsys)
+    code, _, err = _run(cli_eval.main, ["--random", "--n-envs", value], capsys)
     assert code == 2 and f"expected a positive integer, got '{value}'" in err
 
 
 def test_train_help_names_the_batched_engines(capsys):
-    from smartcar_gym.agents import train
+    from smartcar_gym.agents import cli_train
 
-    code, out, _ = _run(train.main, ["--help"], capsys)
+    code, out, _ = _run(cli_train.main, ["--help"], capsys)
     text = " ".join(out.split())
     assert code == 0
     assert "SmartCarSim-v0: numpy arrays; --engine mujoco: MuJoCo in C; --engine planar: the " \

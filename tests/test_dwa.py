@@ -9,7 +9,7 @@ import pytest
 
 import smartcar_gym  # noqa: F401
 from smartcar_gym.navigation.dwa import DWAConfig, DWAPlanner
-from smartcar_gym.navigation.dwa_driver import DWADriver, turn_command
+from smartcar_gym.bench.dwa import DWADriver, turn_command
 from smartcar_gym.navigation.footprint import COMPILED, footprint_check, to_nearest
 from smartcar_gym.navigation.grid_planner import distance_grid, plan_path
 from smartcar_gym.navigation.obstacles import ObstacleLayers, ObstacleMemory, scan_points

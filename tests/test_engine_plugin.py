@@ -156,7 +156,7 @@ def test_only_an_engine_with_a_window_or_a_solver_offers_them():
 
 
 def test_a_batch_of_rays_is_pybullets_most_on_every_engine():
-    from smartcar_gym.sim.bullet import pybullet
+    from smartcar_gym.sim.pybullet.bullet import pybullet
     from smartcar_gym.sim.rays import MAX_RAYS
 
     assert MAX_RAYS == pybullet.MAX_RAY_INTERSECTION_BATCH_SIZE
@@ -164,11 +164,11 @@ def test_a_batch_of_rays_is_pybullets_most_on_every_engine():
 
 def test_the_old_module_paths_import_pybullets_names():
     from smartcar_gym.sim import Body, Simulator
-    from smartcar_gym.sim.body import BASE, LinkDynamics
-    from smartcar_gym.sim.camera import BoxPart
+    from smartcar_gym.sim.contracts import BASE, LinkDynamics
+    from smartcar_gym.sim.contracts import BoxPart
     from smartcar_gym.sim.pybullet.body import Body as PybulletBody
     from smartcar_gym.sim.pybullet.simulator import Simulator as PybulletSimulator
-    from smartcar_gym.sim.simulator import NS_PER_S
+    from smartcar_gym.sim.clock import NS_PER_S
 
     assert (Simulator, Body) == (PybulletSimulator, PybulletBody)
     assert (BASE, LinkDynamics, BoxPart) == (contracts.BASE, contracts.LinkDynamics,

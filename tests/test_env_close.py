@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 import smartcar_gym  # noqa: F401
-from smartcar_gym.sim.bullet import pybullet
+from smartcar_gym.sim.pybullet.bullet import pybullet
 
 CYCLES = 200
 WARM_UP = 10

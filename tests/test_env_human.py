@@ -8,7 +8,7 @@ import gymnasium as gym
 import numpy as np
 
 import smartcar_gym  # noqa: F401
-from smartcar_gym.sim.bullet import pybullet
+from smartcar_gym.sim.pybullet.bullet import pybullet
 from tests.xvfb import needs_xvfb
 
 pytestmark = needs_xvfb

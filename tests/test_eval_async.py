@@ -24,7 +24,7 @@ from stable_baselines3 import PPO  # noqa: E402
 from stable_baselines3.common.running_mean_std import RunningMeanStd  # noqa: E402
 from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize  # noqa: E402
 
-from smartcar_gym.agents import train  # noqa: E402
+from smartcar_gym.agents import cli_train  # noqa: E402
 from smartcar_gym.agents.eval_worker import (  # noqa: E402
     EvalWorker,
     EvalWorkerError,
@@ -44,8 +44,8 @@ ARGV = ["--engine", "planar", "--vectorization", "batched", "--n-envs", "4", "--
 @pytest.mark.slow
 def test_async_evaluations_are_the_training_process_s_own(tmp_path):
     sync, asynchronous = tmp_path / "sync", tmp_path / "async"
-    assert train.main([*ARGV, "--run-dir", str(sync), "--no-eval-async"]) == 0
-    assert train.main([*ARGV, "--run-dir", str(asynchronous)]) == 0  # the preset's eval_async
+    assert cli_train.main([*ARGV, "--run-dir", str(sync), "--no-eval-async"]) == 0
+    assert cli_train.main([*ARGV, "--run-dir", str(asynchronous)]) == 0  # the preset's eval_async
     config = yaml.safe_load((asynchronous / "config.yaml").read_text())
     assert config["eval_async"] is True and config["eval_engine"] == "pybullet"
     assert yaml.safe_load((sync / "config.yaml").read_text())["eval_async"] is False
@@ -123,13 +123,13 @@ def test_eval_async_needs_a_batched_run_and_a_boolean(tmp_path, capsys):
     argv = ["--timesteps", "128", "--n-envs", "2", "--run-dir", str(tmp_path / "r"),
             "--no-progress", "--eval-async"]
     with pytest.raises(SystemExit) as exc:
-        train.main(argv)
+        cli_train.main(argv)
     assert exc.value.code == 2
     assert "eval_async evaluates in a second process beside a batched run" in (
         capsys.readouterr().err)
     assert not (tmp_path / "r").exists()
     with pytest.raises(SystemExit):
-        train.main([*argv[:-1], "--hyperparams", "eval_async=1"])
+        cli_train.main([*argv[:-1], "--hyperparams", "eval_async=1"])
     assert "eval_async must be true or false, got 1" in capsys.readouterr().err
 
 
@@ -140,7 +140,7 @@ def test_a_signal_to_the_process_group_drains_the_worker_and_stops(tmp_path):
     run_dir = tmp_path / "signal"
     argv = [*ARGV, "--timesteps", "1000000", "--run-dir", str(run_dir), "--eval-async"]
     proc = subprocess.Popen(
-        [sys.executable, "-m", "smartcar_gym.agents.train", *argv],
+        [sys.executable, "-m", "smartcar_gym.agents.cli_train", *argv],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
@@ -156,7 +156,7 @@ def test_a_signal_to_the_process_group_drains_the_worker_and_stops(tmp_path):
     finally:
         if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGKILL)
-    assert proc.returncode == train.INTERRUPTED_EXIT_CODE, err
+    assert proc.returncode == cli_train.INTERRUPTED_EXIT_CODE, err
     assert "Interrupted (SIGINT): checkpoint saved" in err and "Traceback" not in err
     assert not list((run_dir / "eval").glob("pending_*"))
     steps = json.loads((run_dir / "summary.json").read_text())["num_timesteps"]

@@ -15,7 +15,7 @@ import pytest
 from smartcar_gym.calibration.fidelity import Figures, measure
 from smartcar_gym.calibration.maneuvers import random_commands, run
 from smartcar_gym.envs.robots import SmartCarRobot
-from smartcar_gym.sim import Simulator
+from smartcar_gym.sim.pybullet.simulator import Simulator
 
 CONTACTS = ("sphere", "urdf")
 _cache: dict[tuple[str, float], Figures] = {}

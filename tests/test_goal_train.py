@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 import yaml
 
-from smartcar_gym.agents import evaluate, train
+from smartcar_gym.agents import cli_eval, cli_train
 from smartcar_gym.agents.hyperparams import build_algo_kwargs, load_hyperparams, normalize_kwargs
-from smartcar_gym.agents.model_files import load_model
-from smartcar_gym.agents.rollouts import RandomPolicy, evaluate_policy_episodes
+from smartcar_gym.agents.models import load_model
+from smartcar_gym.agents.episodes import RandomPolicy, evaluate_policy_episodes
 
 FAST = ["max_episode_steps=20", "controller_mode=sim"]
 
@@ -48,7 +48,7 @@ def her_run(tmp_path_factory):
             str(run_dir), "--eval-freq", "300", "--eval-episodes", "2", "--no-progress",
             "--env-kwargs", *FAST, "--hyperparams", "buffer_size=2000", "learning_starts=100",
             "batch_size=32"]
-    assert train.main(argv) == 0
+    assert cli_train.main(argv) == 0
     return run_dir
 
 
@@ -69,7 +69,7 @@ def test_smartcar_eval_of_a_her_model(her_run, tmp_path, capsys):
     out = tmp_path / "eval.json"
     argv = ["--model", str(her_run / "model.zip"), "--episodes", "3", "--n-envs", "2",
             "--json", str(out), "--no-progress"]
-    assert evaluate.main(argv) == 0
+    assert cli_eval.main(argv) == 0
     assert "success rate" in capsys.readouterr().out
     report = json.loads(out.read_text())
     assert report["episodes"] == 3 and report["env"] == "SmartCarGoal-v0"

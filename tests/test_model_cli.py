@@ -15,7 +15,7 @@ import imageio.v3 as iio
 import pytest
 
 from smartcar_gym.model import SHIPPED_MODEL
-from smartcar_gym.model.cli import main
+from smartcar_gym.model_cli import main
 
 FIXTURES = Path(__file__).parent / "fixtures"
 SEEDLIKE = FIXTURES / "seedlike.urdf"
@@ -193,7 +193,7 @@ def test_show_bad_size_is_an_error(capsys, tmp_path: Path) -> None:
 
 
 def test_console_script_module_runs_without_traceback(tmp_path: Path) -> None:
-    result = subprocess.run([sys.executable, "-m", "smartcar_gym.model.cli", "check",
+    result = subprocess.run([sys.executable, "-m", "smartcar_gym.model_cli", "check",
                              str(tmp_path / "none.urdf")], capture_output=True, text=True,
                             check=False)
     assert result.returncode == 2

@@ -158,7 +158,7 @@ def test_repaired_model_has_no_defects_left_but_the_head_mismatch(repaired, tmp_
 
 def settle(model, tmp_path: Path, seconds: float = 2.0) -> float:
     """Up-axis z of base_link after dropping the model on a plane for ``seconds``."""
-    from smartcar_gym.sim.bullet import connect
+    from smartcar_gym.sim.pybullet.bullet import connect
 
     client = connect()
     try:

@@ -11,7 +11,7 @@ import pytest
 from smartcar_gym.model import ModelError, load_model
 from smartcar_gym.model.defects import GEOMETRY_MISMATCH, find_defects
 from smartcar_gym.model.urdf import parse_urdf
-from smartcar_gym.sim.bullet import pybullet
+from smartcar_gym.sim.pybullet.bullet import pybullet
 
 FIXTURE_PKG = Path(__file__).parent / "fixtures" / "meshbot_description"
 CUBE = FIXTURE_PKG / "meshes" / "cube.obj"

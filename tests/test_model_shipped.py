@@ -114,7 +114,7 @@ def test_write_urdf_round_trips(model: RobotModel, tmp_path) -> None:
 
 
 def test_repaired_model_stands_level_in_pybullet(model: RobotModel, tmp_path) -> None:
-    from smartcar_gym.sim.bullet import connect
+    from smartcar_gym.sim.pybullet.bullet import connect
 
     client = connect()
     try:

@@ -11,7 +11,7 @@ import yaml
 pytest.importorskip("smartcar_gym.sim.mujoco", reason="engine='mujoco' needs the mujoco extra")
 pytest.importorskip("stable_baselines3", reason="the CLIs need the train extra")
 
-from smartcar_gym.agents import evaluate, train  # noqa: E402
+from smartcar_gym.agents import cli_eval, cli_train  # noqa: E402
 from smartcar_gym.calibration import cli as calibrate_cli  # noqa: E402
 from smartcar_gym.ros.bringup import start_robot  # noqa: E402
 from smartcar_gym.ros.cli import build_parser as ros_parser  # noqa: E402
@@ -19,7 +19,7 @@ from smartcar_gym.ros.cli import build_parser as ros_parser  # noqa: E402
 
 def test_eval_engine_reaches_the_env(tmp_path):
     path = tmp_path / "e.json"
-    assert evaluate.main(["--random", "--episodes", "2", "--seed", "5", "--no-progress",
+    assert cli_eval.main(["--random", "--episodes", "2", "--seed", "5", "--no-progress",
                           "--engine", "mujoco", "--json", str(path),
                           "--env-kwargs", "max_episode_steps=10"]) == 0
     data = json.loads(path.read_text())
@@ -29,20 +29,20 @@ def test_eval_engine_reaches_the_env(tmp_path):
 
 def test_eval_refuses_an_unknown_engine(capsys):
     with pytest.raises(SystemExit):
-        evaluate.main(["--random", "--engine", "ode"])
+        cli_eval.main(["--random", "--engine", "ode"])
     err = capsys.readouterr().err
     assert "--engine: invalid choice: 'ode'" in err and "mujoco" in err
 
 
 def test_train_stores_the_engine_with_the_run_and_resume_refuses_it(tmp_path, capsys):
     run_dir = tmp_path / "run"
-    assert train.main(["--engine", "mujoco", "--n-envs", "1", "--timesteps", "128",
+    assert cli_train.main(["--engine", "mujoco", "--n-envs", "1", "--timesteps", "128",
                        "--run-dir", str(run_dir), "--eval-freq", "0", "--no-progress",
                        "--hyperparams", "n_steps=128", "batch_size=64", "n_epochs=1"]) == 0
     config = yaml.safe_load((run_dir / "config.yaml").read_text())
     assert config["env_kwargs"] == {"engine": "mujoco"}
     with pytest.raises(SystemExit):
-        train.main(["--resume", str(run_dir), "--engine", "pybullet"])
+        cli_train.main(["--resume", str(run_dir), "--engine", "pybullet"])
     assert "--engine cannot be given with it" in capsys.readouterr().err
 
 

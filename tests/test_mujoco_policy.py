@@ -10,8 +10,8 @@ import shipped_policies as shipped
 
 pytest.importorskip("smartcar_gym.sim.mujoco", reason="engine='mujoco' needs the mujoco extra")
 
-from smartcar_gym.agents import evaluate  # noqa: E402
-from smartcar_gym.agents.evaluate import PRETRAINED_MODEL  # noqa: E402
+from smartcar_gym.agents import cli_eval  # noqa: E402
+from smartcar_gym.agents.models import PRETRAINED_MODEL  # noqa: E402
 
 NAME = "mujoco"
 FOLDER = shipped.folder(NAME)
@@ -32,7 +32,7 @@ def test_the_mujoco_policy_is_shipped_with_its_provenance():
 
 def test_smartcar_eval_pretrained_mujoco_engine_pybullet_loads_its_own_files(tmp_path):
     out = tmp_path / "eval.json"
-    assert evaluate.main(["--pretrained", "mujoco", "--engine", "pybullet", "--episodes", "1",
+    assert cli_eval.main(["--pretrained", "mujoco", "--engine", "pybullet", "--episodes", "1",
                           "--no-progress", "--json", str(out)]) == 0
     data = json.loads(out.read_text())
     assert data["model"] == f"pretrained:mujoco/{PRETRAINED_MODEL}"

@@ -11,7 +11,7 @@ pytest.importorskip("smartcar_gym.sim.mujoco", reason="engine='mujoco' needs the
 
 from smartcar_gym.envs.robots import SmartCarRobot, drive  # noqa: E402
 from smartcar_gym.model import ModelError  # noqa: E402
-from smartcar_gym.sim.body import BASE  # noqa: E402
+from smartcar_gym.sim.contracts import BASE  # noqa: E402
 from smartcar_gym.sim.engines import ENGINES, check_engine, make_simulator  # noqa: E402
 from smartcar_gym.sim.obstacles import add_obstacle, nearest_distance  # noqa: E402
 from smartcar_gym.sim.rays import cast_rays, hide_from_rays  # noqa: E402

@@ -7,8 +7,8 @@ import json
 import pytest
 import shipped_policies as shipped
 
-from smartcar_gym.agents import evaluate
-from smartcar_gym.agents.evaluate import PRETRAINED_MODEL
+from smartcar_gym.agents import cli_eval
+from smartcar_gym.agents.models import PRETRAINED_MODEL
 
 NAME = "nav"
 FOLDER = shipped.folder(NAME)
@@ -28,7 +28,7 @@ def test_the_nav_policy_is_shipped_with_its_provenance():
 
 def test_smartcar_eval_pretrained_nav_runs_on_its_env(tmp_path):
     out = tmp_path / "eval.json"
-    code = evaluate.main(["--pretrained", "nav", "--episodes", "2", "--no-progress",
+    code = cli_eval.main(["--pretrained", "nav", "--episodes", "2", "--no-progress",
                           "--json", str(out)])
     assert code == 0
     data = json.loads(out.read_text())

@@ -147,7 +147,7 @@ def test_the_ros_node_drives_from_onnx_without_torch(exported):
         from smartcar_gym.controller import Odometry
         from smartcar_gym.envs.robots.smartcar import JointStates
         from smartcar_gym.policy import Policy
-        from smartcar_gym.ros import messages as m
+        from smartcar_gym.bags import messages as m
         from smartcar_gym.ros.driving import GoalDriver
 
         class Types:

@@ -57,7 +57,7 @@ def test_env_and_smartcar_model_work_without_the_train_extra():
         import gymnasium as gym
         import numpy as np
         import smartcar_gym
-        from smartcar_gym.model.cli import main as model_main
+        from smartcar_gym.model_cli import main as model_main
 
         env = gym.make("SmartCar-v0")
         obs, info = env.reset(seed=0)
@@ -76,10 +76,10 @@ def test_env_and_smartcar_model_work_without_the_train_extra():
 def test_cli_without_the_train_extra_prints_one_line_and_exits_2():
     result = _run("""
         import contextlib, io
-        from smartcar_gym.agents import train, evaluate
+        from smartcar_gym.agents import cli_eval, cli_train
 
-        for main, argv in ((train.main, ["--timesteps", "10"]),
-                           (evaluate.main, ["--pretrained"])):
+        for main, argv in ((cli_train.main, ["--timesteps", "10"]),
+                           (cli_eval.main, ["--pretrained"])):
             err = io.StringIO()
             with contextlib.redirect_stderr(err):
                 try:

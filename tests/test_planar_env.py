@@ -410,10 +410,10 @@ def test_a_planar_car_that_cannot_run_is_refused_when_the_env_is_made() -> None:
 @pytest.mark.parametrize("vectorization", ["subproc", "batched"])
 def test_smartcar_eval_refuses_a_planar_car_that_cannot_run_with_exit_2(vectorization,
                                                                         capsys) -> None:
-    from smartcar_gym.agents import evaluate
+    from smartcar_gym.agents import cli_eval
 
     with pytest.raises(SystemExit) as exit_info:
-        evaluate.main(["--random", "--episodes", "2", "--no-progress", "--engine", "planar",
+        cli_eval.main(["--random", "--episodes", "2", "--no-progress", "--engine", "planar",
                        "--vectorization", vectorization, "--env-kwargs",
                        "planar_params={load_shift_x: 0.5}"])
     assert exit_info.value.code == 2

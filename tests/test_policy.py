@@ -22,7 +22,7 @@ from smartcar_gym.policy import (
     PolicyError,
     as_policy,
 )
-from smartcar_gym.ros.settings import policy_settings
+from smartcar_gym.envs.policy_settings import policy_settings
 
 
 def _provenance(name):
@@ -283,7 +283,7 @@ def goal_policy(tmp_path_factory):
 
 
 def test_dict_observations_of_the_goal_env(goal_policy):
-    from smartcar_gym.agents.rollouts import evaluate_policy_episodes
+    from smartcar_gym.agents.episodes import evaluate_policy_episodes
 
     env = goal_policy.make_env()
     try:

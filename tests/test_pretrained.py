@@ -8,7 +8,7 @@ with ``smartcar-train`` and the shipped defaults (the pybullet run: docs/results
 import pytest
 import shipped_policies as shipped
 
-from smartcar_gym.agents.evaluate import PRETRAINED_MODEL
+from smartcar_gym.agents.models import PRETRAINED_MODEL
 
 NAME = "default"
 FOLDER = shipped.folder(NAME)

@@ -7,8 +7,8 @@ import json
 import pytest
 import shipped_policies as shipped
 
-from smartcar_gym.agents import evaluate
-from smartcar_gym.agents.evaluate import PRETRAINED_MODEL
+from smartcar_gym.agents import cli_eval
+from smartcar_gym.agents.models import PRETRAINED_MODEL
 
 NAME = "robust"
 FOLDER = shipped.folder(NAME)
@@ -26,7 +26,7 @@ def test_the_robust_policy_is_shipped_with_its_provenance():
 
 def test_smartcar_eval_pretrained_robust_loads_its_own_files(tmp_path, capsys):
     out = tmp_path / "eval.json"
-    code = evaluate.main(["--pretrained", "robust", "--episodes", "2", "--no-progress",
+    code = cli_eval.main(["--pretrained", "robust", "--episodes", "2", "--no-progress",
                           "--env-kwargs", "randomize=null", "--json", str(out)])
     assert code == 0
     data = json.loads(out.read_text())

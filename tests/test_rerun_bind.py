@@ -84,7 +84,7 @@ def _serve(tmp_path: Path, *extra: str, sigint: Any = signal.SIG_DFL
     grpc, web = _free_port(), _free_port()
     log = tmp_path / "eval.err"
     proc = subprocess.Popen(
-        [sys.executable, "-m", "smartcar_gym.agents.evaluate", "--random", "--episodes", "1",
+        [sys.executable, "-m", "smartcar_gym.agents.cli_eval", "--random", "--episodes", "1",
          "--env", "SmartCarSim-v0", "--env-kwargs", "max_episode_steps=5", "--no-progress",
          "--rerun-serve", "--rerun-ports", str(grpc), str(web), *extra],
         stdout=subprocess.DEVNULL, stderr=log.open("w"), start_new_session=True,
@@ -181,10 +181,10 @@ def test_rerun_bind_shares_both_servers_on_the_address_given(tmp_path):
 ])
 def test_a_bad_rerun_bind_is_one_line(argv, message, capsys):
     pytest.importorskip("stable_baselines3", reason="smartcar-eval needs the train extra")
-    from smartcar_gym.agents import evaluate
+    from smartcar_gym.agents import cli_eval
 
     with pytest.raises(SystemExit) as exit_:
-        evaluate.main(["--random", "--episodes", "1", *argv])
+        cli_eval.main(["--random", "--episodes", "1", *argv])
     assert exit_.value.code == 2
     assert capsys.readouterr().err.splitlines()[-1] == f"smartcar-eval: error: {message}"
 

@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 import smartcar_gym  # noqa: F401  (registers the envs)
-from smartcar_gym.agents.evaluate import main as eval_main
-from smartcar_gym.agents.rollouts import RandomPolicy, evaluate_policy_episodes
+from smartcar_gym.agents.cli_eval import main as eval_main
+from smartcar_gym.agents.episodes import RandomPolicy, evaluate_policy_episodes
 
 pytestmark = pytest.mark.skipif(importlib.util.find_spec("rerun") is None,
                                 reason='rerun-sdk not installed: pip install '
@@ -169,7 +169,7 @@ def test_eval_cli_records_without_importing_pandas(tmp_path):
     path = tmp_path / "random.rrd"
     code = (
         "import sys\n"
-        "from smartcar_gym.agents.evaluate import main\n"
+        "from smartcar_gym.agents.cli_eval import main\n"
         f"main(['--random', '--episodes', '2', '--no-progress', '--rerun', {str(path)!r}])\n"
         "print('pandas' in sys.modules)\n"
         "import pyarrow as pa\n"

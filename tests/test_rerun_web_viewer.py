@@ -11,7 +11,7 @@ import socket
 import numpy as np
 import pytest
 
-from smartcar_gym.agents.rollouts import RandomPolicy, evaluate_policy_episodes
+from smartcar_gym.agents.episodes import RandomPolicy, evaluate_policy_episodes
 from smartcar_gym.viewers.chromium import color_pixels, find_chromium
 
 pytestmark = [

@@ -9,8 +9,8 @@ import importlib.util
 import numpy as np
 import pytest
 
-from smartcar_gym.agents.evaluate import main as eval_main
-from smartcar_gym.agents.rollouts import RandomPolicy, evaluate_policy_episodes
+from smartcar_gym.agents.cli_eval import main as eval_main
+from smartcar_gym.agents.episodes import RandomPolicy, evaluate_policy_episodes
 
 pytestmark = pytest.mark.skipif(importlib.util.find_spec("rosbags") is None,
                                 reason='rosbags not installed: pip install "smartcar-gym[ros]"')
@@ -21,7 +21,7 @@ NS = 1_000_000_000
 def nav_bag(tmp_path_factory):
     """Two SmartCarNav-v0 episodes (random actions, at most 30 steps each): the
     bag and the episodes as captured."""
-    from smartcar_gym.ros.bag_ros2 import Ros2BagSink
+    from smartcar_gym.bags.ros2 import Ros2BagSink
 
     path = tmp_path_factory.mktemp("ros2") / "nav"
     episodes = []
@@ -36,7 +36,7 @@ def nav_bag(tmp_path_factory):
 def _read(path):
     from rosbags.rosbag2 import Reader
 
-    from smartcar_gym.ros.bag_ros2 import typestore
+    from smartcar_gym.bags.ros2 import typestore
 
     store = typestore()
     with Reader(path) as reader:
@@ -176,9 +176,9 @@ def test_cli_names_the_extra_when_rosbags_is_missing(monkeypatch, capsys):
 
 
 def test_packed_cdr_is_byte_for_byte_what_rosbags_serialises(nav_bag):
-    from smartcar_gym.ros import cdr
-    from smartcar_gym.ros import messages as m
-    from smartcar_gym.ros.bag_ros2 import Ros2Types, typestore
+    from smartcar_gym.bags import cdr
+    from smartcar_gym.bags import messages as m
+    from smartcar_gym.bags.ros2 import Ros2Types, typestore
 
     store = typestore()
     types = Ros2Types(store)
@@ -221,7 +221,7 @@ def test_packed_cdr_is_byte_for_byte_what_rosbags_serialises(nav_bag):
 def test_close_is_idempotent_after_close_or_discard(nav_bag, tmp_path):
     """As ``RerunProcessSink.close``: a second ``close``, or ``close`` after ``discard``, does
     nothing (it raised rosbags' bare AssertionError)."""
-    from smartcar_gym.ros.bag_ros2 import Ros2BagSink
+    from smartcar_gym.bags.ros2 import Ros2BagSink
 
     _, episodes, _ = nav_bag
     kept = Ros2BagSink(tmp_path / "kept")

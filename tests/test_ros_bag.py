@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 import ros_needs
 
-from smartcar_gym.agents.evaluate import main as eval_main
+from smartcar_gym.agents.cli_eval import main as eval_main
 
 pytestmark = pytest.mark.skipif(
     importlib.util.find_spec("rosbags") is None or importlib.util.find_spec("mcap") is None,
@@ -42,7 +42,7 @@ def evaluated(tmp_path_factory):
 def _read_bag(path):
     from rosbags.rosbag1 import Reader
 
-    from smartcar_gym.ros.bag import typestore
+    from smartcar_gym.bags.ros1 import typestore
 
     store = typestore()
     with Reader(path) as reader:
@@ -173,7 +173,7 @@ def test_without_the_ros_extra_bag_says_which_extra():
                 if name.partition(".")[0] in ("rosbags", "mcap"):
                     raise ModuleNotFoundError(name)
         sys.meta_path.insert(0, Blocker())
-        from smartcar_gym.agents.evaluate import main
+        from smartcar_gym.agents.cli_eval import main
         main(["--pretrained", "--episodes", "1", "--bag", "x.bag"])
     """)
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,

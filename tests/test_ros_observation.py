@@ -17,9 +17,9 @@ import pytest
 
 from smartcar_gym.envs.observation import Readings
 from smartcar_gym.policy import Policy
-from smartcar_gym.ros import messages as m
+from smartcar_gym.bags import messages as m
 from smartcar_gym.ros.driving import GoalDriver
-from smartcar_gym.ros.settings import policy_settings
+from smartcar_gym.envs.policy_settings import policy_settings
 
 HAS_ROSBAGS = importlib.util.find_spec("rosbags") is not None
 
@@ -38,7 +38,7 @@ class WireTypes:
     """rosbags' ROS 1 messages, serialised and deserialised as on the wire."""
 
     def __init__(self) -> None:
-        from smartcar_gym.ros.bag import typestore
+        from smartcar_gym.bags.ros1 import typestore
 
         self.store = typestore()
         self.types = m.RosbagsTypes(self.store)

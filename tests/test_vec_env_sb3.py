@@ -12,7 +12,8 @@ from stable_baselines3.common.vec_env import DummyVecEnv
 
 import smartcar_gym  # noqa: F401
 from smartcar_gym.agents.env_factory import EnvSetupError
-from smartcar_gym.agents.vec_env import GymVectorVecEnv, make_batched_vec_env
+from smartcar_gym.agents.sb3_vec_env import GymVectorVecEnv
+from smartcar_gym.agents.vec_envs import make_batched_vec_env
 
 
 @pytest.mark.parametrize(("env_id", "n", "limit", "steps"),
@@ -57,7 +58,7 @@ def test_bad_batched_env_is_a_setup_error():
 
 @pytest.mark.slow
 def test_smartcar_train_batched_runs_and_records_it(tmp_path):
-    from smartcar_gym.agents.train import main
+    from smartcar_gym.agents.cli_train import main
 
     run = tmp_path / "run"
     code = main(["--env", "SmartCarSim-v0", "--vectorization", "batched", "--n-envs", "8",

@@ -18,7 +18,7 @@ from gymnasium.utils.env_checker import data_equivalence
 from gymnasium.vector import AutoresetMode
 
 import smartcar_gym  # noqa: F401
-from smartcar_gym.envs.vector.exact import planar_norms, wrap_angles
+from smartcar_gym.envs.exact import planar_norms, wrap_angles
 from tests import test_vector_batched, test_vector_goal_mujoco
 
 #: the stated bound on SmartCarSim-v0's pose yaw (docs/vector.md; measured up to 8.2e-7 rad)

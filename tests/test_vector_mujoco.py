@@ -157,7 +157,7 @@ def test_batched_mujoco_training_reads_its_own_preset():
 
 
 def test_sb3_adapter_on_the_mujoco_batch():
-    from smartcar_gym.agents.vec_env import make_batched_vec_env
+    from smartcar_gym.agents.vec_envs import make_batched_vec_env
 
     venv = make_batched_vec_env("SmartCar-v0", 4, seed=0, env_kwargs={"engine": "mujoco"})
     try:

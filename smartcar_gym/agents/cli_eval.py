@@ -48,6 +48,7 @@ from smartcar_gym.agents.episodes import (
 )
 from smartcar_gym.agents.hyperparams import ALGOS
 from smartcar_gym.agents.models import PRETRAINED_MODEL, PRETRAINED_POLICIES, load_model
+from smartcar_gym.agents.policies import Policy, PolicyError
 from smartcar_gym.agents.video import record_video
 from smartcar_gym.checks import distinct_figure
 from smartcar_gym.datasets.eval_options import (
@@ -56,7 +57,6 @@ from smartcar_gym.datasets.eval_options import (
     minari_steps,
     write_minari,
 )
-from smartcar_gym.policy import Policy, PolicyError
 from smartcar_gym.runtime.onnx_policy import is_onnx_path
 from smartcar_gym.sim.engines import DEFAULT_ENGINE, add_engine_argument
 
@@ -222,7 +222,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             parser.error(str(err))
         outputs: dict[str, Any] = {} if args.random else {"normaliser": vecnormalize or source}
         outputs.update(_close_recorders(recorders))
-        outputs.update(write_minari(args, policy, records, steps, env_id, env_kwargs))
+        outputs.update(write_minari(args, policy, records, steps, env_id, env_kwargs,
+                                    _reference_scores))
         summary = summarize(records)
         marks = check_marks(summary, args)
         if args.json is not None:
@@ -258,7 +259,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             n_frames = record_video(policy, args.video, n_episodes=args.video_episodes, **common)
             outputs[f"video ({n_frames} frames)"] = args.video
         if args.bag is not None and args.bag_format == "ros1":
-            from smartcar_gym.ros.bag import write_bag
+            from smartcar_gym.agents.bag import write_bag
 
             n_messages = write_bag(policy, args.bag, n_episodes=_recorded(args), **common)
             outputs[f"bag ({n_messages} messages)"] = args.bag
@@ -313,6 +314,13 @@ def _evaluate(args: argparse.Namespace, policy: Policy, recorders: list[Any],
     return records
 
 
+def _reference_scores(*args: Any) -> Any:
+    """``agents.references.reference_scores`` (imported when a dataset is written)."""
+    from smartcar_gym.agents.references import reference_scores
+
+    return reference_scores(*args)
+
+
 def check_marks(summary: dict[str, Any], args: argparse.Namespace) -> list[dict[str, Any]]:
     """The pass marks given (``--fail-under``, ``--max-final-distance``), each with its figure,
     whether it held and its line for the log."""
@@ -362,7 +370,7 @@ def _recorders(args: argparse.Namespace, stack: contextlib.ExitStack) -> list[An
             print(f"smartcar-eval: Rerun web viewer: {sink.web_url}", file=sys.stderr)
         recorders.append(sink)
     if args.bag is not None and args.bag_format == "ros2":
-        from smartcar_gym.ros.bag_ros2 import Ros2BagSink
+        from smartcar_gym.bags.ros2 import Ros2BagSink
 
         recorders.append(Ros2BagSink(args.bag, storage=args.bag_storage))
 
@@ -412,14 +420,14 @@ def check_outputs(parser: argparse.ArgumentParser, args: argparse.Namespace) -> 
             parser.error(f"--plot: cannot write {args.plot.suffix} images; use .png, .svg or "
                          ".pdf")
     if args.bag is not None and args.bag_format == "ros1":
-        from smartcar_gym.ros.bag import SUFFIXES, missing_library
+        from smartcar_gym.bags.ros1 import SUFFIXES, missing_library
 
         if args.bag.suffix not in SUFFIXES:
             parser.error(f"--bag: the file must end in .bag or .mcap, got {str(args.bag)!r}")
         if missing_library():
             parser.error(f"--bag: {missing_library()}")
     if args.bag is not None and args.bag_format == "ros2":
-        from smartcar_gym.ros.bag_ros2 import missing_library
+        from smartcar_gym.bags.ros2 import missing_library
 
         if missing_library():
             parser.error(f"--bag: {missing_library()}")

@@ -42,9 +42,9 @@ import gymnasium as gym
 import numpy as np
 
 from smartcar_gym.agents.env_factory import EnvSetupError
+from smartcar_gym.agents.policies import DEFAULT_ENV_ID, Policy, as_policy
 from smartcar_gym.agents.runner import Hooks, Job, ResetError, run_jobs
 from smartcar_gym.agents.vec_envs import make_batched_env, make_single_env_vector
-from smartcar_gym.policy import DEFAULT_ENV_ID, Policy, as_policy
 
 __all__ = ["DEFAULT_BATCH", "DEFAULT_ENV_ID", "RECORD_TOLERANCE", "EpisodeRecord",
            "ObservationShapeError", "RandomPolicy", "act_batch", "evaluate_batched_episodes",
@@ -212,6 +212,7 @@ def evaluate_policy_episodes(
     progress: bool = False,
     recorders: Sequence[Callable[[Any], None]] = (),
     steps: Any = None,
+    hooks: Sequence[Hooks] = (),
 ) -> list[EpisodeRecord]:
     """Run ``n_episodes`` complete episodes over ``n_envs`` envs; episode i uses seed seed+i.
 
@@ -225,7 +226,9 @@ def evaluate_policy_episodes(
     ``recorders`` (a Rerun recording, a ROS 2 bag: ``smartcar_gym.viewers``) are called with
     each finished ``Episode`` (scene and per-step frames, read in the workers), in episode
     order; recording only reads the simulator, so the episodes are the same with or without.
-    ``steps`` (a ``datasets.steps.EpisodeSteps``) gets every step, read from the vector env.
+    ``steps`` (a ``datasets.steps.EpisodeSteps``) gets every step, read from the vector env;
+    ``hooks`` (``runner.Hooks``) see every start, step and end in this process (a video's
+    frames, a bag's messages: with ``n_envs=1`` the env is in this process too).
     """
     policy = _policy(model, vecnormalize_path, n_episodes, n_envs, deterministic, seed)
     envs = make_single_env_vector(env_id, min(n_envs, n_episodes), env_kwargs,
@@ -245,7 +248,7 @@ def evaluate_policy_episodes(
         return actions
 
     return _episodes(envs, policy, env_id, n_episodes, seed, act, progress, "evaluating",
-                     collector, steps=steps)
+                     collector, steps=steps, hooks=hooks)
 
 
 def evaluate_batched_episodes(
@@ -343,7 +346,7 @@ def _policy(model: Any, vecnormalize_path: str | os.PathLike | None, n_episodes:
 def _episodes(envs: gym.vector.VectorEnv, policy: Policy, env_id: str, n_episodes: int,
               seed: int, act: Callable[..., np.ndarray], progress: bool,
               desc: str, collector: Any, check_resets: bool = False,
-              steps: Any = None) -> list[EpisodeRecord]:
+              steps: Any = None, hooks: Sequence[Hooks] = ()) -> list[EpisodeRecord]:
     """Episodes 0..n_episodes-1 (episode i seeded ``seed + i``) through the runner
     (``runner.run_jobs``) on ``envs`` (closed at the end), after checking the spaces; the
     records in episode order. ``act(obs, episode_of, steps)``: the cars' actions
@@ -358,11 +361,11 @@ def _episodes(envs: gym.vector.VectorEnv, policy: Policy, env_id: str, n_episode
 
             bar = tqdm(total=n_episodes, unit="episode", desc=desc, dynamic_ncols=True)
         tracks = _Tracks(envs.num_envs, _step_s(envs.metadata), bar)
-        hooks: list[Hooks] = [tracks]
+        every: list[Hooks] = [tracks, *hooks]
         if steps is not None:
-            hooks.append(_StepsHook(steps))
+            every.append(_StepsHook(steps))
         if collector is not None:
-            hooks.append(_CaptureHook(collector))
+            every.append(_CaptureHook(collector))
 
         def by_episode(obs: Any, running: list[Job | None], steps: np.ndarray) -> np.ndarray:
             episode_of = np.array([-1 if job is None else job.episode for job in running])
@@ -370,7 +373,7 @@ def _episodes(envs: gym.vector.VectorEnv, policy: Policy, env_id: str, n_episode
 
         jobs = [Job(i, seed + i) for i in range(n_episodes)]
         try:
-            run_jobs(envs, jobs, by_episode, hooks, check_resets)
+            run_jobs(envs, jobs, by_episode, every, check_resets)
         except ResetError as err:
             raise EnvSetupError(f"{env_id}'s {err}, which --vectorization batched needs"
                                 ) from err

@@ -55,9 +55,12 @@ class ResetError(ValueError):
 
 
 def run_jobs(envs: gym.vector.VectorEnv, jobs: Sequence[Job], act: Act,
-             hooks: Sequence[Hooks] = (), check_resets: bool = False) -> None:
+             hooks: Sequence[Hooks] = (), check_resets: bool = False,
+             stop: Callable[[], bool] | None = None) -> None:
     """Run every job on the cars of ``envs`` (see the module); ``check_resets``: one line
-    (``ResetError``) if the vector env resets other cars than it is asked to."""
+    (``ResetError``) if the vector env resets other cars than it is asked to; ``stop``:
+    asked after every step, True ends the run there (the jobs running are left as they
+    are)."""
     n = envs.num_envs
     queue = list(jobs)
     running: list[Job | None] = [None] * n
@@ -81,6 +84,8 @@ def run_jobs(envs: gym.vector.VectorEnv, jobs: Sequence[Job], act: Act,
         cars = np.flatnonzero(active)
         for hook in hooks:
             hook.step(cars, actions, obs, reward, terminated, truncated, info)
+        if stop is not None and stop():
+            return
         done = active & (terminated | truncated)
         if not done.any():
             continue
@@ -135,7 +140,7 @@ def _partial_reset(envs: gym.vector.VectorEnv, running: list[Job | None], new: l
     options = _options(running, new, mask)
     if not check:
         return envs.reset(seed=seeds, options=options)
-    what = (f"the vector env ({type(envs.unwrapped).__name__}) cannot reset single cars "
+    what = (f"vector env ({type(envs.unwrapped).__name__}) cannot reset single cars "
             "(reset(options={'reset_mask': mask}), Gymnasium's partial reset)")
     try:
         obs, info = envs.reset(seed=seeds, options=options)

@@ -166,7 +166,7 @@ def _driver(args: argparse.Namespace) -> tuple[Any, str, dict[str, Any]]:
         name = args.driver or "dwa"
         return make_driver(name), name, {}
     from smartcar_gym.agents.models import PRETRAINED_POLICIES
-    from smartcar_gym.policy import Policy, PolicyError
+    from smartcar_gym.agents.policies import Policy, PolicyError
 
     if args.pretrained is not None and args.pretrained not in PRETRAINED_POLICIES:
         raise DriverError(f"--pretrained: no shipped policy {args.pretrained!r}; the shipped "

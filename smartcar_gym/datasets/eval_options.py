@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import time
+from collections.abc import Callable
 from typing import Any
 
 from smartcar_gym.datasets.steps import EpisodeSteps
@@ -55,12 +56,14 @@ def _policy_names(args: argparse.Namespace, policy: Any) -> tuple[str, str]:
 
 
 def write_minari(args: argparse.Namespace, policy: Any, records: list[Any],
-                 steps: EpisodeSteps | None, env_id: str,
-                 env_kwargs: dict[str, Any]) -> dict[str, Any]:
-    """Write the dataset (with ``--minari``); the summary table's line for it."""
+                 steps: EpisodeSteps | None, env_id: str, env_kwargs: dict[str, Any],
+                 reference_scores: Callable[..., Any]) -> dict[str, Any]:
+    """Write the dataset (with ``--minari``); the summary table's line for it.
+    ``reference_scores(env_id, env_kwargs, seed, returns, source)`` measures its reference
+    scores (``agents.references``)."""
     if steps is None:
         return {}
-    from smartcar_gym.datasets.minari_writer import reference_scores, write_dataset
+    from smartcar_gym.datasets.minari_writer import write_dataset
 
     label, source = _policy_names(args, policy)
     started = time.perf_counter()

@@ -15,21 +15,19 @@ made the dataset. ``check_dataset_id`` refuses a malformed id or an existing one
 from __future__ import annotations
 
 import dataclasses
-import json
 import shutil
 import warnings
 from collections.abc import Sequence
 from importlib import metadata as package_metadata
-from importlib import resources
 from typing import Any
 
 import gymnasium as gym
-import numpy as np
 
 from smartcar_gym.datasets.steps import EpisodeSteps
+from smartcar_gym.sim.engines import DEFAULT_ENGINE, get_engine
 
 __all__ = ["MINARI_EXTRA", "REFERENCE_EPISODES", "References", "check_dataset_id",
-           "missing_minari", "reference_scores", "shipped_reference", "write_dataset"]
+           "missing_minari", "write_dataset"]
 
 MINARI_EXTRA = 'pip install "smartcar-gym[minari]"'
 #: episodes (the first seeds of the evaluation's) each reference score is averaged over
@@ -66,26 +64,6 @@ def check_dataset_id(dataset_id: str, overwrite: bool = False) -> str | None:
     return None
 
 
-def shipped_reference(env_id: str, env_kwargs: dict[str, Any]) -> str | None:
-    """The shipped policy that stands for the best score on ``env_id`` with ``env_kwargs``:
-    among those trained on ``env_id`` (their ``provenance.json``), the one whose env kwargs
-    are the most of ``env_kwargs`` (``default`` on SmartCar-v0, ``mujoco`` with
-    ``engine="mujoco"``, ``robust`` with ``randomize="default"``); None if none is."""
-    from smartcar_gym.agents.models import PRETRAINED_POLICIES
-
-    best, best_size = None, -1
-    place = resources.files("smartcar_gym") / "pretrained"
-    for name, folder in PRETRAINED_POLICIES.items():
-        provenance = json.loads(((place / folder) if folder else place)
-                                .joinpath("provenance.json").read_text())
-        trained = provenance.get("env_kwargs") or {}
-        if provenance.get("env") != env_id:
-            continue
-        if all(env_kwargs.get(k) == v for k, v in trained.items()) and len(trained) > best_size:
-            best, best_size = name, len(trained)
-    return best
-
-
 @dataclasses.dataclass
 class References:
     """The reference scores (None where not measured) and what they come from."""
@@ -97,44 +75,9 @@ class References:
     note: str
 
 
-def reference_scores(env_id: str, env_kwargs: dict[str, Any], seed: int,
-                     returns: Sequence[float], policy_source: str) -> References:
-    """Random and shipped policies' mean returns over seeds ``seed..seed+n-1`` (``n``: the
-    evaluation's episodes, at most ``REFERENCE_EPISODES``), run as a batch. ``returns`` are
-    the evaluation's, reused when ``policy_source`` is the reference policy itself
-    (``pretrained:NAME``). The shipped policy needs the ``train`` extra; without it only
-    the random score is measured, and neither is stored (Minari takes both or none)."""
-    from smartcar_gym.agents.episodes import RandomPolicy, evaluate_batched_episodes
-    from smartcar_gym.policy import Policy, PolicyError
-
-    n = min(len(returns), REFERENCE_EPISODES)
-    name = shipped_reference(env_id, env_kwargs)
-    if name is None:
-        return References(None, None, n, None, f"no shipped policy is trained on {env_id}, "
-                          "so no reference scores")
-    common = dict(env_id=env_id, n_episodes=n, seed=seed, env_kwargs=env_kwargs)
-
-    def mean_return(policy: Policy) -> float:
-        return float(np.mean([r.episode_return
-                              for r in evaluate_batched_episodes(policy, **common)]))
-
-    if policy_source == f"pretrained:{name}":
-        high = float(np.mean(returns[:n]))
-    else:
-        try:
-            high = mean_return(Policy.load(name, env_kwargs=env_kwargs))
-        except (ImportError, PolicyError) as err:
-            return References(None, None, n, name, f"no reference scores: the shipped policy "
-                              f"{name} could not be loaded ({err})")
-    random = Policy(RandomPolicy(seed), algo="random", env_id=env_id, env_kwargs=env_kwargs)
-    return References(mean_return(random), high, n, name, "")
-
-
 def _description(n: int, policy: str, algo: str | None, env_id: str, env_kwargs: dict,
                  seed: int, deterministic: bool, vectorization: str,
                  references: References) -> str:
-    from smartcar_gym.sim.engines import DEFAULT_ENGINE
-
     engine = env_kwargs.get("engine") or DEFAULT_ENGINE
     kwargs = ", ".join(f"{k}={v!r}" for k, v in sorted(env_kwargs.items())) or "none"
     seeds = f"seed {seed}" if n == 1 else f"seeds {seed}..{seed + n - 1}"
@@ -184,8 +127,7 @@ def write_dataset(dataset_id: str, episodes: Sequence[EpisodeSteps.Episode], *, 
                              infos={key: ep.infos[key] for key in keys})
                for ep in episodes]
     requirements = [f"smartcar-gym=={package_metadata.version('smartcar-gym')}"]
-    if env_kwargs.get("engine") == "mujoco":
-        requirements.append("mujoco>=3.10")
+    requirements += get_engine(env_kwargs.get("engine") or DEFAULT_ENGINE).requirements
     with warnings.catch_warnings():  # a contact beyond the project's page: none to give
         warnings.filterwarnings("ignore", message="`author_email` is set to None")
         return minari.create_dataset_from_buffers(

@@ -13,6 +13,7 @@ from smartcar_gym.controller import ArbotixConfig
 from smartcar_gym.sim.clock import check_max_substep
 from smartcar_gym.sim.engines import (
     DEFAULT_ENGINE,
+    Engine,
     default_max_substep,
     engine_kwargs,
     substep_range,
@@ -34,20 +35,20 @@ class RenderModes(list):
         return not isinstance(item, str) or super().__contains__(item)
 
 
-def render_modes(engine: str, render_mode: Any) -> RenderModes:
+def render_modes(engine: Engine, render_mode: Any) -> RenderModes:
     """The modes ``engine`` supports here: without a window (MuJoCo's viewer on macOS outside
     mjpython), only "rgb_array"; asking for "human" then says why."""
     why = window_unavailable(engine)
     if why is None:
         return RenderModes(["human", "rgb_array"])
     if render_mode == "human":
-        raise ValueError(f"render_mode='human' is not available with engine={engine!r} here: "
+        raise ValueError(f"render_mode='human' is not available with engine={engine.name!r} here: "
                          f"{why}; use render_mode='rgb_array'")
     return RenderModes(["rgb_array"])
 
 
 def max_substep(max_substep_s: float | None, physics_hz: float | None,
-                engine: str = DEFAULT_ENGINE) -> float:
+                engine: Engine | str = DEFAULT_ENGINE) -> float:
     """The longest physics substep (s): ``max_substep_s``, the deprecated ``physics_hz``'s
     period, or the engine's default."""
     if physics_hz is None:

@@ -40,7 +40,7 @@ from smartcar_gym.envs.world import World
 from smartcar_gym.model import RobotModel, load_model
 from smartcar_gym.model.contact import check_wheel_contact
 from smartcar_gym.sim.contracts import window_of
-from smartcar_gym.sim.engines import DEFAULT_ENGINE, check_engine, engine_options, get_engine
+from smartcar_gym.sim.engines import DEFAULT_ENGINE, engine_options, get_engine
 
 _ONE = np.zeros(1, dtype=np.int64)  # the single env's car, as a task's list of cars
 
@@ -196,12 +196,16 @@ class SmartCarEnv(gym.Env):
         self.env_name = next(iter(entry.ids))
         given, task_kwargs = split_keywords(self.env_name, kwargs, own_keywords(
             task_class.__init__), own_keywords(SmartCarEnv.__init__))
-        self.engine = DEFAULT_ENGINE if engine is None else check_engine(engine)
-        self.metadata = {**self.metadata, "render_modes": render_modes(self.engine, render_mode)}
+        #: the engine's description (``sim.engines.Engine``), resolved once and passed on
+        self.engine_spec = get_engine(DEFAULT_ENGINE if engine is None else engine)
+        #: the engine's registered name
+        self.engine = self.engine_spec.name
+        spec = self.engine_spec
+        self.metadata = {**self.metadata, "render_modes": render_modes(spec, render_mode)}
         checks.one_of("render_mode", render_mode, list(self.metadata["render_modes"]),
                       none_ok=True)
         #: the env keywords only this env's engine takes, resolved for the robot below
-        self.engine_options = engine_options(self.engine, given)
+        self.engine_options = engine_options(spec, given)
         checks.one_of("controller_mode", controller_mode, MODES, none_ok=True)
         self.render_mode = render_mode
         self.wheel_contact = check_wheel_contact(wheel_contact)
@@ -210,7 +214,7 @@ class SmartCarEnv(gym.Env):
         self.draw: Draw | None = None
         self.max_linear = checks.positive_number("max_linear", max_linear)
         self.max_angular = checks.positive_number("max_angular", max_angular)
-        self.max_substep_s = max_substep(max_substep_s, physics_hz, self.engine)
+        self.max_substep_s = max_substep(max_substep_s, physics_hz, spec)
         size = f"rgb_array images are at most {MAX_RENDER_PX} px a side"
         self.render_width = checks.positive_int("render_width", render_width, MAX_RENDER_PX, size)
         self.render_height = checks.positive_int("render_height", render_height, MAX_RENDER_PX,
@@ -224,7 +228,7 @@ class SmartCarEnv(gym.Env):
         self.controller_config = (controller_config if isinstance(controller_config, ArbotixConfig)
                                   else load_controller_config(controller_config))
         check_tick_targets(self.controller_config, self.max_linear, self.max_angular)
-        self.engine_options = engine_options(self.engine, given, self.robot_model)
+        self.engine_options = engine_options(spec, given, self.robot_model)
         if controller_mode is None:  # as the driver: its `sim` parameter picks the mode
             controller_mode = KINEMATIC if self.controller_config.kinematic else HARDWARE
         self.controller_mode = controller_mode
@@ -237,13 +241,13 @@ class SmartCarEnv(gym.Env):
                                    self.engine))
         self.task.attach(1)
         self._declare()
-        self.world = World(self.engine, self.max_substep_s, self.engine_options,
+        self.world = World(spec, self.max_substep_s, self.engine_options,
                            self.robot_model, self.controller_config, controller_mode,
                            self.wheel_contact, render_mode,
                            getattr(self.task, "goal_tolerance_m", 0.1))
         self._open()
         try:
-            if get_engine(self.engine).spawn_check:
+            if spec.spawn_check:
                 self.world.check()
         except BaseException:  # a refused robot leaves no world behind
             self.close()

@@ -21,7 +21,7 @@ from smartcar_gym.envs.state import SCAN, SCAN_TIME, CarState
 from smartcar_gym.envs.tasks.obstacles import Obstacle
 from smartcar_gym.model import RobotModel
 from smartcar_gym.model.footprint import footprint_radius
-from smartcar_gym.sim.engines import make_simulator
+from smartcar_gym.sim.engines import Engine, make_simulator
 from smartcar_gym.sim.markers import SceneMarkers
 from smartcar_gym.sim.obstacles import add_obstacle, nearest_distance
 
@@ -32,7 +32,7 @@ class World:
     """A simulator of ``engine`` with one robot (see the module). ``open`` makes the
     simulator, ``close`` frees it; ``spawn`` starts an episode's world."""
 
-    def __init__(self, engine: str, max_substep_s: float, engine_options: dict[str, Any],
+    def __init__(self, engine: Engine, max_substep_s: float, engine_options: dict[str, Any],
                  robot_model: RobotModel, controller_config: ArbotixConfig,
                  controller_mode: str, wheel_contact: str, render_mode: str | None,
                  goal_tolerance_m: float) -> None:

@@ -90,9 +90,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.error(f"onnx not installed; {PROG} needs the onnx extra: {ONNX_EXTRA}")
     if args.output.suffix.lower() != ".onnx":
         parser.error(f"-o: the file must end in .onnx, got {str(args.output)!r}")
+    from smartcar_gym.agents.policies import Policy, PolicyError
     from smartcar_gym.export.checks import check_actions
     from smartcar_gym.export.onnx_graph import ExportError
-    from smartcar_gym.policy import Policy, PolicyError
 
     try:
         policy = Policy.load(args.model or args.pretrained, algo=args.algo, env_id=args.env_id,

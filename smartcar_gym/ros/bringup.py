@@ -17,9 +17,9 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from smartcar_gym.bags import messages as m
 from smartcar_gym.controller import ArbotixConfig
 from smartcar_gym.envs.robots.smartcar import SmartCarRobot
-from smartcar_gym.ros import messages as m
 from smartcar_gym.ros.timing import Pacer, Schedule, Stream, period_ns
 from smartcar_gym.sim.clock import NS_PER_S
 from smartcar_gym.sim.engines import DEFAULT_ENGINE, make_simulator

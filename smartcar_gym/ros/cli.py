@@ -288,8 +288,8 @@ def _policy(parser: argparse.ArgumentParser, args: argparse.Namespace,
 
     if not is_onnx_path(args.model):  # an exported .onnx runs without torch
         require_train_extra(f"{PROG} policy", POLICY_MODULES)
+    from smartcar_gym.agents.policies import Policy, PolicyError
     from smartcar_gym.model import ModelError
-    from smartcar_gym.policy import Policy, PolicyError
     from smartcar_gym.ros.driving import GoalDriver
     from smartcar_gym.ros.policy import PolicyNode
 

@@ -28,9 +28,9 @@ from typing import Any
 
 import numpy as np
 
+from smartcar_gym.bags import messages as m
+from smartcar_gym.envs.policy_settings import PolicySettings
 from smartcar_gym.envs.state import CarState
-from smartcar_gym.ros import messages as m
-from smartcar_gym.ros.settings import PolicySettings
 
 STOP = (0.0, 0.0)
 

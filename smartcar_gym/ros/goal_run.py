@@ -25,12 +25,12 @@ from typing import Any
 
 import numpy as np
 
+from smartcar_gym.bags import messages as m
 from smartcar_gym.controller import load_controller_config
+from smartcar_gym.envs.policy_settings import PolicySettings
 from smartcar_gym.model import load_model
-from smartcar_gym.ros import messages as m
 from smartcar_gym.ros.bringup import start_robot
 from smartcar_gym.ros.driving import GoalDriver
-from smartcar_gym.ros.settings import PolicySettings
 from smartcar_gym.sim.clock import NS_PER_S
 
 ARENA_MARGIN_M = 0.3  # goals are kept this far inside the arena the policy was trained in

@@ -14,7 +14,7 @@ import threading
 import time
 from typing import Any
 
-from smartcar_gym.ros import messages as m
+from smartcar_gym.bags import messages as m
 from smartcar_gym.ros.driving import Command, GoalDriver
 
 JOINT_WAIT_S = 0.02  # wall seconds to wait for the joint states stamped with the odometry

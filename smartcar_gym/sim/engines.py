@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import importlib.util
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from importlib.metadata import entry_points
@@ -59,6 +60,9 @@ class Engine:
     batches_differential: bool = False
     module: str | None = None
     extra: str | None = None
+    #: the pip requirements a world of it needs beyond smartcar-gym (what a dataset recorded
+    #: on it lists)
+    requirements: tuple[str, ...] = ()
     summary: str = ""
 
     def __post_init__(self) -> None:
@@ -68,6 +72,10 @@ class Engine:
         if not 0 < low <= self.max_substep_s <= high:
             raise ValueError(f"engine {self.name!r}: max_substep_s {self.max_substep_s} is not in "
                              f"its substep_range_s {self.substep_range_s}")
+
+    def __reduce__(self) -> tuple[Any, tuple[str]]:
+        """A copy (pickle, deepcopy) is the engine registered by this name."""
+        return get_engine, (self.name,)
 
     def missing(self, exc: ModuleNotFoundError) -> ImportError:
         """The error for a world of this engine whose library is not installed."""
@@ -135,12 +143,19 @@ def engine_kwargs() -> set[str]:
     return {key for engine in _REGISTRY.values() for key in engine.kwargs}
 
 
-def engine_options(engine: str, given: dict[str, Any], model: Any = None) -> dict[str, Any]:
+def resolve(engine: str | Engine) -> Engine:
+    """``engine`` as its description: an ``Engine`` itself, or the one registered by that
+    name (ValueError listing the engines)."""
+    return engine if isinstance(engine, Engine) else get_engine(engine)
+
+
+def engine_options(engine: str | Engine, given: dict[str, Any],
+                   model: Any = None) -> dict[str, Any]:
     """The env keywords only some engine takes (``given``: name -> value, None where not
     given), for a world of ``engine`` and the robot ``model``: each of ``engine``'s own
     resolved by its ``kwargs`` function (None included: its default for that robot);
     ValueError for a value given for another engine's."""
-    spec = get_engine(engine)
+    spec = resolve(engine)
     for key, value in given.items():
         if value is not None and key not in spec.kwargs:
             owner = next((e.name for e in _REGISTRY.values() if key in e.kwargs), None)
@@ -148,7 +163,7 @@ def engine_options(engine: str, given: dict[str, Any], model: Any = None) -> dic
                 raise ValueError(f"{key} is no engine's keyword; the engines' keywords are "
                                  f"{sorted(engine_kwargs())}")
             raise ValueError(f"{key} is the {owner} engine's; pass engine={owner!r} "
-                             f"(engine is {engine!r})")
+                             f"(engine is {spec.name!r})")
     return {key: resolve(given.get(key), model) for key, resolve in spec.kwargs.items()}
 
 
@@ -160,28 +175,50 @@ def on_engine(env_kwargs: dict[str, Any], engine: str) -> dict[str, Any]:
     return {**{k: v for k, v in env_kwargs.items() if k not in others}, "engine": engine}
 
 
-def default_max_substep(engine: str) -> float:
+def available(engine: str) -> bool:
+    """Whether ``engine``'s library is installed (an engine without one always is)."""
+    module = get_engine(engine).module
+    if module is None:
+        return True
+    try:
+        return importlib.util.find_spec(module) is not None
+    except (ImportError, ValueError):
+        return False
+
+
+def batch_engine(preferred: str | None = None) -> str:
+    """An installed engine with a car batch: ``preferred`` where it is one, else the first
+    registered; ValueError if none is."""
+    names = [n for n in engine_names() if get_engine(n).car_batch is not None and available(n)]
+    if not names:
+        raise ValueError("no installed engine has a car batch (Engine.car_batch)")
+    return preferred if preferred in names else names[0]
+
+
+def default_max_substep(engine: str | Engine) -> float:
     """The longest physics substep (s) ``engine`` steps by default."""
-    return get_engine(engine).max_substep_s
+    return resolve(engine).max_substep_s
 
 
-def substep_range(engine: str) -> tuple[float, float]:
+def substep_range(engine: str | Engine) -> tuple[float, float]:
     """The substeps (s) ``engine`` accepts as ``max_substep_s``."""
-    return get_engine(engine).substep_range_s
+    return resolve(engine).substep_range_s
 
 
-def window_unavailable(engine: str) -> str | None:
+def window_unavailable(engine: str | Engine) -> str | None:
     """Why a world of ``engine`` cannot open a window (``render_mode="human"``) in this
     process at all; None where it can, given a display."""
-    return get_engine(engine).window_unavailable()
+    return resolve(engine).window_unavailable()
 
 
-def make_simulator(engine: str = DEFAULT_ENGINE, draws: bool = True, **options: Any) -> Any:
+def make_simulator(engine: str | Engine = DEFAULT_ENGINE, draws: bool = True,
+                   **options: Any) -> Any:
     """A new simulator of ``engine`` with the simulator keywords (``max_substep_s``, ``gui``,
     ``gravity_m_s2``, ``ground_friction``, ...); keywords only another engine takes (a None
     ``planar_params`` on pybullet) are dropped. ``draws=False``: nothing will draw the world,
-    and an engine that can (``Engine.skips_drawing``) leaves out what is only drawn."""
-    spec = get_engine(engine)
+    and an engine that can (``Engine.skips_drawing``) leaves out what is only drawn.
+    ``engine``: a registered name or its ``Engine``."""
+    spec = resolve(engine)
     for key in engine_kwargs() - set(spec.kwargs):
         options.pop(key, None)
     if not draws and spec.skips_drawing:

@@ -8,7 +8,7 @@
   ``smartcar-eval --rerun`` uses: the evaluating process never imports ``rerun``).
 
 ``smartcar_gym.wrappers.RerunRecorder`` records any loop; ``smartcar-eval --rerun`` the
-evaluation. ROS 2 bags are written by ``smartcar_gym.ros.bag_ros2`` from the same episodes.
+evaluation. ROS 2 bags are written by ``smartcar_gym.bags.ros2`` from the same episodes.
 """
 
 from __future__ import annotations

@@ -23,7 +23,7 @@ from smartcar_gym.envs.robots.entries import (
     robot_entries,
 )
 from smartcar_gym.envs.tasks.base import Cars, Score
-from smartcar_gym.envs.tasks.reach import FLIP_UP_Z, ReachTask
+from smartcar_gym.envs.tasks.reach import CARD_WHEELS, FLIP_UP_Z, ReachTask, card_table
 
 REWARD_TYPES = ("sparse", "dense")
 FLIPPED = "flipped"  # the info key that says the car is on its side or roof
@@ -217,3 +217,8 @@ class GoalTask(ReachTask):
         return {**super().info(cars, success),
                 "is_success": np.where(self._just_reset, self._reset_success, success),
                 FLIPPED: self._flipped.copy()}
+
+
+GoalTask.__doc__ = GoalTask.__doc__.replace("{observation_table}", card_table(Observation.compose(
+    GOAL_OBSERVATION_ORDER, robot_entries(CARD_WHEELS, 5.0), [previous_action_entry()]))
+).replace("{goal_table}", card_table(Observation(goal_entries(5.0))))

@@ -29,7 +29,7 @@ from smartcar_gym.envs.tasks.obstacles import (
     clearance,
     read_layout,
 )
-from smartcar_gym.envs.tasks.reach import OBSERVATION_ORDER, ReachTask
+from smartcar_gym.envs.tasks.reach import CARD_WHEELS, OBSERVATION_ORDER, ReachTask, card_table
 from smartcar_gym.model.footprint import footprint_radius
 
 #: SmartCar-v0's rows, then the scan
@@ -333,3 +333,7 @@ class NavTask(ReachTask):
     def info(self, cars: Cars, success: np.ndarray) -> dict[str, np.ndarray]:
         return {**super().info(cars, success), "collision": self.collision.copy(),
                 "clearance": self.clearance.copy()}
+
+
+NavTask.__doc__ = NavTask.__doc__.replace("{observation_table}", card_table(NavTask().compose(
+    NAV_OBSERVATION_ORDER, [scan_entry(LaserConfig(), 36)], wheel_joints=CARD_WHEELS)))

@@ -32,7 +32,13 @@ OBSERVATION_ORDER = (
 
 
 class ReachTask(Task):
-    """## Observation Space
+    """## Description
+
+    SmartCar-v0's task: drive base_link to within ``goal_tolerance`` of a goal on the ground,
+    drawn 0.5-1.5 m away, on odometry and the wheel joint states alone (the observation holds
+    no ground truth).
+
+    ## Observation Space
 
     ``Box(low, high, (21,), float32)`` with finite bounds (values are clipped into them):
 
@@ -134,11 +140,14 @@ class ReachTask(Task):
     def declare(self) -> Observation:
         return self.compose(OBSERVATION_ORDER)
 
-    def compose(self, order: Sequence[str], *more: Sequence[Entry]) -> Observation:
-        """The entries of the robot, the goal, the previous action and ``more``, in ``order``."""
+    def compose(self, order: Sequence[str], *more: Sequence[Entry],
+                wheel_joints: Sequence[str] | None = None) -> Observation:
+        """The entries of the robot (its ``wheel_joints``: the bound car's by default), the
+        goal, the previous action and ``more``, in ``order``."""
         bound = 2 * self.arena_half_size_m
-        return Observation.compose(order, robot_entries(self.car.wheel_joints, bound),
-                                   self.goal_entries(), [previous_action_entry()], *more)
+        wheels = self.car.wheel_joints if wheel_joints is None else wheel_joints
+        return Observation.compose(order, robot_entries(wheels, bound), self.goal_entries(),
+                                   [previous_action_entry()], *more)
 
     def goal_entries(self) -> list[Entry]:
         """The goal as the robot sees it through odometry (A = ``arena_half_size_m``)."""
@@ -283,3 +292,17 @@ class ReachTask(Task):
                                   axis=1),
             "odom_error": planar_norms(odometry[:, 0] - pose[:, 0], odometry[:, 1] - pose[:, 1]),
         }
+
+
+#: the shipped car's wheels, as the cards' tables name them
+CARD_WHEELS = ("lf", "lb", "rf", "rb")
+
+
+def card_table(observation: Observation) -> str:
+    """An observation's table as a card (a docstring) shows it, indented."""
+    return observation.table().replace("\n", "\n    ")
+
+
+ReachTask.__doc__ = ReachTask.__doc__.replace(
+    "{observation_table}", card_table(ReachTask().compose(OBSERVATION_ORDER,
+                                                          wheel_joints=CARD_WHEELS)))

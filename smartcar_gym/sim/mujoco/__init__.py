@@ -67,5 +67,6 @@ ENGINE = Engine(
     batches_differential=False,  # a differential-drive model starts its encoders mid-tick
     module="mujoco",
     extra=EXTRA,
+    requirements=("mujoco>=3.10",),
     summary=f"needs the extra: {EXTRA}",
 )

@@ -133,10 +133,12 @@ class BarnTask(NavTask):
     pillars = True  # 0.3 m cylinders: on pybullet capsules, their scans 2.6x faster
 
     def __init__(self, world_file: str | os.PathLike | None = None, lookahead: float = 0.5,
-                 collision_penalty: float = 10.0,
+                 collision_penalty: float = 10.0, proximity_penalty: float = 0.0,
+                 proximity_m: float = 0.3,
                  laser: Mapping[str, Any] | LaserConfig | None = None,
                  laser_mount: Sequence[float] | None = None, scan_sectors: int = 36,
-                 progress: str = "goal", localize: bool = False) -> None:
+                 progress: str = "goal", localize: bool = False,
+                 stop_speed: float | None = None) -> None:
         if not (checks.is_real(lookahead) and np.isfinite(lookahead) and lookahead > 0):
             raise ValueError(f"lookahead must be a distance > 0 m, got {lookahead!r}")
         self.worlds = load_worlds(world_file)
@@ -152,8 +154,10 @@ class BarnTask(NavTask):
         self.planned_paths: dict[int, np.ndarray] = {}
         # the reaching task's goal and arena come from the protocol, once the car is known
         super().__init__(obstacles=0, obstacle_clearance=0.0,
-                         collision_penalty=collision_penalty, laser=laser,
-                         laser_mount=laser_mount, scan_sectors=scan_sectors)
+                         collision_penalty=collision_penalty,
+                         proximity_penalty=proximity_penalty, proximity_m=proximity_m,
+                         laser=laser, laser_mount=laser_mount, scan_sectors=scan_sectors,
+                         stop_speed=stop_speed)
 
     def bind(self, car: CarSettings) -> None:
         """The protocol for this car (its width and top speed), then Nav's settings."""

@@ -21,8 +21,8 @@ from smartcar_gym.envs.settings import own_keywords
 from smartcar_gym.envs.smartcar_env import SmartCarEnv
 from smartcar_gym.envs.tasks.base import CarSettings
 from smartcar_gym.envs.tasks.reach import ReachTask
+from smartcar_gym.envs.tasks.registry import ENTRY_POINT
 from smartcar_gym.model import RobotModel, load_model
-from smartcar_gym.registration import ENTRY_POINT
 from smartcar_gym.sim.engines import engine_kwargs
 
 #: the task the node drives: reaching a goal on the plane

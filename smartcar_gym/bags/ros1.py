@@ -1,7 +1,9 @@
 """Evaluated episodes as a ROS 1 bag (``.bag``) or an MCAP file (``.mcap``), without ROS.
 
 ``smartcar-eval --bag FILE`` runs the evaluation's episodes (episode ``i`` with seed
-``seed + i``: the same episodes, step for step) in one env and writes, per controller period,
+``seed + i``: the same episodes, step for step) in one env through the episode runner
+(``agents.bag.write_bag``), and ``BagRecorder``, a hook of the runner, writes per controller
+period
 what the bringup node would publish: ``/odom``, ``/tf``, ``/joint_states``,
 ``/base_pose_ground_truth``, and the ``/cmd_vel`` sent, plus each episode's goal on
 ``/move_base_simple/goal``. Stamps are simulated time: episode ``i`` starts
@@ -21,14 +23,11 @@ import os
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
-from smartcar_gym.ros import messages as m
-
-if TYPE_CHECKING:
-    from smartcar_gym.policy import Policy
+from smartcar_gym.bags import messages as m
 
 ROS_EXTRA = 'pip install "smartcar-gym[ros]"'
 SUFFIXES = (".bag", ".mcap")
@@ -159,55 +158,40 @@ def _state(writer: EpisodeWriter, types: m.RosbagsTypes, env: Any, time_ns: int)
     writer.write(f"/{m.GROUND_TRUTH_TOPIC}", truth, time_ns)
 
 
-def write_bag(
-    model: Policy | Any,
-    out_path: str | os.PathLike,
-    env_id: str,
-    n_episodes: int,
-    seed: int = 0,
-    env_kwargs: dict[str, Any] | None = None,
-    deterministic: bool = True,
-    vecnormalize_path: str | os.PathLike | None = None,
-) -> int:
-    """Run episodes 0..n-1 (seeds ``seed + i``) and write them to ``out_path``; returns the
-    number of messages written. ``model``: a ``smartcar_gym.policy.Policy``, or an SB3-like
-    model with the statistics at ``vecnormalize_path`` (as for ``evaluate_policy_episodes``)."""
-    from smartcar_gym.agents.env_factory import make_env
-    from smartcar_gym.policy import as_policy
+class BagRecorder:
+    """A hook of the episode runner (``agents.runner.Hooks``: ``begin``, ``step``, ``end``)
+    that writes a single env's episodes to ``writer``: each episode's goal and the state at
+    its reset, then per step the ``/cmd_vel`` sent and the state after it; the next episode
+    starts ``EPISODE_GAP_S`` after one ends. The env must be in this process (a vector env of
+    one single env: ``envs.envs[0]``)."""
 
-    policy = as_policy(model, vecnormalize_path)
-    # a random policy draws each episode's own actions (seeded by the episode, as the scored
-    # episodes are: agents.episodes.RandomPolicy)
-    episodic = getattr(policy.model, "act_episodes", None)
-    env = make_env(env_id, env_kwargs)
-    base = env.unwrapped
-    if not all(hasattr(base, name) for name in ("robot", "sim", "goal", "max_linear")):
-        env.close()
-        raise ValueError(f"--bag records SmartCarEnv episodes; {env_id} is a "
-                         f"{type(base).__name__}")
-    scale = np.array([base.max_linear, base.max_angular])
-    offset_ns = round(START_S * m.NS_PER_S)
-    try:
-        with episode_writer(out_path) as writer:
-            types = m.RosbagsTypes(writer.store)
-            for i in range(n_episodes):
-                obs, _ = env.reset(seed=seed + i)
-                frame = base.robot.odometry.frame_id
-                writer.write("/move_base_simple/goal",
-                             m.goal_message(types, base.goal, offset_ns, frame), offset_ns)
-                _state(writer, types, base, offset_ns)
-                done, step = False, 0
-                while not done:
-                    action = (episodic(np.array([i]), np.array([step]))[0] if episodic
-                              else policy.act(obs, deterministic))
-                    step += 1
-                    linear, angular = np.clip(action.astype(np.float64), -1.0, 1.0) * scale
-                    sent_ns = offset_ns + base.sim.now_ns + COMMAND_LAG_NS
-                    writer.write("/cmd_vel", m.twist_message(types, linear, angular), sent_ns)
-                    obs, _, terminated, truncated, _ = env.step(action)
-                    _state(writer, types, base, offset_ns + base.sim.now_ns)
-                    done = terminated or truncated
-                offset_ns += base.sim.now_ns + round(EPISODE_GAP_S * m.NS_PER_S)
-            return writer.count
-    finally:
-        env.close()
+    def __init__(self, writer: EpisodeWriter) -> None:
+        self.writer = writer
+        self.types = m.RosbagsTypes(writer.store)
+        self.offset_ns = round(START_S * m.NS_PER_S)
+        self._env: Any = None
+
+    def begin(self, envs: Any, cars: Any, jobs: Any, obs: Any, info: Any) -> None:
+        base = envs.envs[0].unwrapped
+        if not all(hasattr(base, name) for name in ("robot", "sim", "goal", "max_linear")):
+            raise ValueError(f"--bag records SmartCarEnv episodes; the env is a "
+                             f"{type(base).__name__}")
+        self._env = base
+        frame = base.robot.odometry.frame_id
+        self.writer.write("/move_base_simple/goal",
+                          m.goal_message(self.types, base.goal, self.offset_ns, frame),
+                          self.offset_ns)
+        _state(self.writer, self.types, base, self.offset_ns)
+
+    def step(self, cars: Any, actions: np.ndarray, obs: Any, reward: Any, terminated: Any,
+             truncated: Any, info: Any) -> None:
+        base = self._env
+        scale = np.array([base.max_linear, base.max_angular])
+        linear, angular = np.clip(np.asarray(actions[0], dtype=np.float64), -1.0, 1.0) * scale
+        now_ns = base.sim.now_ns
+        sent_ns = self.offset_ns + now_ns - base.robot.update_period_ns + COMMAND_LAG_NS
+        self.writer.write("/cmd_vel", m.twist_message(self.types, linear, angular), sent_ns)
+        _state(self.writer, self.types, base, self.offset_ns + now_ns)
+
+    def end(self, car: int, job: Any, info: Any) -> None:
+        self.offset_ns += self._env.sim.now_ns + round(EPISODE_GAP_S * m.NS_PER_S)

@@ -21,7 +21,7 @@ topic                    type                         what
 /goal_pose               geometry_msgs/msg/PoseStamped each episode's goal (Nav2's topic)
 ======================== ============================ ============================================
 
-Stamps are simulated time as in the ROS 1 bags (``smartcar_gym.ros.bag``): episode ``i``
+Stamps are simulated time as in the ROS 1 bags (``smartcar_gym.bags.ros1``): episode ``i``
 starts ``EPISODE_GAP_S`` after the end of episode ``i - 1``, the first at ``START_S``. Written
 by ``rosbags`` (its ``rosbag2.Writer``, metadata version 8: ``ros2 bag`` of Iron and newer);
 Foxglove opens the ``.mcap`` file.
@@ -38,12 +38,12 @@ from typing import Any
 
 import numpy as np
 
+from smartcar_gym.bags import cdr
+from smartcar_gym.bags import messages as m
+from smartcar_gym.bags.ros1 import COMMAND_LAG_NS, EPISODE_GAP_S, ROS_EXTRA, START_S
 from smartcar_gym.envs.robots.smartcar import pose_from
 from smartcar_gym.model.kinematics import matrix_quaternion, quaternion_matrix, rpy_matrix
 from smartcar_gym.model.urdf import UrdfRobot, parse_urdf
-from smartcar_gym.ros import cdr
-from smartcar_gym.ros import messages as m
-from smartcar_gym.ros.bag import COMMAND_LAG_NS, EPISODE_GAP_S, ROS_EXTRA, START_S
 from smartcar_gym.viewers.capture import Episode, Frame, Scene
 
 STORAGES = ("mcap", "sqlite3")

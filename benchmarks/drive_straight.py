@@ -18,7 +18,7 @@ from pathlib import Path
 from smartcar_gym.controller import load_controller_config
 from smartcar_gym.envs.robots import SmartCarRobot, drive
 from smartcar_gym.model import RobotModel, load_model
-from smartcar_gym.sim import Simulator
+from smartcar_gym.sim.pybullet.simulator import Simulator
 
 FIXTURES = Path(__file__).resolve().parent.parent / "tests" / "fixtures"
 ROBOTS = {

@@ -5,7 +5,7 @@
 Each round times, one after the other in this process, with random actions:
 - one pybullet ``SmartCar-v0`` env (the reference);
 - one planar env (numba's compiled loop when installed), and the same without numba
-  (Python floats: ``jit.COMPILED`` off for that env);
+  (Python floats: ``dynamics.COMPILED`` off for that env);
 - the planar batch (``gym.make_vec(..., vectorization_mode="vector_entry_point",
   engine="planar")``) at ``--cars`` cars: numba's loops (the physics, ``jit``, and the boards
   and controllers, ``controller.compiled``), and numpy arrays (both switched off).
@@ -27,13 +27,13 @@ import numpy as np
 
 import smartcar_gym  # noqa: F401
 from smartcar_gym.controller import compiled as controller_jit
-from smartcar_gym.sim.planar import jit
+from smartcar_gym.sim.planar import dynamics
 
 
 def single(engine: str, steps: int, compiled: bool = True) -> tuple[float, float]:
     """(steps per CPU second, per wall second) of one env with random actions."""
-    saved = jit.COMPILED, controller_jit.COMPILED
-    jit.COMPILED, controller_jit.COMPILED = saved[0] and compiled, saved[1] and compiled
+    saved = dynamics.COMPILED, controller_jit.COMPILED
+    dynamics.COMPILED, controller_jit.COMPILED = saved[0] and compiled, saved[1] and compiled
     try:
         env = gym.make("SmartCar-v0", engine=engine)
         env.reset(seed=0)
@@ -46,14 +46,14 @@ def single(engine: str, steps: int, compiled: bool = True) -> tuple[float, float
         cpu, wall = time.process_time() - cpu, time.perf_counter() - wall
         env.close()
     finally:
-        jit.COMPILED, controller_jit.COMPILED = saved
+        dynamics.COMPILED, controller_jit.COMPILED = saved
     return steps / cpu, steps / wall
 
 
 def batch(cars: int, steps: int, compiled: bool = True) -> tuple[float, float]:
     """(car-steps per CPU second, per wall second) of the planar batch."""
-    saved = jit.COMPILED, controller_jit.COMPILED
-    jit.COMPILED, controller_jit.COMPILED = saved[0] and compiled, saved[1] and compiled
+    saved = dynamics.COMPILED, controller_jit.COMPILED
+    dynamics.COMPILED, controller_jit.COMPILED = saved[0] and compiled, saved[1] and compiled
     try:
         venv = gym.make_vec("SmartCar-v0", num_envs=cars, engine="planar",
                             vectorization_mode="vector_entry_point")
@@ -67,7 +67,7 @@ def batch(cars: int, steps: int, compiled: bool = True) -> tuple[float, float]:
         cpu, wall = time.process_time() - cpu, time.perf_counter() - wall
         venv.close()
     finally:
-        jit.COMPILED, controller_jit.COMPILED = saved
+        dynamics.COMPILED, controller_jit.COMPILED = saved
     return cars * steps / cpu, cars * steps / wall
 
 
@@ -87,7 +87,7 @@ def main() -> None:
         f"planar batch N={args.cars}, no numba": lambda: batch(args.cars, args.batch_steps,
                                                                compiled=False),
     }
-    if not jit.COMPILED:
+    if not dynamics.COMPILED:
         print("numba is not installed: the 'planar' and 'no numba' rows are the same code")
     batch(64, 3)  # numba compiles (or loads its cache) before the first round
     rows: dict[str, list[tuple[float, float]]] = {name: [] for name in variants}

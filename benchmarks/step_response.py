@@ -20,7 +20,7 @@ import numpy as np  # noqa: E402
 from smartcar_gym.controller import load_controller_config  # noqa: E402
 from smartcar_gym.envs.robots import SmartCarRobot, drive  # noqa: E402
 from smartcar_gym.model import load_model  # noqa: E402
-from smartcar_gym.sim import Simulator  # noqa: E402
+from smartcar_gym.sim.pybullet.simulator import Simulator  # noqa: E402
 
 SCHEDULE = [(0.5, 0.0, 0.0), (2.0, 0.2, 0.0), (2.0, 0.4, 0.0), (1.5, 0.0, 0.0), (2.0, 0.0, 1.0)]
 

@@ -14,8 +14,8 @@ import pytest
 import yaml
 
 from smartcar_gym.agents import cli_train, vec_envs
-from smartcar_gym.agents.callbacks import CheckpointCallback
 from smartcar_gym.agents.atomic_files import atomic_write_text, file_mode
+from smartcar_gym.agents.callbacks import CheckpointCallback
 
 # A model's "data" as SB3 writes it: the policy class names the algorithm.
 PPO_DATA = {"policy_class": {"__module__": "stable_baselines3.common.policies"}}

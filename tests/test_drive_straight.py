@@ -20,8 +20,8 @@ from smartcar_gym.controller import WheelEncoder, load_controller_config
 from smartcar_gym.envs.robots import SmartCarRobot
 from smartcar_gym.envs.smartcar_env import SmartCarEnv
 from smartcar_gym.model import RobotModel, load_model
-from smartcar_gym.sim.pybullet.simulator import Simulator
 from smartcar_gym.sim.clock import DEFAULT_MAX_SUBSTEP_S
+from smartcar_gym.sim.pybullet.simulator import Simulator
 
 FIXTURES = Path(__file__).resolve().parent / "fixtures"
 CASTERBOT = (FIXTURES / "casterbot_description/urdf/casterbot.urdf.xacro",

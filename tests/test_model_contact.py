@@ -11,8 +11,8 @@ from smartcar_gym.envs.robots import SmartCarRobot, drive
 from smartcar_gym.model import ModelDefectWarning, RobotModel, load_model
 from smartcar_gym.model.contact import check_wheel_contact, simulated_urdf
 from smartcar_gym.model.urdf import parse_urdf
-from smartcar_gym.sim.pybullet.simulator import Simulator
 from smartcar_gym.sim.pybullet.bullet import pybullet
+from smartcar_gym.sim.pybullet.simulator import Simulator
 
 WHEELS = ("left_front_wheel", "right_front_wheel", "left_back_wheel", "right_back_wheel")
 

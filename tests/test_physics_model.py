@@ -11,8 +11,8 @@ from pathlib import Path
 import pytest
 
 from smartcar_gym.model import RobotModel, load_model
-from smartcar_gym.sim.pybullet.simulator import Simulator
 from smartcar_gym.sim.pybullet.bullet import pybullet
+from smartcar_gym.sim.pybullet.simulator import Simulator
 
 SEED = (Path(__file__).parent / "fixtures" / "seed" / "smartcar_description" / "urdf"
         / "smartcar.urdf.xacro")

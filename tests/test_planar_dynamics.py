@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from smartcar_gym.sim.planar import jit
+from smartcar_gym.sim.planar import dynamics
 from smartcar_gym.sim.planar.dynamics import (
     load_transfer,
     new_scratch,
@@ -107,7 +107,7 @@ def test_a_car_in_floats_is_a_column_of_the_arrays_bit_for_bit() -> None:
         assert one == batch[:, i].tolist(), f"car {i}"
 
 
-@pytest.mark.skipif(not jit.COMPILED, reason="numba (the fast extra) is not installed")
+@pytest.mark.skipif(not dynamics.COMPILED, reason="numba (the fast extra) is not installed")
 def test_numbas_loop_is_the_same_function_bit_for_bit() -> None:
     rng = np.random.default_rng(1)
     n = 16
@@ -116,7 +116,7 @@ def test_numbas_loop_is_the_same_function_bit_for_bit() -> None:
     dt = rng.uniform(0.001, 0.03, n)
     steps = rng.integers(0, 5, n)
     compiled = states.copy()
-    jit.run_cars(compiled, np.repeat(np.array(car())[None, :], n, axis=0),
+    dynamics.run_cars(compiled, np.repeat(np.array(car())[None, :], n, axis=0),
                  np.repeat(np.array(CONTACTS)[None, :, :], n, axis=0),
                  np.array(GROUPS, dtype=np.int64), drive, dt, steps)
     for i in range(n):

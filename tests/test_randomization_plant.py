@@ -14,9 +14,9 @@ from smartcar_gym.controller.latency import CommandDelay
 from smartcar_gym.envs.randomization import Randomization
 from smartcar_gym.envs.robots import SmartCarRobot
 from smartcar_gym.envs.robots.variation import Variation
-from smartcar_gym.sim.pybullet.simulator import Simulator
 from smartcar_gym.sim.contracts import BASE
 from smartcar_gym.sim.dynamics import scale_lateral_friction, scale_mass, set_lateral_friction
+from smartcar_gym.sim.pybullet.simulator import Simulator
 
 
 def _drive(model, config, variation, twist, seconds, mode="hardware") -> Sample:

@@ -14,8 +14,8 @@ from git_trees import package_at
 
 from smartcar_gym.calibration.maneuvers import hold, random_commands, run
 from smartcar_gym.envs.robots import SmartCarRobot, drive
-from smartcar_gym.sim.pybullet.simulator import Simulator
 from smartcar_gym.sim.clock import seconds_to_ns
+from smartcar_gym.sim.pybullet.simulator import Simulator
 
 REPO = Path(__file__).resolve().parent.parent
 ROUND_1 = "1103dff"  # the last commit with fixed 2 ms stepping (0.1.0)

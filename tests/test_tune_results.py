@@ -8,9 +8,9 @@ import shlex
 
 import pytest
 
+from smartcar_gym.agents.cli_train import build_parser
 from smartcar_gym.agents.hyperparams import load_hyperparams
 from smartcar_gym.agents.runs import new_config
-from smartcar_gym.agents.cli_train import build_parser
 from smartcar_gym.scale.results import (
     COMPLETED,
     ERROR,

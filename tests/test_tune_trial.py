@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 import yaml
 
-from smartcar_gym.agents.hyperparams import parse_value
 from smartcar_gym.agents.cli_train import build_parser
+from smartcar_gym.agents.hyperparams import parse_value
 from smartcar_gym.agents.training import train
 from smartcar_gym.scale.space import build_sweep
 from smartcar_gym.scale.trial import (

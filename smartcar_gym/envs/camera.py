@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from smartcar_gym.envs.world import World
+from smartcar_gym.sim.contracts import window_of
 
 CAMERA_PITCH_DEG = -60.0
 #: a car with a laser is framed from higher up, with the obstacles near its way
@@ -32,6 +33,22 @@ def frame(world: World, goal: np.ndarray) -> tuple[tuple[float, float, float], f
     span = float(np.linalg.norm(high - low))
     return ((float(centre[0]), float(centre[1]), 0.0), max(1.2, 1.1 * span + 0.6),
             LASER_CAMERA_PITCH_DEG)
+
+
+def draw(world: World, goal: np.ndarray, mode: str, width: int, height: int
+         ) -> np.ndarray | None:
+    """The markers and scan drawn, then ``world``'s picture (``mode`` "rgb_array": an image)
+    or its window pointed at the car and ``goal`` ("human": None)."""
+    world.markers.draw()
+    if world.scan_markers is not None:
+        world.scan_markers.draw(world.laser.hit_points, world.laser.origin)
+    target, distance, pitch = frame(world, goal)
+    if mode == "human":
+        window = window_of(world.sim)
+        if window is not None:
+            window.point_gui_camera(target, distance, yaw_deg=0.0, pitch_deg=pitch)
+        return None
+    return world.sim.render(width, height, target, distance, yaw_deg=0.0, pitch_deg=pitch)
 
 
 def _segment_distance(point: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:

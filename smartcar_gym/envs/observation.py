@@ -105,3 +105,12 @@ def _number(value: float) -> str:
     if abs(value + np.pi) < 1e-12:
         return "-pi"
     return f"{value:g}"
+
+
+def space_and_names(observation: Observation | Mapping[str, Observation]) -> tuple[Any, Any]:
+    """An env's observation space and ``observation_names`` from its declaration (a dict of
+    them: a ``Dict`` space, and the names per key)."""
+    if isinstance(observation, Mapping):
+        return (spaces.Dict({k: o.space for k, o in observation.items()}),
+                {k: o.names for k, o in observation.items()})
+    return observation.space, observation.names

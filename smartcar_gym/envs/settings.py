@@ -9,7 +9,8 @@ from collections.abc import Callable, Mapping
 from typing import Any
 
 from smartcar_gym import checks
-from smartcar_gym.controller import ArbotixConfig
+from smartcar_gym.controller import ArbotixConfig, load_controller_config
+from smartcar_gym.model import RobotModel, load_model
 from smartcar_gym.sim.clock import check_max_substep
 from smartcar_gym.sim.engines import (
     DEFAULT_ENGINE,
@@ -75,6 +76,37 @@ def check_tick_targets(config: ArbotixConfig, max_linear: float, max_angular: fl
             f"max_linear={max_linear} and max_angular={max_angular} ask a wheel for "
             f"{wheel_speed:g} m/s, but with ticks_meter {config.ticks_meter:g} "
             f"({config.source}) the board's 16-bit target holds at most {limit:g} m/s")
+
+
+def check_image(width: Any, height: Any) -> tuple[int, int]:
+    """The rgb_array image's width and height (px), each at most ``MAX_RENDER_PX``."""
+    size = f"rgb_array images are at most {MAX_RENDER_PX} px a side"
+    return (checks.positive_int("render_width", width, MAX_RENDER_PX, size),
+            checks.positive_int("render_height", height, MAX_RENDER_PX, size))
+
+
+def load_config(config: Any, default: Any = None) -> ArbotixConfig:
+    """The controller's configuration: ``config`` (an ``ArbotixConfig`` or a YAML file), or
+    ``default`` (a task's) where it is None, or the shipped YAML."""
+    config = checks.source("controller_config", default if config is None else config,
+                           ArbotixConfig)
+    return config if isinstance(config, ArbotixConfig) else load_controller_config(config)
+
+
+def load_robot(model: Any, model_args: Mapping[str, Any] | None, package_path: Any,
+               wheels: Any, task_args: Mapping[str, str]) -> RobotModel:
+    """The robot: ``model`` (a ``RobotModel``, or a path loaded with ``model_args``) or the
+    shipped xacro with the task's arguments (``task_args``) and ``model_args``."""
+    if model_args is not None and not isinstance(model_args, Mapping):
+        raise TypeError(f"model_args must be a dict of xacro arguments, got {model_args!r}")
+    model = checks.source("model", model, RobotModel)
+    if isinstance(model, RobotModel):
+        return model
+    mappings = dict(model_args or {})
+    if model is None:
+        mappings = {**task_args, **mappings}
+    return load_model(model, mappings=mappings or None, package_path=package_path,
+                      wheels=wheels)
 
 
 def own_keywords(init: Callable[..., Any]) -> dict[str, Any]:

@@ -2,11 +2,9 @@
 
 from __future__ import annotations
 
-import math
 import os
-import threading
-from collections.abc import Iterator, Mapping
-from contextlib import contextmanager, nullcontext
+from collections.abc import Mapping
+from contextlib import nullcontext
 from typing import Any
 
 import gymnasium as gym
@@ -20,29 +18,35 @@ from smartcar_gym.controller import (
     KINEMATIC,
     MODES,
     ArbotixConfig,
-    load_controller_config,
 )
-from smartcar_gym.envs.camera import frame
+from smartcar_gym.envs.actions import check_action
+from smartcar_gym.envs.camera import draw
+from smartcar_gym.envs.observation import space_and_names
 from smartcar_gym.envs.randomization import Draw, Randomization
 from smartcar_gym.envs.settings import (
-    MAX_RENDER_PX,
     RenderModes,
+    check_image,
     check_tick_targets,
+    load_config,
+    load_robot,
     max_substep,
     own_keywords,
     render_modes,
     split_keywords,
 )
-from smartcar_gym.envs.state import SCAN, SCAN_TIME, CarState
+from smartcar_gym.envs.state import CarState
 from smartcar_gym.envs.tasks.base import CarSettings, Task
 from smartcar_gym.envs.tasks.registry import get_task
 from smartcar_gym.envs.world import World
-from smartcar_gym.model import RobotModel, load_model
+from smartcar_gym.model import RobotModel
 from smartcar_gym.model.contact import check_wheel_contact
 from smartcar_gym.sim.contracts import window_of
 from smartcar_gym.sim.engines import DEFAULT_ENGINE, engine_options, get_engine
 
 _ONE = np.zeros(1, dtype=np.int64)  # the single env's car, as a task's list of cars
+#: what the env shows of its world (``envs.world.World``), by the name it shows it under
+_FROM_WORLD = {"sim": "sim", "robot": "robot", "laser": "laser", "markers": "markers",
+               "obstacle_bodies": "bodies"}
 
 
 class SmartCarEnv(gym.Env):
@@ -137,15 +141,10 @@ class SmartCarEnv(gym.Env):
 
     ``gym.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point", **kwargs)`` makes N
     cars in one process (docs/vector.md): SmartCarSim-v0 in numpy arrays
-    (``SmartCarSimVectorEnv``, bit for bit N single envs but for ``info["pose"]``'s yaw,
-    within 1e-6 rad), the other ids on an engine with a car batch (``SmartCarBatchVectorEnv``,
-    the same task object over all the cars, bit for bit N single envs, infos included:
-    MuJoCo's worlds in C, the planar engine's cars in arrays, differential-drive robots too on
-    planar; ``randomize`` on the tasks that build a world per episode), on pybullet or with
-    what the batches lack (``randomize`` on the others, ``stop_speed``, the GUI, a
-    differential-drive ``model`` on MuJoCo) as N single envs in a loop
-    (``SmartCarLoopVectorEnv``). Gymnasium 1.x autoreset (``"NextStep"``, or
-    ``autoreset_mode="SameStep"``), car i seeded ``s + i``, ``info["is_success"]`` per car.
+    (``SmartCarSimVectorEnv``), the other ids on an engine with a car batch (MuJoCo, planar:
+    ``SmartCarBatchVectorEnv``, the same task object over all the cars), each bit for bit N
+    single envs; elsewhere, or with what a batch lacks, N single envs in a loop
+    (``SmartCarLoopVectorEnv``). Gymnasium 1.x autoreset, car i seeded ``s + i``.
 
     ## Version History
 
@@ -194,6 +193,10 @@ class SmartCarEnv(gym.Env):
         task_class: type[Task] = entry.load()
         #: the id the env runs as (its task's first), in messages
         self.env_name = next(iter(entry.ids))
+        refused = [k for k in kwargs if k in task_class.refused_keywords]
+        if refused:
+            raise TypeError(f"{self.env_name} takes no {', '.join(refused)}: "
+                            f"{task_class.refused_keywords[refused[0]]}")
         given, task_kwargs = split_keywords(self.env_name, kwargs, own_keywords(
             task_class.__init__), own_keywords(SmartCarEnv.__init__))
         #: the engine's description (``sim.engines.Engine``), resolved once and passed on
@@ -215,18 +218,13 @@ class SmartCarEnv(gym.Env):
         self.max_linear = checks.positive_number("max_linear", max_linear)
         self.max_angular = checks.positive_number("max_angular", max_angular)
         self.max_substep_s = max_substep(max_substep_s, physics_hz, spec)
-        size = f"rgb_array images are at most {MAX_RENDER_PX} px a side"
-        self.render_width = checks.positive_int("render_width", render_width, MAX_RENDER_PX, size)
-        self.render_height = checks.positive_int("render_height", render_height, MAX_RENDER_PX,
-                                                 size)
+        self.render_width, self.render_height = check_image(render_width, render_height)
         self.task: Task = task_class(**task_kwargs)
         self.task.label = self.env_name
-        self.robot_model = self._load_model(model, model_args, package_path, wheels)
-        if controller_config is None:
-            controller_config = task_class.env_defaults.get("controller_config")
-        controller_config = checks.source("controller_config", controller_config, ArbotixConfig)
-        self.controller_config = (controller_config if isinstance(controller_config, ArbotixConfig)
-                                  else load_controller_config(controller_config))
+        self.robot_model = load_robot(model, model_args, package_path, wheels,
+                                      task_class.model_args)
+        self.controller_config = load_config(
+            controller_config, task_class.env_defaults.get("controller_config"))
         check_tick_targets(self.controller_config, self.max_linear, self.max_angular)
         self.engine_options = engine_options(spec, given, self.robot_model)
         if controller_mode is None:  # as the driver: its `sim` parameter picks the mode
@@ -254,38 +252,13 @@ class SmartCarEnv(gym.Env):
             raise
         self.action_space = spaces.Box(-1.0, 1.0, (2,), dtype=np.float32)
 
-    def _load_model(self, model: Any, model_args: Mapping[str, Any] | None,
-                    package_path: Any, wheels: Any) -> RobotModel:
-        """The robot: ``model`` (a path, loaded with ``model_args``) or the shipped xacro with
-        the task's arguments and ``model_args``."""
-        if model_args is not None and not isinstance(model_args, Mapping):
-            raise TypeError(f"model_args must be a dict of xacro arguments, got {model_args!r}")
-        model = checks.source("model", model, RobotModel)
-        if isinstance(model, RobotModel):
-            return model
-        mappings = dict(model_args or {})
-        if model is None:
-            mappings = {**self.task.model_args, **mappings}
-        return load_model(model, mappings=mappings or None, package_path=package_path,
-                          wheels=wheels)
-
     def _declare(self) -> None:
         """The car's state, the observation, its space and names."""
-        laser = self.task.laser
-        sensors = {} if laser is None else {SCAN: ((laser[0].beams,), np.float32),
-                                            SCAN_TIME: ((), np.int64)}
         #: the car's public state (one row): what the task reads and writes
-        self.state = CarState.zeros(
-            1, len(self.robot_model.left_wheels + self.robot_model.right_wheels), sensors)
+        self.state = CarState.zeros(1, len(self.task.car.wheel_joints), self.task.readings())
         self.observation = self.task.observation()
-        if isinstance(self.observation, dict):
-            self.observation_space = spaces.Dict({k: o.space
-                                                  for k, o in self.observation.items()})
-            #: what each observation value is (per key of a Dict space)
-            self.observation_names: Any = {k: o.names for k, o in self.observation.items()}
-        else:
-            self.observation_space = self.observation.space
-            self.observation_names = self.observation.names
+        #: the observation's space, and what each value is (per key of a Dict space)
+        self.observation_space, self.observation_names = space_and_names(self.observation)
 
     def _open(self) -> None:
         self.world.open()
@@ -302,8 +275,13 @@ class SmartCarEnv(gym.Env):
         self.world.place(obstacles, pillars)
 
     def __getattr__(self, name: str) -> Any:
-        """What the task exports (``obstacles``, ``compute_reward``, ``global_path``, ...) and
+        """The world's ``sim``, ``robot``, ``laser`` (``SimulatedLaser``: ``latest`` is its last
+        ``LaserScan``), ``markers`` and ``obstacle_bodies`` (what ``CarBatch.load`` reads; each
+        None while closed), what the task exports (``obstacles``, ``compute_reward``, ...) and
         the engine's keywords (``planar_params``), read here."""
+        world = self.__dict__.get("world")
+        if world is not None and name in _FROM_WORLD:
+            return getattr(world, _FROM_WORLD[name])
         task = self.__dict__.get("task")
         if task is not None and name in task.exports:
             return getattr(task, name)
@@ -313,31 +291,6 @@ class SmartCarEnv(gym.Env):
         raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
 
     @property
-    def sim(self) -> Any:
-        """The engine's simulator (None while closed)."""
-        return self.world.sim
-
-    @property
-    def robot(self) -> Any:
-        """The robot: its body and emulated ArbotiX base."""
-        return self.world.robot
-
-    @property
-    def laser(self) -> Any:
-        """The laser (``SimulatedLaser``: ``latest`` is its last ``LaserScan``; None without)."""
-        return self.world.laser
-
-    @property
-    def markers(self) -> Any:
-        """The goal disc and odometry trail drawn for a render (None without one)."""
-        return self.world.markers
-
-    @property
-    def obstacle_bodies(self) -> list[Any]:
-        """The engine's bodies of this episode's obstacles (``CarBatch.load`` reads them)."""
-        return self.world.bodies
-
-    @property
     def goal(self) -> np.ndarray:
         """The episode's goal (x, y) in the ``odom`` frame."""
         return self.state.goal[0]
@@ -345,7 +298,7 @@ class SmartCarEnv(gym.Env):
     # -- gymnasium API -----------------------------------------------------------------------
     def reset(self, *, seed: int | None = None,
               options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
-        with self._exclusive("reset"):
+        with self.world.exclusive("reset"):
             super().reset(seed=seed)
             checked = self.task.check_options(options, vector=False)
             if self.world.sim is None:  # closed (or a copy): open a world of its own
@@ -374,9 +327,9 @@ class SmartCarEnv(gym.Env):
             return self._observe(), self._info(np.zeros(1, dtype=bool))
 
     def step(self, action: np.ndarray) -> tuple[Any, float, bool, bool, dict[str, Any]]:
-        with self._exclusive("step"):
+        with self.world.exclusive("step"):
             self._check_ready("step")
-            action = self._validate_action(action)
+            action = check_action(action)
             world, state, task = self.world, self.state, self.task
             robot, sim = world.robot, world.sim
             robot.cmd_vel(float(action[0]) * self.max_linear, float(action[1]) * self.max_angular)
@@ -399,18 +352,8 @@ class SmartCarEnv(gym.Env):
                             f"'rgb_array' or 'human' to gym.make('{self.env_name}', ...)")
             return None
         self._check_ready("render")
-        world = self.world
-        world.markers.draw()
-        if world.scan_markers is not None:
-            world.scan_markers.draw(world.laser.hit_points, world.laser.origin)
-        target, distance, pitch = frame(world, self.goal)
-        if self.render_mode == "human":
-            window = window_of(world.sim)
-            if window is not None:
-                window.point_gui_camera(target, distance, yaw_deg=0.0, pitch_deg=pitch)
-            return None
-        return world.sim.render(self.render_width, self.render_height, target, distance,
-                                yaw_deg=0.0, pitch_deg=pitch)
+        return draw(self.world, self.goal, self.render_mode, self.render_width,
+                    self.render_height)
 
     def close(self) -> None:
         world = self.__dict__.get("world")
@@ -421,53 +364,15 @@ class SmartCarEnv(gym.Env):
     def __getstate__(self) -> dict[str, Any]:
         """A copy keeps settings and random state, never this env's world."""
         state = self.__dict__.copy()
-        state.pop("_lock", None)
-        world = World.__new__(World)
-        world.__dict__.update(self.world.__dict__)
-        world.sim = world.robot = world.markers = world.laser = world.scan_markers = None
-        world.bodies = []
-        state["world"], state["_needs_reset"] = world, True
+        state["world"], state["_needs_reset"] = self.world.detached(), True
         return state
 
     # -- helpers -------------------------------------------------------------------------------
-    @contextmanager
-    def _exclusive(self, call: str) -> Iterator[None]:
-        """One thread at a time: a second one gets a clear error, not a corrupted world."""
-        lock = self.__dict__.setdefault("_lock", threading.Lock())
-        if not lock.acquire(blocking=False):
-            raise RuntimeError(
-                f"SmartCarEnv.{call}() called while another thread is inside this env: an env "
-                "is one simulated world and is not thread-safe; give each thread its own env "
-                "(gym.make_vec with vectorization_mode='async' runs envs in parallel)")
-        try:
-            yield
-        finally:
-            lock.release()
-
     def _check_ready(self, call: str) -> None:
         if self.world.sim is None:
             raise RuntimeError(f"SmartCarEnv is closed: call reset() to reopen it before {call}()")
         if self._needs_reset:
             raise ResetNeeded(f"SmartCarEnv: call reset() before {call}()")
-
-    @staticmethod
-    def _validate_action(action: Any) -> np.ndarray:
-        if type(action) is np.ndarray and action.shape == (2,) and action.dtype.kind == "f":
-            a0, a1 = float(action[0]), float(action[1])  # the usual case, in a few microseconds
-            if math.isfinite(a0) and math.isfinite(a1):
-                return np.array([min(max(a0, -1.0), 1.0), min(max(a1, -1.0), 1.0)])
-        if np.iscomplexobj(action):
-            raise ValueError(f"action must be real numbers, got {np.asarray(action).tolist()}")
-        try:
-            arr = np.asarray(action, dtype=np.float64)
-        except (TypeError, ValueError) as err:
-            raise ValueError(f"action must be 2 numbers (linear, angular), got {action!r}") from err
-        if arr.shape != (2,):
-            raise ValueError(f"action must have shape (2,) (linear, angular), got shape "
-                             f"{arr.shape}: {action!r}")
-        if not np.all(np.isfinite(arr)):
-            raise ValueError(f"action must be finite, got {arr.tolist()}")
-        return np.clip(arr, -1.0, 1.0)
 
     def _observe(self) -> Any:
         obs = self.task.observe(self)

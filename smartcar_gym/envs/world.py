@@ -9,6 +9,9 @@ obstacles a task placed, the laser and the markers drawn for a render, and fills
 from __future__ import annotations
 
 import math
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
 from typing import Any
 
 import numpy as np
@@ -56,6 +59,7 @@ class World:
         self.bodies: list[Any] = []
         self._centres = np.zeros((0, 2))
         self._radii = np.zeros(0)
+        self._lock = threading.Lock()
 
     def _robot(self, sim: Any) -> SmartCarRobot:
         return SmartCarRobot(sim, self.robot_model, self.controller_config,
@@ -88,6 +92,37 @@ class World:
             self.sim.close()
         self.sim = self.robot = self.markers = self.laser = self.scan_markers = None
         self.bodies = []
+
+    @contextmanager
+    def exclusive(self, call: str) -> Iterator[None]:
+        """One thread at a time in the env's ``call``: a second one gets a clear error, not a
+        corrupted world."""
+        if not self._lock.acquire(blocking=False):
+            raise RuntimeError(
+                f"SmartCarEnv.{call}() called while another thread is inside this env: an env "
+                "is one simulated world and is not thread-safe; give each thread its own env "
+                "(gym.make_vec with vectorization_mode='async' runs envs in parallel)")
+        try:
+            yield
+        finally:
+            self._lock.release()
+
+    def __getstate__(self) -> dict[str, Any]:
+        state = self.__dict__.copy()
+        state.pop("_lock", None)
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        self._lock = threading.Lock()
+
+    def detached(self) -> World:
+        """A copy with the settings and none of the world (an env's copy opens its own)."""
+        copy = World.__new__(World)
+        copy.__setstate__(self.__getstate__())
+        copy.sim = copy.robot = copy.markers = copy.laser = copy.scan_markers = None
+        copy.bodies = []
+        return copy
 
     # -- an episode ----------------------------------------------------------------------------
     def spawn(self, randomization: Any, rng: np.random.Generator) -> Any:

@@ -30,17 +30,32 @@ def check_actions(policy: Any, path: str | Path, n: int, seed: int = 0) -> float
 
 
 def episode_observations(policy: Any, n: int, cars: int = 64) -> np.ndarray:
-    """``n`` float32 observations of seeded episodes (seeds ``0..cars-1`` and the next ones
-    the batch starts) of ``policy``'s env on the planar batch, driven by ``policy``."""
+    """``n`` float32 observations of seeded episodes of ``policy``'s env (episode i seeded
+    ``i``), driven by ``policy``, through the episode runner on ``cars`` cars of a batching
+    engine (the policy's own where it batches: ``sim.engines.batch_engine``): every running
+    car's observation at each reset and step, in order, until there are ``n``."""
     from smartcar_gym.agents.episodes import act_batch, make_batched_env
+    from smartcar_gym.agents.runner import Hooks, Job, run_jobs
+    from smartcar_gym.sim.engines import batch_engine
 
-    envs = make_batched_env(policy.env_id, cars, {**policy.env_kwargs, "engine": "planar"})
-    rows = []
+    engine = batch_engine(policy.env_kwargs.get("engine"))
+    envs = make_batched_env(policy.env_id, cars, {**policy.env_kwargs, "engine": engine})
+    rows: list[np.ndarray] = []
+
+    class Observations(Hooks):
+        def begin(self, envs: Any, idx: np.ndarray, jobs: Any, obs: Any, info: Any) -> None:
+            rows.append(np.array(obs[idx], dtype=np.float32))
+
+        def step(self, idx: np.ndarray, actions: Any, obs: Any, *rest: Any) -> None:
+            rows.append(np.array(obs[idx], dtype=np.float32))
+
+    def act(obs: Any, running: list, steps: np.ndarray) -> np.ndarray:
+        return act_batch(policy, obs)
+
+    jobs = [Job(i, i) for i in range(max(n, cars))]  # more than enough: each takes a step
     try:
-        obs, _ = envs.reset(seed=list(range(cars)))
-        while sum(len(r) for r in rows) < n:
-            rows.append(np.array(obs, dtype=np.float32))
-            obs, *_ = envs.step(act_batch(policy, obs))
+        run_jobs(envs, jobs, act, [Observations()],
+                 stop=lambda: sum(len(r) for r in rows) >= n)
     finally:
         envs.close()
     return np.concatenate(rows)[:n]

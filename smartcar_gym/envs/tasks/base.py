@@ -34,12 +34,12 @@ import numpy as np
 
 from smartcar_gym import checks
 from smartcar_gym.envs.observation import Observation
+from smartcar_gym.envs.state import SCAN, SCAN_TIME, CarState
 from smartcar_gym.sim.clock import seconds_to_ns
 
 if TYPE_CHECKING:
     from smartcar_gym.controller import ArbotixConfig
     from smartcar_gym.envs.sensors.scan import LaserConfig
-    from smartcar_gym.envs.state import CarState
     from smartcar_gym.envs.tasks.obstacles import Obstacle
     from smartcar_gym.model import RobotModel
 
@@ -131,6 +131,14 @@ class Task:
         """The laser the task's cars carry: its config and its base_link -> laser mount (4x4);
         None: none."""
         return None
+
+    def readings(self) -> dict[str, tuple[tuple[int, ...], Any]]:
+        """The sensors' readings in the cars' state, each a car's shape and dtype: the laser's
+        ranges and their time (``envs.state``), none without a laser."""
+        laser = self.laser
+        if laser is None:
+            return {}
+        return {SCAN: ((laser[0].beams,), np.float32), SCAN_TIME: ((), np.int64)}
 
     def bind(self, car: CarSettings) -> None:
         """Learn the car the task runs on (called once, before ``observation``)."""

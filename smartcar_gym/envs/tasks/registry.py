@@ -111,7 +111,7 @@ def _add(entry: TaskEntry) -> None:
     taken = {i: t.name for t in _REGISTRY.values() for i in t.ids}
     for env_id in entry.ids:
         if env_id in taken and taken[env_id] != entry.name:
-            raise ValueError(f"id {env_id!r} is task {taken[env_id]!r}'s already")
+            raise ValueError(f"id {env_id!r} belongs to task {taken[env_id]!r} already")
     _REGISTRY[entry.name] = entry
 
 

@@ -20,7 +20,6 @@ from gymnasium.vector import AutoresetMode
 from smartcar_gym.controller import HARDWARE
 from smartcar_gym.controller.batched import BatchedArbotix
 from smartcar_gym.envs.smartcar_env import SmartCarEnv
-from smartcar_gym.envs.state import SCAN, SCAN_TIME
 from smartcar_gym.envs.tasks.registry import get_task, task_names, task_of
 from smartcar_gym.envs.vector.base import CarsVectorEnv
 from smartcar_gym.envs.vector.common import (
@@ -158,9 +157,7 @@ class SmartCarBatchVectorEnv(CarsVectorEnv):
         self.base = BatchedArbotix(s.controller_config, HARDWARE, s.robot_model.wheel_radius_m,
                                    num_cars=n, encoder_phase_ticks=robot.encoder_phase_ticks)
         laser = self.task.laser
-        sensors = {} if laser is None else {SCAN: ((laser[0].beams,), np.float32),
-                                            SCAN_TIME: ((), np.int64)}
-        self._allocate_episodes(n, len(robot.wheel_joint_indices), sensors)
+        self._allocate_episodes(n, len(robot.wheel_joint_indices), self.task.readings())
         #: the task's laser on every car (None: the task's cars carry none)
         self.laser = None if laser is None else BatchLaser(*laser, n)
         self.clocks = Clocks(self.state, self.base, cars, self.period_ns,

@@ -3,10 +3,11 @@
 Each car is a column: its state ``(S, N)``, its parameters ``(P, N)`` and contacts
 ``(K, NC, N)`` in ``dynamics``' layout (every car has the template's wheel groups and contacts;
 the values may differ per car), its motors' drive ``(2G, N)``. ``step`` gives every listed car
-its own number of substeps of its own length, as its single env's clock would: numba's loop
-(``jit.run_cars``, which reads the parameters laid out by car: ``rows``) when installed,
-else ``dynamics.substep_arrays`` over the cars still stepping (their columns taken out and put
-back). A car of the batch is the same car as ``PlanarBody`` steps alone, bit for bit.
+its own number of substeps of its own length, as its single env's clock would: numba's
+loop (``dynamics.run_cars``, which reads the parameters laid out by car: ``rows``) when
+installed, else ``dynamics.substep_arrays`` over the cars still stepping (their columns
+taken out and put back). A car of the batch is the same car as ``PlanarBody`` steps alone,
+bit for bit.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from smartcar_gym.sim.planar import jit
+from smartcar_gym.sim.planar import dynamics
 from smartcar_gym.sim.planar.dynamics import new_scratch, substep_arrays
 from smartcar_gym.sim.planar.layout import (
     ANGLE,
@@ -91,12 +92,12 @@ class PlanarBatch:
         """Car ``cars[k]``: ``nstep[k]`` substeps of ``dt[k]`` s."""
         if len(cars) == 0:
             return
-        if jit.COMPILED:
+        if dynamics.COMPILED:
             n_all = np.zeros(self.n, dtype=np.int64)
             dt_all = np.zeros(self.n)
             n_all[cars], dt_all[cars] = nstep, dt
             car_rows, contact_rows = self.rows()
-            jit.run_cars(self.state, car_rows, contact_rows, self.contact_groups, self.drive,
+            dynamics.run_cars(self.state, car_rows, contact_rows, self.contact_groups, self.drive,
                          dt_all, n_all)
             return
         cars, nstep = np.asarray(cars), np.asarray(nstep)

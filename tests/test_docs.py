@@ -56,13 +56,15 @@ def test_the_env_cards_are_written_once_in_the_docstrings():
     import inspect
 
     import mkdocs_hooks
-    from smartcar_gym.envs.goal_env import SmartCarGoalEnv
-    from smartcar_gym.envs.nav_env import SmartCarNavEnv
     from smartcar_gym.envs.smartcar_env import SmartCarEnv
+    from smartcar_gym.envs.tasks.barn.task import BarnTask
+    from smartcar_gym.envs.tasks.goal import GoalTask
+    from smartcar_gym.envs.tasks.nav import NavTask
+    from smartcar_gym.envs.tasks.reach import ReachTask
 
     source = (ROOT / "docs" / "env.md").read_text()
     page = mkdocs_hooks.on_page_markdown(source)
-    for env in (SmartCarEnv, SmartCarNavEnv, SmartCarGoalEnv):
+    for env in (SmartCarEnv, ReachTask, NavTask, GoalTask, BarnTask):
         first = inspect.getdoc(env).split("\n\n")[1]            # the description's first paragraph
         assert first in page and first not in source, env.__name__
     assert "<!-- docstring" not in page

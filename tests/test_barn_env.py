@@ -7,12 +7,14 @@ import numpy as np
 import pytest
 
 import smartcar_gym  # noqa: F401
-from smartcar_gym.envs.barn_env import SmartCarBARNEnv, car_width, to_base_frame
-from smartcar_gym.envs.tasks.barn import SHIPPED_CAR_WIDTH_M, PathTracker, barn_score
-from smartcar_gym.envs.tasks.path_trackers import COMPILED as PATHS_COMPILED
-from smartcar_gym.envs.tasks.path_trackers import PathTrackers
 from smartcar_gym.bench.dwa import DWADriver
-from smartcar_gym.registration import SPECS
+from smartcar_gym.envs.tasks.barn import BarnTask, barn_score
+from smartcar_gym.envs.tasks.barn.protocol import SHIPPED_CAR_WIDTH_M
+from smartcar_gym.envs.vector.view import CarView
+from smartcar_gym.model.footprint import car_width
+from smartcar_gym.navigation.path_trackers import COMPILED as PATHS_COMPILED
+from smartcar_gym.navigation.path_trackers import PathTrackers
+from smartcar_gym.navigation.paths import PathTracker, to_base_frame
 from smartcar_gym.worlds.barn import TRAIN_WORLDS, load_worlds, to_car_frame
 
 SCALE = 0.18 / 0.43
@@ -27,18 +29,21 @@ def env():
 
 def test_the_world_is_scaled_to_the_cars_width_and_the_protocol_with_it(env):
     u = env.unwrapped
+    assert type(u.task) is BarnTask
     assert car_width(u.robot_model) == pytest.approx(SHIPPED_CAR_WIDTH_M)
     assert u.protocol.scale == pytest.approx(SCALE)
     obs, info = env.reset(seed=0, options={"world": 6})
     assert obs.shape == (59,) and obs in env.observation_space
     assert u.observation_names[-2:] == ("waypoint_x_base", "waypoint_y_base")
     world = load_worlds().world(6)
-    assert len(u.obstacles) == len(world.centres)
-    assert u.obstacles[0].size == pytest.approx((2 * 0.075 * SCALE,))
-    assert np.allclose([o.position for o in u.obstacles], to_car_frame(world.centres, SCALE))
+    obstacles = u.obstacles  # the single env's car's
+    assert len(obstacles) == len(world.centres)
+    assert obstacles[0].size == pytest.approx((2 * 0.075 * SCALE,))
+    assert np.allclose([o.position for o in obstacles], to_car_frame(world.centres, SCALE))
+    assert u.task.world.index == u.world_index[0] == 6
     assert np.allclose(u.goal, [10 * SCALE, 0.0])
     assert u.task.goal_tolerance_m == pytest.approx(SCALE)
-    assert u.timeout_steps == 1675 and SPECS["SmartCarBARN-v0"].max_episode_steps == 1676
+    assert u.timeout_steps == 1675 and gym.spec("SmartCarBARN-v0").max_episode_steps == 1676
     assert info["world"] == 6 and info["outcome"] is None and info["score"] == 0.0
     assert info["optimal_time_s"] == pytest.approx(world.path_length_m * SCALE / 0.5)
 
@@ -102,11 +107,12 @@ def test_driving_straight_ends_in_a_collision_that_scores_nothing(env):
 
 def test_standing_still_times_out(env):
     env.reset(seed=0, options={"world": 0})
-    limit, env.unwrapped.timeout_steps = env.unwrapped.timeout_steps, 5
+    task = env.unwrapped.task
+    limit, task.timeout_steps = task.timeout_steps, 5
     try:
         ends = [env.step(np.zeros(2))[2:] for _ in range(5)]
     finally:
-        env.unwrapped.timeout_steps = limit
+        task.timeout_steps = limit
     assert [t for _, t, _ in ends] == [False] * 4 + [True]
     assert [i["outcome"] for _, _, i in ends] == [None] * 4 + ["timeout"]
     assert ends[-1][2]["run_time_s"] == 0.0  # it never moved
@@ -115,9 +121,10 @@ def test_standing_still_times_out(env):
 def test_a_success_scores_as_the_challenge(env):
     driver = DWADriver()
     env.reset(seed=0, options={"world": 0})
-    driver.reset([env])
+    cars = CarView([env])
+    driver.reset(cars)
     for _ in range(1000):
-        _, _, terminated, truncated, info = env.step(driver.act([env])[0])
+        _, _, terminated, truncated, info = env.step(driver.act(cars)[0])
         if terminated or truncated:
             break
     assert info["outcome"] == "success" and info["is_success"]
@@ -161,7 +168,7 @@ def test_pybullets_pillars_scan_as_its_cylinders(monkeypatch):
             env.close()
 
     pillars, exact = scan("pybullet"), scan("planar")
-    monkeypatch.setattr(SmartCarBARNEnv, "pillars", False)
+    monkeypatch.setattr(BarnTask, "pillars", False)
     cylinders = scan("pybullet")
     both = np.isfinite(pillars) & np.isfinite(cylinders)
     assert both.sum() > 300 and np.array_equal(both, np.isfinite(pillars))
@@ -257,7 +264,7 @@ def test_a_pybullet_world_nothing_draws_has_no_visual_shapes_and_the_same_rollou
         try:
             obs, _ = env.reset(seed=3, options={"world": 6})
             u = env.unwrapped
-            pillar = u._obstacle_bodies[0].uid
+            pillar = u.obstacle_bodies[0].uid
             drawn_as = u.sim.client.getVisualShapeData(pillar)[0][2]
             assert drawn_as == (pybullet.GEOM_CAPSULE if mode is None else pybullet.GEOM_CYLINDER)
             assert u.sim.draws == (mode is not None)

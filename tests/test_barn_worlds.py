@@ -7,8 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from smartcar_gym.envs.tasks.barn import BarnProtocol, PathTracker, RunClock, barn_score
+from smartcar_gym.envs.tasks.barn import BarnProtocol, RunClock, barn_score
 from smartcar_gym.navigation.grid_planner import NoPathError, distance_grid, path_length, plan_path
+from smartcar_gym.navigation.paths import PathTracker
 from smartcar_gym.worlds.barn import (
     TEST_WORLDS,
     TRAIN_WORLDS,

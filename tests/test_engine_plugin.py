@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pytest
 
+from smartcar_gym.envs.settings import max_substep
 from smartcar_gym.envs.smartcar_env import SmartCarEnv
 from smartcar_gym.sim import contracts, engines
 from smartcar_gym.sim.engines import (
@@ -47,7 +48,9 @@ def test_the_example_registers_an_engine_and_runs_every_id_on_it():
 
 def test_the_built_in_engines_come_first():
     assert engine_names()[:3] == ("pybullet", "mujoco", "planar")
-    assert engines.ENGINES == engine_names()
+    # the lazy module-level names are gone: the registry answers
+    assert not hasattr(engines, "ENGINES") and not hasattr(engines, "MUJOCO_EXTRA")
+    assert get_engine("mujoco").extra == 'pip install "smartcar-gym[mujoco]"'
 
 
 def test_register_engine_refuses_a_duplicate_and_what_is_no_engine(flatland):
@@ -99,7 +102,8 @@ def test_an_entry_point_registers_an_engine(monkeypatch):
     _installed(monkeypatch, _Point("other", other))
     assert engine_names() == ("pybullet", "mujoco", "planar", "other")
     assert get_engine("other") is other
-    assert SmartCarEnv._substep(None, None, "other") == get_engine("planar").max_substep_s
+    assert max_substep(None, None, "other") == get_engine("planar").max_substep_s
+    assert max_substep(None, None, other) == get_engine("planar").max_substep_s
 
 
 def test_an_entry_point_that_is_no_engine_is_named(monkeypatch):
@@ -135,7 +139,11 @@ def test_an_engine_keyword_follows_the_engine_that_takes_it(flatland):
     assert env.planar_params == resolve("mujoco")
     assert env.sim.params == resolve("mujoco")
     env.close()
-    assert SmartCarEnv().planar_params is None
+    default = SmartCarEnv()  # pybullet: no engine keyword of its own
+    try:
+        assert default.engine_options == {} and default.planar_params is None
+    finally:
+        default.close()
     with pytest.raises(ValueError, match=r"planar_params is the planar engine's; pass "
                                          r"engine='planar' \(engine is 'pybullet'\)"):
         SmartCarEnv(planar_params="mujoco")
@@ -162,15 +170,18 @@ def test_a_batch_of_rays_is_pybullets_most_on_every_engine():
     assert MAX_RAYS == pybullet.MAX_RAY_INTERSECTION_BATCH_SIZE
 
 
-def test_the_old_module_paths_import_pybullets_names():
-    from smartcar_gym.sim import Body, Simulator
-    from smartcar_gym.sim.contracts import BASE, LinkDynamics
-    from smartcar_gym.sim.contracts import BoxPart
+def test_pybullets_names_live_in_its_folder_and_the_facade_has_no_aliases():
+    import smartcar_gym.sim as sim
+    from smartcar_gym.sim.clock import NS_PER_S
     from smartcar_gym.sim.pybullet.body import Body as PybulletBody
     from smartcar_gym.sim.pybullet.simulator import Simulator as PybulletSimulator
-    from smartcar_gym.sim.clock import NS_PER_S
 
-    assert (Simulator, Body) == (PybulletSimulator, PybulletBody)
-    assert (BASE, LinkDynamics, BoxPart) == (contracts.BASE, contracts.LinkDynamics,
-                                             contracts.BoxPart)
+    assert not hasattr(sim, "Simulator") and not hasattr(sim, "Body")
+    world = make_simulator("pybullet")
+    try:
+        assert type(world) is PybulletSimulator and world.engine == "pybullet"
+    finally:
+        world.close()
+    assert PybulletBody.__module__ == "smartcar_gym.sim.pybullet.body"
+    assert all(hasattr(contracts, name) for name in ("BASE", "LinkDynamics", "BoxPart"))
     assert NS_PER_S == 1_000_000_000

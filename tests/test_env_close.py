@@ -141,16 +141,16 @@ def test_a_simulator_collected_unclosed_removes_its_folder_without_a_warning(eng
 def test_a_robot_refused_by_gym_make_leaves_no_world_open(monkeypatch):
     """The planar engine refuses a car that would tip over while the env is made: the world
     the env had opened is closed on the way out, not left to the collector."""
-    from smartcar_gym.envs import smartcar_env
+    from smartcar_gym.envs import world
 
     made = []
-    real = smartcar_env.make_simulator
+    real = world.make_simulator
 
     def recording(*args, **kwargs):
         made.append(real(*args, **kwargs))
         return made[-1]
 
-    monkeypatch.setattr(smartcar_env, "make_simulator", recording)
+    monkeypatch.setattr(world, "make_simulator", recording)
     with pytest.raises(ValueError, match="tip over"):
         gym.make("SmartCar-v0", engine="planar", planar_params={"load_shift_x": 0.5})
     assert len(made) == 2  # the env's world and the scratch world of the spawn check

@@ -270,7 +270,7 @@ def test_unclear_arguments_are_named_through_gym_make(kwargs, error, match):
 
 
 def test_reset_options_must_be_a_dict(env):
-    with pytest.raises(TypeError, match=r"reset options must be a dict such as \{'goal': "
-                                        r"\(x, y\)\}, got str: 'notadict'"):
+    with pytest.raises(TypeError, match=r"^reset options must be a dict of 'goal', got str: "
+                                        r"'notadict'"):
         env.reset(options="notadict")
     env.reset(seed=0)  # still usable

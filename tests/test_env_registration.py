@@ -13,20 +13,20 @@ from gymnasium.wrappers import TimeLimit
 
 import smartcar_gym
 from smartcar_gym.envs.smartcar_env import SmartCarEnv
-from smartcar_gym.registration import ENTRY_POINT, MAX_EPISODE_STEPS, REWARD_THRESHOLD
+from smartcar_gym.envs.tasks.registry import task_of
+from smartcar_gym.registration import ENTRY_POINT
 
 
 def test_import_registers_both_ids_with_time_limit_and_threshold():
     # the other ids (SmartCarNav-v0, SmartCarGoal-v0): tests/test_registry.py
     assert {"SmartCar-v0", "SmartCarSim-v0"} <= set(smartcar_gym.ENV_IDS)
     for env_id in ("SmartCar-v0", "SmartCarSim-v0"):
-        spec = registry[env_id]
+        spec, how = registry[env_id], task_of(env_id).ids[env_id]
         assert spec.entry_point == ENTRY_POINT
-        assert spec.max_episode_steps == MAX_EPISODE_STEPS == 200
-        assert spec.reward_threshold == REWARD_THRESHOLD
-        assert spec.reward_threshold is not None and spec.reward_threshold > 0
-    assert registry["SmartCar-v0"].kwargs == {}
-    assert registry["SmartCarSim-v0"].kwargs == {"controller_mode": "sim"}
+        assert spec.max_episode_steps == how.max_episode_steps == 200
+        assert spec.reward_threshold == how.reward_threshold == 15.0
+    assert registry["SmartCar-v0"].kwargs == {"task": "reach"}
+    assert registry["SmartCarSim-v0"].kwargs == {"task": "reach", "controller_mode": "sim"}
 
 
 def test_register_envs_is_idempotent_and_silent():

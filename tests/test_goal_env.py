@@ -9,9 +9,8 @@ import numpy as np
 import pytest
 
 import smartcar_gym  # noqa: F401
-from smartcar_gym.envs.goal_env import SmartCarGoalEnv
 from smartcar_gym.envs.smartcar_env import SmartCarEnv
-from smartcar_gym.envs.tasks.goal import GoalConditionedTask, info_flags
+from smartcar_gym.envs.tasks.goal import GoalTask, info_flags
 
 FORWARD = np.array([1.0, 0.0], dtype=np.float32)
 
@@ -25,7 +24,7 @@ def env(request):
 
 def test_dict_observation_of_robot_state_and_odom_frame_goals(env):
     space = env.observation_space
-    assert isinstance(space, gym.spaces.Dict)
+    assert isinstance(space, gym.spaces.Dict) and type(env.unwrapped.task) is GoalTask
     assert set(space) == {"observation", "achieved_goal", "desired_goal"}
     assert space["achieved_goal"].shape == space["desired_goal"].shape == (2,)
     names = env.unwrapped.observation_names
@@ -89,12 +88,12 @@ def test_reaching_the_goal_by_odometry_terminates_with_success():
 
 
 def test_compute_functions_take_batches():
-    task = GoalConditionedTask(goal_tolerance_m=0.1, arena_half_size_m=2.5)
+    task = GoalTask(goal_tolerance=0.1, arena_size=5.0)
     achieved = np.array([[0.0, 0.0], [1.0, 1.0], [2.6, 0.0], [0.55, 0.0]], dtype=np.float32)
     desired = np.array([[0.05, 0.0], [1.0, 2.0], [2.6, 0.0], [0.5, 0.0]], dtype=np.float32)
     infos = np.array([{}, {"flipped": True}, {}, {"flipped": False}])
     assert task.compute_reward(achieved, desired, infos).tolist() == [0.0, -1.0, 0.0, 0.0]
-    dense = GoalConditionedTask(reward_type="dense")
+    dense = GoalTask(reward_type="dense")
     assert dense.compute_reward(achieved, desired, infos) == pytest.approx(
         [-0.05, -1.0, 0.0, -0.05], abs=1e-6)
     assert task.compute_terminated(achieved, desired, infos).tolist() == [
@@ -132,7 +131,7 @@ def test_the_env_reward_functions_match_the_task_on_batches(env):
 def test_bad_reward_type_and_copies():
     with pytest.raises(ValueError, match="reward_type must be"):
         gym.make("SmartCarGoal-v0", reward_type="shaped")
-    env = SmartCarGoalEnv(reward_type="dense")
+    env = SmartCarEnv(task="goal", reward_type="dense")
     try:
         obs, _ = env.reset(seed=3)
         clone = copy.deepcopy(env)

@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 import math
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
 from smartcar_gym import load_model
-from smartcar_gym.envs.observation import Readings
 from smartcar_gym.envs.robots import SmartCarRobot, drive
 from smartcar_gym.envs.sensors.laser import SimulatedLaser, mount_from_model, mount_from_pose
 from smartcar_gym.envs.sensors.scan import (
@@ -17,6 +17,9 @@ from smartcar_gym.envs.sensors.scan import (
     scan_sectors,
     sector_names,
 )
+from smartcar_gym.envs.state import SCAN, SCAN_TIME, CarState
+from smartcar_gym.envs.tasks.base import CarSettings
+from smartcar_gym.envs.tasks.nav import NavTask
 from smartcar_gym.sim.obstacles import add_obstacle
 from smartcar_gym.sim.rays import MAX_RAYS
 
@@ -83,15 +86,32 @@ def test_sector_count_outside_the_beams_is_refused():
         scan_entry(LaserConfig(), 0)
 
 
-def test_scan_entry_names_and_reads_the_sectors():
+def test_scan_entry_names_and_reads_the_sectors(laser_model, shipped_config):
     entry = scan_entry(LaserConfig(), 36)
     assert entry.names == sector_names(36) and entry.names[0] == "scan_00"
     assert (entry.low, entry.high) == (0.0, 3.5)
-    ranges = np.full(360, np.inf)
-    ranges[185] = 0.5  # 5 degrees left of ahead: sector 18
-    readings = Readings(None, [], [], [0, 0], [0, 0], {"scan": ranges})
-    values = np.asarray(entry.read(readings))
-    assert values[18] == 0.5 and np.count_nonzero(values == 3.5) == 35
+    # the nav task reads its cars' latest scans into the entry's columns
+    task = NavTask()
+    task.bind(CarSettings(laser_model, shipped_config, "hardware", 0.5, 2.0, "sphere",
+                          "pybullet"))
+    task.attach(2)
+    cars = SimpleNamespace(state=CarState.zeros(2, 4, {SCAN: ((360,), np.float32),
+                                                       SCAN_TIME: ((), np.int64)}))
+    ranges = cars.state.readings[SCAN]
+    ranges[:] = np.inf
+    ranges[0, 185] = 0.5  # 5 degrees left of ahead: sector 18
+    ranges[1, 0] = -np.inf  # closer than range_min, behind: sector 0
+    obs = task.observe(cars)
+    start = task.observation().names.index("scan_00")
+    values = obs[:, start:]
+    assert values.shape == (2, 36) and obs.shape == (2, start + 36)
+    assert values[0, 18] == 0.5 and np.count_nonzero(values[0] == 3.5) == 35
+    assert values[1, 0] == 0.0 and np.count_nonzero(values[1] == 3.5) == 35
+    # a new scan (a new time) is read again, the same one is not
+    ranges[0, 185] = 1.0
+    assert task.observe(cars)[0, start + 18] == 0.5
+    cars.state.readings[SCAN_TIME][0] = 100
+    assert task.observe(cars)[0, start + 18] == 1.0
 
 
 # -- the scanner in a world --------------------------------------------------------------------

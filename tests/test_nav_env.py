@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 
 import smartcar_gym  # noqa: F401
-from smartcar_gym.envs.nav_env import SmartCarNavEnv, _doc_table
-from smartcar_gym.envs.nav_parts import footprint_radius
 from smartcar_gym.envs.sensors.scan import scan_sectors
 from smartcar_gym.envs.smartcar_env import SmartCarEnv
+from smartcar_gym.envs.tasks.nav import NavTask
 from smartcar_gym.model import SHIPPED_MODEL
+from smartcar_gym.model.footprint import footprint_radius
 
 AHEAD = [{"shape": "box", "position": [0.6, 0.0], "size": [0.2, 1.0]}]  # face at x = 0.5
 FORWARD = np.array([1.0, 0.0], dtype=np.float32)
@@ -48,9 +48,14 @@ def test_observation_is_smartcar_v0_then_the_scan(env):
 
 
 def test_docstring_table_is_the_declared_observation():
-    assert _doc_table().replace("\n    ", "\n") == gym.make(
-        "SmartCarNav-v0").unwrapped.observation.table().replace("left_front_wheel_joint", "lf")
-    assert "| 21-56 | laser: nearest range in each of 36 sectors" in SmartCarNavEnv.__doc__
+    env = gym.make("SmartCarNav-v0")
+    try:
+        table = env.unwrapped.observation.table()
+    finally:
+        env.close()
+    assert type(env.unwrapped.task) is NavTask
+    assert table.replace("\n", "\n    ") in NavTask.__doc__
+    assert "| 21-56 | laser: nearest range in each of 36 sectors" in NavTask.__doc__
 
 
 def test_drawn_obstacles_stand_where_the_layout_says_and_leave_room(env):
@@ -60,7 +65,7 @@ def test_drawn_obstacles_stand_where_the_layout_says_and_leave_room(env):
     for seed in range(5):
         env.reset(seed=seed)
         u = env.unwrapped
-        layouts.append(u.obstacles)
+        layouts.append(u.obstacles)  # the single env's car's
         assert len(u.obstacles) == 8
         for i, o in enumerate(u.obstacles):
             assert o.distance(np.zeros(2)) >= radius + 0.2
@@ -78,7 +83,7 @@ def test_driving_into_an_obstacle_is_a_penalised_terminal_collision(env):
     u = env.unwrapped
     steps = 0
     while steps < 60:
-        distance = u._distance
+        distance = float(u.task.distance[0])
         obs, reward, terminated, truncated, info = env.step(FORWARD)
         steps += 1
         if terminated:
@@ -100,7 +105,7 @@ def test_proximity_penalty_follows_the_ground_truth_clearance():
         assert info["clearance"] == 0.3  # 0.375 m from the box: capped at proximity_m
         u, seen = env.unwrapped, []
         for _ in range(60):
-            distance = u._distance
+            distance = float(u.task.distance[0])
             _, reward, terminated, _, info = env.step(FORWARD)
             progress = 10 * (distance - info["distance"]) - 0.02
             inside = min(1.0, max(0.0, (0.3 - info["clearance"]) / 0.3))
@@ -161,9 +166,11 @@ def test_a_fixed_layout_redraws_goals_that_are_too_close(tmp_path):
 def test_bad_reset_options_keep_the_running_world(env, options, error, match):
     env.reset(seed=0)
     before = env.unwrapped.obstacles
+    bodies = list(env.unwrapped.obstacle_bodies)
     with pytest.raises(error, match=match):
         env.reset(seed=1, options=options)
     assert env.unwrapped.obstacles == before  # nothing was torn down
+    assert env.unwrapped.obstacle_bodies == bodies
     env.step(FORWARD)
 
 

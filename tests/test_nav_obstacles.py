@@ -8,7 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from smartcar_gym.envs.tasks.nav import NavigationTask
+from smartcar_gym.envs.state import CarState
+from smartcar_gym.envs.tasks.nav import NavTask
 from smartcar_gym.envs.tasks.obstacles import (
     MIN_GAP_M,
     Obstacle,
@@ -128,16 +129,49 @@ def test_bad_layout_files_name_the_file(tmp_path):
         read_layout(entry)
 
 
+class Cars:
+    """The env a task runs in (``tasks.base.Cars``): cars at the origin, their goals 1 m ahead,
+    each ``clearance`` m from its nearest obstacle."""
+
+    threads = 1
+
+    def __init__(self, clearance) -> None:
+        self.clearance = np.asarray(clearance, dtype=float)
+        self.state = CarState.zeros(len(self.clearance), 4)
+        self.state.goal[:] = (1.0, 0.0)
+
+    def clearances(self, cars: np.ndarray, max_distance_m: float) -> np.ndarray:
+        return np.minimum(self.clearance[cars], max_distance_m)
+
+
+def nav_terms(task: NavTask, clearance) -> tuple[np.ndarray, np.ndarray]:
+    """The collision and proximity terms of a step's reward (the reaching terms, a car that
+    made no progress with no action, taken off) and the failures, of cars that far from an
+    obstacle."""
+    cars = Cars(clearance)
+    task.attach(len(cars.clearance))
+    task.distance[:] = 1.0  # no progress
+    reward, _, failure = task.score(cars, np.zeros((len(cars.clearance), 2)))
+    return reward + task.time_cost, failure
+
+
 def test_collision_and_proximity_terms_of_the_reward():
-    task = NavigationTask(collision_penalty=7.0, proximity_penalty=0.5, proximity_m=0.2)
-    assert task.collision_reward(np.array([True, False])).tolist() == [-7.0, 0.0]
-    assert task.collision_reward(False) == 0.0
-    assert task.proximity_reward(np.array([0.3, 0.2, 0.15, 0.0, -0.01])) == pytest.approx(
-        [0.0, 0.0, -0.125, -0.5, -0.5])
-    assert NavigationTask().proximity_reward(0.0) == 0.0  # off by default
+    task = NavTask(collision_penalty=7.0, proximity_penalty=0.5, proximity_m=0.2)
+    terms, failure = nav_terms(task, [0.3, 0.2, 0.15, 0.0, -0.01])
+    # proximity: 0.5 * (0.2 - clearance) / 0.2, at most 0.5; a clearance <= 0 collides: 7
+    assert terms == pytest.approx([0.0, 0.0, -0.125, -7.5, -7.5])
+    assert task.collision.tolist() == failure.tolist() == [False, False, False, True, True]
+    assert task.clearance.tolist() == [0.2, 0.2, 0.15, 0.0, -0.01]  # at most proximity_m
+    terms, failure = nav_terms(NavTask(collision_penalty=7.0, proximity_penalty=0.5,
+                                       proximity_m=0.2), [0.5, 0.5])
+    assert terms.tolist() == [0.0, 0.0] and not failure.any()
+    terms, _ = nav_terms(NavTask(), [0.01])
+    assert terms.tolist() == [0.0]  # proximity off by default (and no collision)
+    terms, _ = nav_terms(NavTask(), [0.0])
+    assert terms.tolist() == [-10.0]  # the default collision penalty
     with pytest.raises(ValueError, match="collision_penalty"):
-        NavigationTask(collision_penalty=-1.0)
+        NavTask(collision_penalty=-1.0)
     with pytest.raises(ValueError, match="proximity_penalty"):
-        NavigationTask(proximity_penalty=-1.0)
+        NavTask(proximity_penalty=-1.0)
     with pytest.raises(ValueError, match="proximity_m"):
-        NavigationTask(proximity_m=0.0)
+        NavTask(proximity_m=0.0)

@@ -15,7 +15,7 @@ from gymnasium.utils.env_checker import check_env
 
 import smartcar_gym  # noqa: F401
 from smartcar_gym.controller import compiled
-from smartcar_gym.sim.planar import jit
+from smartcar_gym.sim.planar import dynamics
 from smartcar_gym.sim.planar.layout import CX, CY, LOAD, MASS
 from smartcar_gym.sim.planar.params import PlanarParams, PlanarParamsError, dump, load, resolve
 
@@ -58,7 +58,7 @@ def test_seeded_rollouts_repeat_bit_for_bit() -> None:
     assert not all(np.array_equal(x, y) for x, y in zip(a, c, strict=True))
 
 
-@pytest.mark.skipif(not jit.COMPILED, reason="numba (the fast extra) is not installed")
+@pytest.mark.skipif(not dynamics.COMPILED, reason="numba (the fast extra) is not installed")
 def test_the_same_rollout_without_numba() -> None:
     """``SMARTCAR_GYM_NUMBA=0``: Python floats instead of the compiled loop, same numbers."""
     code = textwrap.dedent("""
@@ -130,7 +130,7 @@ def test_the_batch_is_n_single_envs_bit_for_bit(env_id: str, mode: str) -> None:
         e.close()
 
 
-@pytest.mark.skipif(not jit.COMPILED, reason="numba (the fast extra) is not installed")
+@pytest.mark.skipif(not dynamics.COMPILED, reason="numba (the fast extra) is not installed")
 def test_the_batch_without_numba_is_the_same_batch(monkeypatch) -> None:
     """numba's loops (physics, boards and controllers) and the numpy arrays: the same numbers
     for 64 cars reset at different steps (so each car's events fall apart)."""
@@ -150,7 +150,7 @@ def test_the_batch_without_numba_is_the_same_batch(monkeypatch) -> None:
         return out
 
     fast = run()
-    monkeypatch.setattr(jit, "COMPILED", False)
+    monkeypatch.setattr(dynamics, "COMPILED", False)
     monkeypatch.setattr(compiled, "COMPILED", False)
     slow = run()
     assert all(np.array_equal(a, b) for a, b in zip(fast, slow, strict=True))
@@ -185,8 +185,8 @@ def test_a_differential_drive_robot_is_batched_too() -> None:
         single = [e.step(actions[i])[0] for i, e in enumerate(envs)]
         assert all(np.array_equal(obs[i], single[i]) for i in range(2))
     # it drives straight: both wheels alike
-    info = envs[0].unwrapped._info(envs[0].unwrapped.robot.pose(), False)
-    assert abs(info["pose"][1]) < 0.01 and info["pose"][0] > 0.5
+    x, y, _ = envs[0].unwrapped.state.pose[0]  # the ground truth
+    assert abs(y) < 0.01 and x > 0.5
     venv.close()
     for env in envs:
         env.close()
@@ -286,7 +286,8 @@ def test_rgb_array_is_a_top_down_picture() -> None:
 
 def test_the_default_engine_stays_pybullet() -> None:
     env = gym.make("SmartCar-v0")
-    assert env.unwrapped.sim.engine == "pybullet" and env.unwrapped.planar_params is None
+    assert env.unwrapped.sim.engine == "pybullet" and env.unwrapped.engine == "pybullet"
+    assert env.unwrapped.engine_options == {}  # no planar_params: the planar engine's own
     env.close()
 
 

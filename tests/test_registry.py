@@ -17,7 +17,8 @@ from stable_baselines3.common.env_checker import check_env as sb3_check_env
 from stable_baselines3.common.env_util import make_vec_env
 
 import smartcar_gym
-from smartcar_gym.registration import ENV_IDS, SPECS
+from smartcar_gym.envs.tasks.registry import ENTRY_POINT, VECTOR_ENTRIES, env_ids, task_of
+from smartcar_gym.registration import ENV_IDS
 
 N_STEPS = 30
 SB3_GOAL_ENV_NOTE = "We detected your env to be a GoalEnv"  # printed, not warned
@@ -54,14 +55,24 @@ def test_env_ids_is_one_exported_tuple_of_every_registered_id():
     assert isinstance(ENV_IDS, tuple) and smartcar_gym.ENV_IDS is ENV_IDS
     assert ENV_IDS == ("SmartCar-v0", "SmartCarSim-v0", "SmartCarArrive-v0", "SmartCarNav-v0",
                        "SmartCarGoal-v0", "SmartCarBARN-v0")
+    # the built-in tasks' ids come first; a plug-in task's (examples/) may follow
+    assert env_ids()[:len(ENV_IDS)] == ENV_IDS
     ours = {spec.id for spec in registry.values()
             if str(spec.entry_point).startswith("smartcar_gym.")}
-    assert ours == set(ENV_IDS)
+    assert ours == set(env_ids())
+    limits = {}
     for env_id in ENV_IDS:
-        spec = registry[env_id]
-        assert (spec.entry_point, spec.max_episode_steps, spec.reward_threshold, spec.kwargs) == (
-            SPECS[env_id].entry_point, SPECS[env_id].max_episode_steps,
-            SPECS[env_id].reward_threshold, SPECS[env_id].kwargs)
+        spec, task = registry[env_id], task_of(env_id)
+        how = task.ids[env_id]
+        assert (spec.entry_point, spec.vector_entry_point, spec.max_episode_steps,
+                spec.reward_threshold, spec.kwargs) == (
+            ENTRY_POINT, f"{VECTOR_ENTRIES}:{env_id}", how.max_episode_steps,
+            how.reward_threshold, {"task": task.name, **how.kwargs})
+        limits[env_id] = (task.name, spec.max_episode_steps, spec.reward_threshold)
+    assert limits == {"SmartCar-v0": ("reach", 200, 15.0), "SmartCarSim-v0": ("reach", 200, 15.0),
+                      "SmartCarArrive-v0": ("reach", 200, 15.0),
+                      "SmartCarNav-v0": ("nav", 200, None), "SmartCarGoal-v0": ("goal", 100, None),
+                      "SmartCarBARN-v0": ("barn", 1676, None)}
 
 
 @pytest.mark.parametrize("env_id", ENV_IDS)

@@ -1,111 +1,182 @@
-"""The goal-reaching task as pure functions: sampling, success, arena, reward."""
+"""The goal-reaching task (``ReachTask``) over arrays of cars: sampling, success, arena, reward."""
 
 import math
 
 import numpy as np
 import pytest
 
-from smartcar_gym.envs.tasks import GoalReachingTask
+from smartcar_gym.envs.state import CarState
+from smartcar_gym.envs.tasks.reach import ReachTask
+
+
+class Cars:
+    """The env a task runs in (``tasks.base.Cars``), for ``num`` cars on an empty plane: their
+    state, one generator each, and no obstacles."""
+
+    threads = 1
+
+    def __init__(self, num: int, seed: int = 0) -> None:
+        self.state = CarState.zeros(num, 4)
+        self.rngs = [np.random.default_rng(seed + i) for i in range(num)]
+
+    def rng(self, car: int) -> np.random.Generator:
+        return self.rngs[car]
+
+    def clearances(self, cars: np.ndarray, max_distance_m: float) -> np.ndarray:
+        return np.full(len(cars), max_distance_m)
+
+    def place_obstacles(self, car, obstacles, pillars) -> None:
+        raise AssertionError("the reaching task places no obstacles")
+
+
+def attached(task: ReachTask, num: int) -> ReachTask:
+    task.attach(num)
+    return task
+
+
+def score(task: ReachTask, cars: Cars, position, up_z, goal, action, previous):
+    """One step's score of cars at ``position`` (rows), their goals ``goal`` and the distances
+    they had ``previous``."""
+    state = cars.state
+    state.pose[:, :2] = position
+    state.up_z[:] = up_z
+    state.goal[:] = goal
+    task.distance[:] = previous
+    return task.score(cars, np.asarray(action, dtype=np.float64).reshape(-1, 2))
 
 
 def test_goal_sampling_respects_range_and_is_seeded():
-    task = GoalReachingTask(goal_range_m=(0.5, 1.5))
-    goals = np.array([task.sample_goal(np.random.default_rng(i), np.zeros(2)) for i in range(200)])
+    task = ReachTask(goal_range=(0.5, 1.5))
+    goals = np.array([task.sample_goal(np.random.default_rng(i)) for i in range(200)])
     dist = np.linalg.norm(goals, axis=1)
     assert dist.min() >= 0.5 and dist.max() <= 1.5
     # bearings cover all four quadrants
     assert {(x > 0, y > 0) for x, y in goals} == {(a, b) for a in (0, 1) for b in (0, 1)}
-    a = task.sample_goal(np.random.default_rng(7), np.array([1.0, 2.0]))
-    b = task.sample_goal(np.random.default_rng(7), np.array([1.0, 2.0]))
+    a = task.sample_goal(np.random.default_rng(7))
+    b = task.sample_goal(np.random.default_rng(7))
     assert np.array_equal(a, b)
-    assert 0.5 <= math.dist(a, (1.0, 2.0)) <= 1.5
+    # ``start`` draws each car's goal from its own generator, or takes the given one
+    attached(task, 3)
+    cars = Cars(3, seed=7)
+    task.start(cars, np.arange(3), [{}, {"goal": np.array([1.0, 2.0])}, {}])
+    assert np.array_equal(cars.state.goal[0], a)
+    assert cars.state.goal[1].tolist() == [1.0, 2.0]
+    assert np.array_equal(cars.state.goal[2], task.sample_goal(np.random.default_rng(9)))
 
 
 def test_distance_success_and_arena_work_on_batches():
-    task = GoalReachingTask(goal_tolerance_m=0.1, arena_half_size_m=2.0)
+    task = attached(ReachTask(goal_tolerance=0.1, arena_size=4.0), 3)
+    assert task.arena_half_size_m == 2.0
+    cars = Cars(3)
     pos = np.array([[0.0, 0.0], [1.0, 0.95], [2.5, 0.0]])
-    goal = np.array([1.0, 1.0])
-    d = task.distance(pos, goal)
-    np.testing.assert_allclose(d, [math.sqrt(2), 0.05, math.hypot(1.5, 1.0)])
-    assert task.is_success(d).tolist() == [False, True, False]
-    assert task.is_outside(pos).tolist() == [False, False, True]
+    _, success, failure = score(task, cars, pos, 1.0, (1.0, 1.0), np.zeros((3, 2)), 0.0)
+    np.testing.assert_allclose(task.distance, [math.sqrt(2), 0.05, math.hypot(1.5, 1.0)])
+    assert task.is_success(task.distance).tolist() == [False, True, False]
+    assert success.tolist() == [False, True, False]
+    assert failure.tolist() == [False, False, True]  # outside the arena
 
 
 def test_reward_hand_computed():
-    task = GoalReachingTask()
+    task = attached(ReachTask(), 1)
+    cars = Cars(1)
     # 0.2 m of progress with action (0.5, -0.5): 10*0.2 - 0.01 - 0.01*0.5 = 1.985
-    assert task.reward(1.0, 0.8, np.array([0.5, -0.5]), False, False) == pytest.approx(1.985)
-    # success adds 10, failure subtracts 10
-    assert task.reward(0.15, 0.05, np.zeros(2), True, False) == pytest.approx(1.0 - 0.01 + 10)
-    assert task.reward(1.0, 1.1, np.ones(2), False, True) == pytest.approx(-1.0 - 0.03 - 10)
-    batch = task.reward(np.array([1.0, 1.0]), np.array([0.9, 1.0]), np.zeros((2, 2)),
-                        np.array([False, False]), np.array([False, True]))
-    np.testing.assert_allclose(batch, [0.99, -10.01])
+    reward, _, _ = score(task, cars, [[0.8, 0.0]], 1.0, (0.0, 0.0), [0.5, -0.5], 1.0)
+    assert reward[0] == pytest.approx(1.985)
+    # success adds 10, failure (flipped over) subtracts 10
+    reward, success, _ = score(task, cars, [[0.05, 0.0]], 1.0, (0.0, 0.0), [0.0, 0.0], 0.15)
+    assert success[0] and reward[0] == pytest.approx(1.0 - 0.01 + 10)
+    reward, _, failure = score(task, cars, [[1.1, 0.0]], 0.4, (0.0, 0.0), [1.0, 1.0], 1.0)
+    assert failure[0] and reward[0] == pytest.approx(-1.0 - 0.03 - 10)
+    batch = attached(ReachTask(), 2)
+    reward, _, _ = score(batch, Cars(2), [[0.9, 0.0], [1.0, 0.0]], [1.0, 0.4], (0.0, 0.0),
+                         np.zeros((2, 2)), [1.0, 1.0])
+    np.testing.assert_allclose(reward, [0.99, -10.01])
 
 
-def test_step_outcome_is_the_pure_functions_bit_for_bit():
-    """``evaluate`` (the per-step path on floats) agrees exactly with the array functions."""
-    task = GoalReachingTask(goal_tolerance_m=0.1, arena_half_size_m=2.5)
+def test_a_batch_scores_each_car_as_the_hand_formula_and_its_single_car_bit_for_bit():
+    """``score`` over N cars at once gives each car what the task over that car alone gives,
+    and what the card's formula gives on floats, exactly."""
     rng = np.random.default_rng(3)
-    cases = 0
-    for _ in range(2000):
-        position = rng.uniform(-2.7, 2.7, 2)
-        goal = position + rng.normal(0.0, 0.2, 2) if rng.random() < 0.3 else rng.uniform(-2, 2, 2)
-        up_z = rng.choice([1.0, 0.7, 0.4])
-        action = rng.uniform(-1, 1, 2)
-        previous = float(rng.uniform(0, 3))
-        out = task.evaluate(previous, position, up_z, goal, action)
-        distance = task.distance(position, goal)
-        success = bool(task.is_success(distance))
-        failure = bool(task.is_failure(position, up_z))
-        reward = float(task.reward(previous, distance, action, success, failure))
-        assert (out.distance, out.success, out.failure, out.reward) == (
-            float(distance), success, failure, reward)
-        cases += success + 2 * failure
-    assert cases > 100  # successes and failures were both exercised
+    n = 2000
+    position = rng.uniform(-2.7, 2.7, (n, 2))
+    near = rng.random(n) < 0.3
+    goal = np.where(near[:, None], position + rng.normal(0.0, 0.2, (n, 2)),
+                    rng.uniform(-2, 2, (n, 2)))
+    up_z = rng.choice([1.0, 0.7, 0.4], n)
+    action = rng.uniform(-1, 1, (n, 2))
+    previous = rng.uniform(0, 3, n)
+    batch = attached(ReachTask(goal_tolerance=0.1, arena_size=5.0), n)
+    reward, success, failure = score(batch, Cars(n), position, up_z, goal, action, previous)
+    single, cars = attached(ReachTask(goal_tolerance=0.1, arena_size=5.0), 1), Cars(1)
+    for i in range(n):
+        r, s, f = score(single, cars, position[i:i + 1], up_z[i], goal[i], action[i],
+                        previous[i])
+        (px, py), (gx, gy), (a0, a1) = position[i], goal[i], action[i]
+        distance = math.sqrt((px - gx) * (px - gx) + (py - gy) * (py - gy))
+        won = distance < 0.1
+        lost = up_z[i] < 0.5 or abs(px) > 2.5 or abs(py) > 2.5
+        want = (10.0 * (previous[i] - distance) - 0.01 - 0.01 * (a0 * a0 + a1 * a1)
+                + 10.0 * won - 10.0 * lost)
+        assert (float(r[0]), bool(s[0]), bool(f[0])) == (reward[i], success[i], failure[i])
+        assert (float(reward[i]), bool(success[i]), bool(failure[i])) == (want, won, lost)
+        assert batch.distance[i] == single.distance[0] == distance
+    cases = int(success.sum() + 2 * failure.sum())
+    assert success.sum() > 30 and failure.sum() > 30 and cases > 100  # both exercised
 
 
 @pytest.mark.parametrize(
     "kwargs, message",
     [
-        ({"goal_range_m": (1.5, 0.5)}, "goal_range"),
-        ({"goal_range_m": (-1.0, 0.5)}, "goal_range"),
-        ({"goal_tolerance_m": 0.0}, "goal_tolerance"),
-        ({"goal_range_m": (0.5, 3.0), "arena_half_size_m": 2.5}, "inside the arena"),
+        ({"goal_range": (1.5, 0.5)}, "goal_range"),
+        ({"goal_range": (-1.0, 0.5)}, "goal_range"),
+        ({"goal_tolerance": 0.0}, "goal_tolerance"),
+        ({"goal_range": (0.5, 3.0), "arena_size": 5.0}, "inside the arena"),
     ],
 )
 def test_bad_task_parameters_are_rejected(kwargs, message):
     with pytest.raises(ValueError, match=message):
-        GoalReachingTask(**kwargs)
+        ReachTask(**kwargs)
+
+
+def arrive(task: ReachTask, cars: Cars, previous: float, position, speed: float, odometry,
+           previous_error: float):
+    """One step of a car at ``position`` (goal at the origin, action 0) moving at ``speed``
+    whose odometry says ``odometry``, after ``previous`` m to go and ``previous_error`` m of
+    drift."""
+    cars.state.speed[:] = speed
+    cars.state.odometry[0, :2] = odometry
+    task.odometry_error[:] = previous_error
+    return score(task, cars, [position], 1.0, (0.0, 0.0), [0.0, 0.0], previous)
 
 
 def test_arriving_needs_rest_and_odometry_inside_the_tolerance():
-    """With ``stop_speed_m_s``: success only at rest with truth and odometry inside; inside, the
+    """With ``stop_speed``: success only at rest with truth and odometry inside; inside, the
     speed costs; every step the odometry's drift from the truth costs (hand-derived)."""
-    task = GoalReachingTask(stop_speed_m_s=0.01, speed_cost=1.0, odometry_cost=20.0)
-    goal, action = np.zeros(2), np.zeros(2)
+    task = attached(ReachTask(stop_speed=0.01), 1)
+    assert (task.speed_cost, task.odometry_cost) == (1.0, 20.0) and task.needs_speed
+    cars = Cars(1)
     # 0.05 m away at 0.2 m/s, odometry (0.03, 0.04): 0.05 from the goal, 0.05 from the truth
-    out = task.evaluate(0.08, np.array([0.05, 0.0]), 1.0, goal, action, 0.2, (0.03, 0.04), 0.02)
-    assert not out.success
-    assert out.odometry_error == pytest.approx(math.hypot(0.02, 0.04))
+    reward, success, _ = arrive(task, cars, 0.08, (0.05, 0.0), 0.2, (0.03, 0.04), 0.02)
+    assert not success[0]
+    assert task.odometry_error[0] == pytest.approx(math.hypot(0.02, 0.04))
     expected = 10 * 0.03 - 0.01 - 1.0 * 0.2 - 20.0 * (math.hypot(0.02, 0.04) - 0.02)
-    assert out.reward == pytest.approx(expected)
+    assert reward[0] == pytest.approx(expected)
     # the same at 0.005 m/s: at rest, the bonus
-    out = task.evaluate(0.05, np.array([0.05, 0.0]), 1.0, goal, action, 0.005, (0.05, 0.0),
-                        0.0)
-    assert out.success and out.reward == pytest.approx(-0.01 - 0.005 + 10)
+    reward, success, _ = arrive(task, cars, 0.05, (0.05, 0.0), 0.005, (0.05, 0.0), 0.0)
+    assert success[0] and reward[0] == pytest.approx(-0.01 - 0.005 + 10)
     # at rest inside in truth, but the odometry 0.12 m from the goal: not arrived, no speed cost
-    out = task.evaluate(0.05, np.array([0.05, 0.0]), 1.0, goal, action, 0.5, (0.12, 0.0), 0.07)
-    assert not out.success and out.reward == pytest.approx(-0.01)
+    reward, success, _ = arrive(task, cars, 0.05, (0.05, 0.0), 0.5, (0.12, 0.0), 0.07)
+    assert not success[0] and reward[0] == pytest.approx(-0.01)
     assert bool(task.is_success(0.05, 0.005)) and not bool(task.is_success(0.05, -0.02))
-    assert bool(GoalReachingTask().is_success(0.05, 3.0))  # without stop_speed: speed ignored
-    with pytest.raises(ValueError, match="stop_speed must be None or a speed > 0 m/s"):
-        GoalReachingTask(stop_speed_m_s=0.0)
+    assert bool(ReachTask().is_success(0.05, 3.0))  # without stop_speed: speed ignored
+    with pytest.raises(ValueError, match=r"^stop_speed must be a positive number, got 0\.0"):
+        ReachTask(stop_speed=0.0)
 
 
 def test_without_stop_speed_the_arrival_arguments_change_nothing():
-    task = GoalReachingTask()
-    base = task.evaluate(0.5, np.array([0.3, 0.1]), 1.0, np.zeros(2), np.ones(2))
-    other = task.evaluate(0.5, np.array([0.3, 0.1]), 1.0, np.zeros(2), np.ones(2), 0.7,
-                          (2.0, 2.0), 1.0)
-    assert base == other and base.odometry_error == 0.0
+    task = attached(ReachTask(), 1)
+    assert not task.needs_speed
+    base = arrive(task, Cars(1), 0.5, (0.3, 0.1), 0.0, (0.3, 0.1), 0.0)
+    other = arrive(task, Cars(1), 0.5, (0.3, 0.1), 0.7, (2.0, 2.0), 1.0)
+    assert all(np.array_equal(a, b) for a, b in zip(base, other, strict=True))
+    assert task.odometry_error[0] == 1.0  # untouched: no drift is measured

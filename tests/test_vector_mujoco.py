@@ -16,7 +16,6 @@ import smartcar_gym  # noqa: E402, F401
 from smartcar_gym.envs.vector import (  # noqa: E402
     SmartCarBatchVectorEnv,
     SmartCarLoopVectorEnv,
-    SmartCarMujocoVectorEnv,
 )
 from tests.test_vector_batched import rollout  # noqa: E402
 
@@ -60,7 +59,7 @@ def test_mujoco_batch_equals_n_single_envs_bit_for_bit(mode):
             truncated += int(w[3].sum())
         # early ends put cars out of step with each other's frame cycle; limits ended others
         assert terminated >= 2 and truncated >= 1, (terminated, truncated)
-        assert len(set(batched.unwrapped._now.tolist())) > 1
+        assert len(set(batched.unwrapped.state.now_ns.tolist())) > 1
     finally:
         batched.close()
         single.close()
@@ -89,14 +88,29 @@ def test_mujoco_batch_follows_gymnasium_conventions():
 
 
 def test_what_mujoco_cannot_batch_falls_back_to_the_loop():
-    for kwargs in ({"randomize": "default"}, {"controller_mode": "sim"},
-                   {"stop_speed": 0.01}):
+    for kwargs in ({"randomize": "default"}, {"stop_speed": 0.01}):
         envs = make(2, **kwargs)
         assert isinstance(envs, SmartCarLoopVectorEnv), kwargs
         envs.close()
     pybullet = gym.make_vec("SmartCar-v0", num_envs=2, vectorization_mode="vector_entry_point")
     assert isinstance(pybullet, SmartCarLoopVectorEnv)
     pybullet.close()
+
+
+def test_the_kinematic_mode_on_mujoco_falls_back_to_the_loop_of_its_single_envs():
+    """No batch runs ``controller_mode="sim"`` on MuJoCo: the fastest faithful vector env is
+    the loop, whose cars are their single envs bit for bit."""
+    envs = make(2, controller_mode="sim")
+    single = gym.make_vec("SmartCar-v0", num_envs=2, vectorization_mode="sync", engine="mujoco",
+                          controller_mode="sim")
+    try:
+        got, want = rollout(envs, 10, 2), rollout(single, 10, 2)
+        for k, (g, w) in enumerate(zip(got[1:], want[1:], strict=True), 1):
+            assert np.array_equal(g[1], w[1]), f"step {k}: rewards differ"
+        assert isinstance(envs, SmartCarLoopVectorEnv)
+    finally:
+        envs.close()
+        single.close()
 
 
 @pytest.mark.parametrize("env_id", ["SmartCar-v0", "SmartCarGoal-v0", "SmartCarNav-v0"])
@@ -122,10 +136,9 @@ def test_a_differential_drive_robot_falls_back_to_the_loop(env_id):
     finally:
         envs.close()
         single.close()
-    kwargs.pop("laser_mount", None)
-    with pytest.raises(ValueError, match=r"^SmartCarMujocoVectorEnv runs skid-steer bases; a "
-                                         r"differential-drive model"):
-        SmartCarMujocoVectorEnv(num_envs=2, **kwargs)
+    with pytest.raises(ValueError, match=rf"^SmartCarBatchVectorEnv \({env_id} on mujoco\) runs "
+                                         r"skid-steer bases; a differential-drive model"):
+        SmartCarBatchVectorEnv(env_id, num_envs=2, **kwargs)
 
 
 def test_bad_input_is_one_line():

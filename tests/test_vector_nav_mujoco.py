@@ -12,11 +12,10 @@ from gymnasium.vector import AutoresetMode
 pytest.importorskip("smartcar_gym.sim.mujoco", reason="engine='mujoco' needs the mujoco extra")
 
 import smartcar_gym  # noqa: E402, F401
-from smartcar_gym.envs.nav_env import SmartCarNavEnv  # noqa: E402
+from smartcar_gym.envs.smartcar_env import SmartCarEnv  # noqa: E402
 from smartcar_gym.envs.vector import (  # noqa: E402
     SmartCarBatchVectorEnv,
     SmartCarLoopVectorEnv,
-    SmartCarNavMujocoVectorEnv,
 )
 from tests.test_vector_batched import rollout  # noqa: E402
 
@@ -83,9 +82,9 @@ def test_nav_batch_equals_n_single_envs_bit_for_bit(mode, laser):
         assert ends["collision"] >= 1 and ends["success"] >= 1, ends
         u = batched.unwrapped
         for i, env in enumerate(single.envs):
-            assert np.array_equal(u.latest_ranges[i], env.unwrapped.laser.latest.ranges)
+            assert np.array_equal(u.state.readings["scan"][i], env.unwrapped.laser.latest.ranges)
             assert u.obstacles[i] == env.unwrapped.obstacles
-        assert len(set(u._now.tolist())) > 1  # cars out of step with each other
+        assert len(set(u.state.now_ns.tolist())) > 1  # cars out of step with each other
     finally:
         batched.close()
         single.close()
@@ -99,7 +98,7 @@ def _at_end(info: dict, key: str) -> np.ndarray:
 
 
 def test_nav_batch_steps_no_single_env(monkeypatch):
-    """Only resets go through the builder; a step never calls SmartCarNavEnv.step."""
+    """Only resets go through the builder; a step never calls SmartCarEnv.step."""
     envs = make(2, max_episode_steps=3, **SHORT)
     try:
         envs.reset(seed=0)
@@ -107,7 +106,7 @@ def test_nav_batch_steps_no_single_env(monkeypatch):
         def refuse(*args, **kwargs):
             raise AssertionError("a single env was stepped")
 
-        monkeypatch.setattr(SmartCarNavEnv, "step", refuse)
+        monkeypatch.setattr(SmartCarEnv, "step", refuse)
         for _ in range(4):  # across the autoreset
             envs.step(np.full((2, 2), 0.2))
     finally:
@@ -175,7 +174,8 @@ def test_what_the_nav_batch_cannot_run_falls_back_to_the_loop():
     pybullet = gym.make_vec("SmartCarNav-v0", num_envs=2, vectorization_mode="vector_entry_point")
     assert isinstance(pybullet, SmartCarLoopVectorEnv)
     pybullet.close()
-    with pytest.raises(ValueError, match="SmartCarNavMujocoVectorEnv cannot run render_mode"):
-        SmartCarNavMujocoVectorEnv(2, render_mode="rgb_array")
+    with pytest.raises(ValueError, match=r"^SmartCarBatchVectorEnv \(SmartCarNav-v0 on mujoco\) "
+                                         r"cannot run render_mode"):
+        SmartCarBatchVectorEnv("SmartCarNav-v0", 2, engine="mujoco", render_mode="rgb_array")
     with pytest.raises(MemoryError, match=r"^SmartCarNav-v0 \(mujoco\): num_envs=\d+ needs"):
         make(10**12)

@@ -1,11 +1,13 @@
 """One batched vector env for every engine with a car batch (``SmartCarBatchVectorEnv``): the
-registry picks the engine's batch, tasks are parts, and the old class names still make it."""
+registry picks the engine's batch, and one task object runs over its cars."""
 
 from __future__ import annotations
 
 import dataclasses
+import importlib
 import importlib.util
 import inspect
+import pkgutil
 from pathlib import Path
 
 import gymnasium as gym
@@ -99,8 +101,10 @@ def test_each_engine_batch_meets_the_protocol():
 
 
 def test_no_vector_class_is_named_after_an_engine_or_has_two_batched_parents():
-    classes = [c for m in ("base", "batched", "kinematic", "loop", "parts")
-               for _, c in inspect.getmembers(getattr(vector, m), inspect.isclass)
+    names = [m.name for m in pkgutil.iter_modules(vector.__path__)]
+    classes = [c for m in names
+               for _, c in inspect.getmembers(importlib.import_module(f"{vector.__name__}.{m}"),
+                                              inspect.isclass)
                if c.__module__.startswith("smartcar_gym.envs.vector")]
     assert SmartCarBatchVectorEnv in classes
     for cls in classes:
@@ -109,25 +113,32 @@ def test_no_vector_class_is_named_after_an_engine_or_has_two_batched_parents():
         assert len(batched) <= 1, cls
 
 
-@pytest.mark.parametrize(("name", "env_id", "engine"), [
-    ("SmartCarPlanarVectorEnv", "SmartCar-v0", "planar"),
-    ("SmartCarNavPlanarVectorEnv", "SmartCarNav-v0", "planar"),
-    ("SmartCarGoalPlanarVectorEnv", "SmartCarGoal-v0", "planar"),
-    pytest.param("SmartCarMujocoVectorEnv", "SmartCar-v0", "mujoco",
+def test_the_old_alias_names_are_gone():
+    for name in ("SmartCarPlanarVectorEnv", "SmartCarNavPlanarVectorEnv",
+                 "SmartCarGoalPlanarVectorEnv", "SmartCarMujocoVectorEnv"):
+        assert not hasattr(vector, name), name
+
+
+@pytest.mark.parametrize(("env_id", "engine"), [
+    ("SmartCar-v0", "planar"),
+    ("SmartCarNav-v0", "planar"),
+    ("SmartCarGoal-v0", "planar"),
+    pytest.param("SmartCar-v0", "mujoco",
                  marks=pytest.mark.skipif(not MUJOCO, reason="needs the mujoco extra")),
 ])
-def test_the_old_names_make_the_one_class_with_their_id_and_engine(name, env_id, engine):
-    envs = getattr(vector, name)(num_envs=2, max_episode_steps=3, autoreset_mode="SameStep",
-                                 num_threads=1)
+def test_the_one_class_runs_each_id_on_each_engine_and_names_both(env_id, engine):
+    label = rf"SmartCarBatchVectorEnv \({env_id} on {engine}\)"
+    envs = SmartCarBatchVectorEnv(env_id, num_envs=2, engine=engine, max_episode_steps=3,
+                                  autoreset_mode="SameStep", num_threads=1)
     try:
         assert type(envs) is SmartCarBatchVectorEnv
         assert (envs.env_id, envs.engine, envs.max_episode_steps) == (env_id, engine, 3)
         assert envs.metadata["autoreset_mode"].value == "SameStep"
         envs.close()
-        with pytest.raises(RuntimeError, match=rf"^{name} is closed"):
+        with pytest.raises(RuntimeError, match=rf"^{label} is closed"):
             envs.step(np.zeros((2, 2)))
     finally:
         envs.close()
     if env_id != "SmartCarNav-v0":  # Nav's batch varies each car as its builder draws it
-        with pytest.raises(ValueError, match=rf"^{name} cannot run randomize"):
-            getattr(vector, name)(num_envs=2, randomize="default")
+        with pytest.raises(ValueError, match=rf"^{label} cannot run randomize"):
+            SmartCarBatchVectorEnv(env_id, num_envs=2, engine=engine, randomize="default")

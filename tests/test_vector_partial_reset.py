@@ -117,10 +117,10 @@ def test_parked_cars_stand_still_and_the_others_step_as_before(env_id, kwargs):
             out.append({key: np.delete(v, 1, axis=0) for key, v in obs.items()}
                        if isinstance(obs, dict) else np.delete(obs, 1, axis=0))
             poses.append(info["pose"][1].copy())
-        clock = envs.unwrapped._now.copy()
+        clock = envs.unwrapped.state.now_ns.copy()
         envs.reset(options={"reset_mask": np.array([False, True, False])})
         envs.step(np.ones((N, 2), dtype=np.float32))
-        after = envs.unwrapped._now.copy()
+        after = envs.unwrapped.state.now_ns.copy()
         envs.close()
         return out, np.array(poses), np.stack([clock, after])
 
@@ -149,9 +149,9 @@ def test_park_takes_only_a_bool_array_of_one_flag_per_car(mask):
         with pytest.raises(ValueError, match=r"^park: expected a bool mask of shape \(3,\) \(a "
                                              r"numpy array of dtype bool\), got a "):
             envs.unwrapped.park(mask)
-        assert not envs.unwrapped._parked.any()
+        assert not envs.unwrapped.state.parked.any()
         envs.unwrapped.park(np.array([False, True, False]))
-        assert envs.unwrapped._parked.tolist() == [False, True, False]
+        assert envs.unwrapped.state.parked.tolist() == [False, True, False]
     finally:
         envs.close()
 
@@ -167,7 +167,7 @@ def test_a_parked_car_is_never_autoreset(engine, mode):
     envs = gym.make_vec("SmartCarNav-v0", num_envs=N, vectorization_mode="vector_entry_point",
                         engine=engine, max_episode_steps=3, autoreset_mode=mode)
     u = envs.unwrapped
-    builder = next(p.builder for p in u.parts if getattr(p, "builder", None) is not None)
+    builder = u.builder
     builds = []
     reset = builder.reset
     builder.reset = lambda **kw: builds.append(1) or reset(**kw)
@@ -180,17 +180,17 @@ def test_a_parked_car_is_never_autoreset(engine, mode):
         for k in range(5):
             if k == at:
                 u.park(parked)
-                clock = u._now[1]
+                clock = u.state.now_ns[1]
                 builds.clear()
             _, _, terminated, truncated, info = envs.step(action)
             ends.append((terminated | truncated).tolist())
             final.append(info.get("_final_obs", np.zeros(N, dtype=bool)).tolist())
         assert ends[2] == [True, at == 3, True]  # the first episodes' end
-        assert u._parked.tolist() == [False, True, False] and u._now[1] == clock
+        assert u.state.parked.tolist() == [False, True, False] and u.state.now_ns[1] == clock
         assert not any(end[1] for end in ends[at:]) and not any(f[1] for f in final)
         assert len(builds) == 2  # cars 0 and 2 autoreset once each, car 1 never
         envs.reset(seed=[None, 5, None], options={"reset_mask": parked})
-        assert not u._parked.any() and u._now[1] == 0 and len(builds) == 3
+        assert not u.state.parked.any() and u.state.now_ns[1] == 0 and len(builds) == 3
     finally:
         envs.close()
 
@@ -205,10 +205,10 @@ def test_the_engines_measure_the_listed_cars_clearances_alone(engine):
     try:
         envs.reset(seed=1)
         u = envs.unwrapped
-        every = u.cars.clearances(u._pose, 0.5, np.arange(4))
+        every = u.cars.clearances(u.state.pose, 0.5, np.arange(4))
         assert (every < 0.5).sum() >= 2  # obstacles within reach of some cars
         idx = np.array([3, 0, 2])
-        assert u.cars.clearances(u._pose, 0.5, idx).tolist() == every[idx].tolist()
-        assert u.cars.clearances(u._pose, 0.5, np.zeros(0, dtype=np.int64)).shape == (0,)
+        assert u.cars.clearances(u.state.pose, 0.5, idx).tolist() == every[idx].tolist()
+        assert u.cars.clearances(u.state.pose, 0.5, np.zeros(0, dtype=np.int64)).shape == (0,)
     finally:
         envs.close()

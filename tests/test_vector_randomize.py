@@ -67,7 +67,7 @@ def test_randomized_batch_equals_n_single_envs_bit_for_bit(env_id, engine, mode)
         # every car varies, episode by episode: delays, faulty encoders, the body
         assert ends >= N and len(draws) > N
         u = batched.unwrapped
-        assert u.base.faulty and u._delays and len(set(u.base.base_width.tolist())) == N
+        assert u.base.faulty and u.clocks.delays and len(set(u.base.base_width.tolist())) == N
         latency = got[-1][4]["randomization"]["latency"]
         assert latency.dtype == np.int64 and set(latency.tolist()) <= {0, 1}
     finally:

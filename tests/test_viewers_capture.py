@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 import smartcar_gym  # noqa: F401  (registers the envs)
+from smartcar_gym.envs.tasks.obstacles import Obstacle
 from smartcar_gym.model.kinematics import matrix_quaternion, quaternion_matrix
 from smartcar_gym.viewers.capture import CAPTURE_KEY, CaptureWrapper, EpisodeCollector
 
@@ -46,6 +47,9 @@ def test_reward_terms_add_up_to_the_reward(env_id):
     _, info = env.reset(seed=2)
     scene, first = info[CAPTURE_KEY]
     assert first.reward == 0.0 and first.time_ns == 0 and scene.goal == tuple(env.unwrapped.goal)
+    # the episode's obstacles, each one (the single env's car's)
+    assert all(isinstance(o, Obstacle) for o in scene.obstacles)
+    assert len(scene.obstacles) == (8 if env_id == "SmartCarNav-v0" else 0)
     env.action_space.seed(2)
     done = False
     while not done:

@@ -41,7 +41,7 @@ from smartcar_gym.envs.world import World
 from smartcar_gym.model import RobotModel
 from smartcar_gym.model.contact import check_wheel_contact
 from smartcar_gym.sim.contracts import window_of
-from smartcar_gym.sim.engines import DEFAULT_ENGINE, engine_options, get_engine
+from smartcar_gym.sim.engines import DEFAULT_ENGINE, engine_kwargs, engine_options, get_engine
 
 _ONE = np.zeros(1, dtype=np.int64)  # the single env's car, as a task's list of cars
 #: what the env shows of its world (``envs.world.World``), by the name it shows it under
@@ -277,17 +277,18 @@ class SmartCarEnv(gym.Env):
     def __getattr__(self, name: str) -> Any:
         """The world's ``sim``, ``robot``, ``laser`` (``SimulatedLaser``: ``latest`` is its last
         ``LaserScan``), ``markers`` and ``obstacle_bodies`` (what ``CarBatch.load`` reads; each
-        None while closed), what the task exports (``obstacles``, ``compute_reward``, ...) and
-        the engine's keywords (``planar_params``), read here."""
+        None while closed), what the task exports (``obstacles``, ``compute_reward``, ...; a
+        per-car one as this car's value) and the engines' keywords (``planar_params``: None on
+        another engine), read here."""
         world = self.__dict__.get("world")
         if world is not None and name in _FROM_WORLD:
             return getattr(world, _FROM_WORLD[name])
         task = self.__dict__.get("task")
         if task is not None and name in task.exports:
-            return getattr(task, name)
-        options = self.__dict__.get("engine_options", {})
-        if name in options:
-            return options[name]
+            value = getattr(task, name)
+            return _scalar(value[0]) if name in task.car_exports else value
+        if name in engine_kwargs():  # another engine's keyword: None here
+            return self.__dict__.get("engine_options", {}).get(name)
         raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
 
     @property

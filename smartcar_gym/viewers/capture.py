@@ -13,7 +13,6 @@ Capturing only reads the simulator: the episode is step for step what it is with
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -25,7 +24,6 @@ from smartcar_gym.controller import Odometry
 from smartcar_gym.envs.robots.smartcar import JointStates
 from smartcar_gym.envs.sensors.scan import LaserScan
 from smartcar_gym.envs.tasks.obstacles import Obstacle
-from smartcar_gym.envs.tasks.reach import FLIP_UP_Z
 from smartcar_gym.model.kinematics import link_frames, transform
 from smartcar_gym.model.urdf import UrdfRobot
 
@@ -125,7 +123,7 @@ def scene_of(env: gym.Env) -> Scene:
         goal=(float(base.goal[0]), float(base.goal[1])),
         goal_tolerance_m=float(base.task.goal_tolerance_m),
         arena_half_size_m=float(base.task.arena_half_size_m),
-        obstacles=tuple(getattr(base, "obstacles", ())),
+        obstacles=tuple(base.world.obstacles),
         laser_mount=None if getattr(base, "mount", None) is None else np.array(base.mount),
         laser_frame=base.laser_config.frame_id if hasattr(base, "laser_config") else "laser",
     )
@@ -150,15 +148,12 @@ def _shapes(model: Any) -> tuple[VisualShape, ...]:
 
 
 class FrameReader:
-    """Reads ``Frame`` objects from one env; it remembers the distance of the previous frame
-    to split the reward into its terms."""
+    """Reads ``Frame`` objects from one env (the reward's terms as its task summed them)."""
 
     def __init__(self, env: gym.Env) -> None:
         self.base = _smartcar(env)
-        self._distance = math.nan
 
     def reset(self, info: dict[str, Any]) -> Frame:
-        self._distance = float(info["distance"])
         position, orientation = self.base.robot.body.link_pose()
         return self._frame(position, orientation, 0.0, 0.0, 0.0, {}, info, False, False)
 
@@ -166,31 +161,14 @@ class FrameReader:
              info: dict[str, Any]) -> Frame:
         a0, a1 = min(max(float(action[0]), -1.0), 1.0), min(max(float(action[1]), -1.0), 1.0)
         position, orientation = self.base.robot.body.link_pose()
-        terms = self._terms(position, orientation, a0, a1, info)
-        frame = self._frame(position, orientation, a0, a1, float(reward), terms, info,
-                            bool(terminated), bool(truncated))
-        self._distance = float(info["distance"])
-        return frame
+        return self._frame(position, orientation, a0, a1, float(reward), self._terms(), info,
+                           bool(terminated), bool(truncated))
 
-    def _terms(self, position: Sequence[float], orientation: Sequence[float], a0: float,
-               a1: float, info: dict[str, Any]) -> dict[str, float]:
-        """The reward's terms (their sum is the reward, to rounding)."""
-        task = self.base.task
-        qx, qy = orientation[0], orientation[1]
-        up_z = 1.0 - 2.0 * (qx * qx + qy * qy)
-        half = task.arena_half_size_m
-        failure = (up_z < FLIP_UP_Z or abs(position[0]) > half or abs(position[1]) > half)
-        terms = {
-            "progress": task.progress_weight * (self._distance - float(info["distance"])),
-            "time": -task.time_cost,
-            "action": -task.action_cost * (a0 * a0 + a1 * a1),
-            "success": task.success_bonus * float(bool(info["is_success"])),
-            "failure": -task.failure_penalty * float(failure),
-        }
-        if "collision" in info and hasattr(task, "collision_reward"):
-            terms["collision"] = float(task.collision_reward(bool(info["collision"])))
-            terms["proximity"] = float(task.proximity_reward(float(info["clearance"])))
-        return terms
+    def _terms(self) -> dict[str, float]:
+        """The reward's terms as the task summed them (``Task.terms``: their sum is the
+        reward)."""
+        return {name: float(np.broadcast_to(value, (1,))[0])
+                for name, value in self.base.task.terms.items()}
 
     def _frame(self, position: Sequence[float], orientation: Sequence[float], a0: float,
                a1: float, reward: float, terms: dict[str, float], info: dict[str, Any],

@@ -107,6 +107,8 @@ class Task:
     per_car: ClassVar[tuple[str, ...]] = ()
     #: attributes an env shows as its own (``env.unwrapped.obstacles``, ``compute_reward``)
     exports: ClassVar[tuple[str, ...]] = ()
+    #: the per-car ones among them, which a single env shows as its car's value
+    car_exports: ClassVar[tuple[str, ...]] = ()
     #: whether the task reads the state's ``speed`` (the env reads it only then)
     needs_speed: ClassVar[bool] = False
     #: env keywords whose defaults the task changes (``controller_config``, ...)
@@ -186,7 +188,7 @@ class Task:
         if options is None:
             return [{} for _ in range(self.num)]
         if not isinstance(options, Mapping):
-            raise TypeError(f"reset options must be a dict ({self.options_help()}), got "
+            raise TypeError(f"reset options must be a dict of {self.options_help()}, got "
                             f"{type(options).__name__}: {options!r}")
         unknown = set(options) - set(self.option_keys)
         if unknown:

@@ -71,7 +71,7 @@ class GoalTask(ReachTask):
 
     ## Observation Space
 
-    ``Dict(observation=Box(..., (17,)), achieved_goal=Box(-2A, 2A, (2,)),
+    ``Dict(observation=Box(..., (16,)), achieved_goal=Box(-2A, 2A, (2,)),
     desired_goal=Box(-2A, 2A, (2,)))``, float32, where A = ``arena_size / 2``;
     ``observation`` is:
 
@@ -201,6 +201,7 @@ class GoalTask(ReachTask):
         success = self.compute_terminated(achieved, desired, None)
         self._truncate = self.compute_truncated(achieved, desired, None) | self._flipped
         reward = self.compute_reward(achieved, desired, None)
+        self.terms = {"goal": reward}
         return reward, success, np.zeros(self.num, dtype=bool)
 
     def truncated(self, cars: Cars) -> np.ndarray:

@@ -164,6 +164,7 @@ class NavTask(ReachTask):
     per_car = ("obstacles",)
     exports = ("obstacles", "clearance", "collision", "laser_config", "scan_sectors", "mount",
                "field", "layout")
+    car_exports = ("obstacles", "clearance", "collision")
     env_defaults = {"controller_config": calibrated_config_path()}
     model_args = {"laser": "true"}
     bytes_per_car = 48 * 1024  # its obstacles and latest scan
@@ -310,14 +311,14 @@ class NavTask(ReachTask):
     def score(self, cars: Cars, action: np.ndarray) -> Score:
         """Reaching the goal's terms, and the collision and proximity terms from each car's
         clearance (a parked car stands: its clearance stays)."""
-        reward, success, failure = super().score(cars, action)
+        _, success, failure = super().score(cars, action)
         running = np.flatnonzero(~cars.state.parked)
         self.clearance[running] = cars.clearances(running, self.proximity_m)
         self.collision = self.clearance <= 0.0
-        collision = -self.collision_penalty * self.collision.astype(float)
         inside = (self.proximity_m - self.clearance) / self.proximity_m
-        proximity = -self.proximity_penalty * np.clip(inside, 0.0, 1.0)
-        return reward + collision + proximity, success, failure | self.collision
+        self.terms["collision"] = -self.collision_penalty * self.collision.astype(float)
+        self.terms["proximity"] = -self.proximity_penalty * np.clip(inside, 0.0, 1.0)
+        return self.reward(), success, failure | self.collision
 
     def columns(self, cars: Cars) -> dict[str, Any]:
         columns = super().columns(cars)

@@ -174,6 +174,9 @@ class ReachTask(Task):
     # -- cars ----------------------------------------------------------------------------------
     def attach(self, num: int) -> None:
         super().attach(num)
+        #: the last step's reward by term (name -> per car, or one number for every car);
+        #: the reward is their sum, in this order (a recording shows each)
+        self.terms: dict[str, Any] = {}
         #: each car's ground-truth distance to its goal (m), as of the last step
         self.distance = np.zeros(num)
         #: each car's odometry error (m; ``stop_speed``), as of the last step
@@ -248,15 +251,24 @@ class ReachTask(Task):
             success, arrival = self._arrival(state, px, py, success)
         half = self.arena_half_size_m
         failure = (state.up_z < FLIP_UP_Z) | (np.abs(px) > half) | (np.abs(py) > half)
-        reward = (self.progress_weight * (self.distance - distance) - self.time_cost
-                  - self.action_cost * (action[:, 0] * action[:, 0]
-                                        + action[:, 1] * action[:, 1])
-                  + self.success_bonus * success.astype(np.float64)
-                  - self.failure_penalty * failure.astype(np.float64))
+        a0, a1 = action[:, 0], action[:, 1]
+        self.terms = {"progress": self.progress_weight * (self.distance - distance),
+                      "time": -self.time_cost,
+                      "action": -(self.action_cost * (a0 * a0 + a1 * a1)),
+                      "success": self.success_bonus * success.astype(np.float64),
+                      "failure": -(self.failure_penalty * failure.astype(np.float64))}
         if arrival is not None:
-            reward = reward - arrival
+            self.terms["arrival"] = -arrival
         self.distance = distance
-        return reward, success, failure
+        return self.reward(), success, failure
+
+    def reward(self) -> np.ndarray:
+        """The sum of the last step's ``terms``, in their order (each car's reward)."""
+        values = iter(self.terms.values())
+        total = next(values)
+        for term in values:
+            total = total + term
+        return total
 
     def _arrival(self, state: Any, px: np.ndarray, py: np.ndarray,
                  success: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -63,8 +63,9 @@ turning moves it outward, and so do wheels braking and spinning forward in a tur
 **Layout.** A car is three flat sequences (``state``, ``car``, ``contacts``) and its motors'
 ``drive``, indexed by the names ``layout`` defines (a table of each, with units), the same
 whether they hold floats (a Python list: one car), ``(N,)`` arrays (rows of an ``(S, N)``
-array: N cars at once in numpy) or float64 scalars (one car's row in the compiled loop,
-``jit.py``); ``groups``: each contact's wheel group (-1: sliding), shared by all cars.
+array: N cars at once in numpy) or float64 scalars (one car's row in the compiled loops,
+``run_car`` and ``run_cars`` where ``COMPILED``: numba installed and ``SMARTCAR_GYM_NUMBA``
+not ``0``); ``groups``: each contact's wheel group (-1: sliding), shared by all cars.
 """
 
 from __future__ import annotations

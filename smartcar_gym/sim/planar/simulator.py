@@ -26,7 +26,7 @@ from smartcar_gym.model.errors import ModelError
 from smartcar_gym.sim import contracts
 from smartcar_gym.sim.clock import EventClock, check_max_substep
 from smartcar_gym.sim.contracts import BASE, LinkDynamics
-from smartcar_gym.sim.planar import PLANAR_MAX_SUBSTEP_S, PLANAR_SUBSTEP_RANGE_S, jit
+from smartcar_gym.sim.planar import PLANAR_MAX_SUBSTEP_S, PLANAR_SUBSTEP_RANGE_S, dynamics
 from smartcar_gym.sim.planar.dynamics import new_scratch, substep
 from smartcar_gym.sim.planar.layout import (
     ANGLE,
@@ -167,7 +167,7 @@ class PlanarBody:
             state = _at_rest(*self._spawn, model)
         elif len(state) != state_size(ng):
             raise RuntimeError("the wheel groups changed after the body started moving")
-        if jit.COMPILED:  # numba's loop takes arrays (the same numbers, bit for bit)
+        if dynamics.COMPILED:  # numba's loop takes arrays (the same numbers, bit for bit)
             state = np.array(state, dtype=np.float64)
             self._arrays = (np.array(model.car), np.array(model.contacts).reshape(-1, NC),
                             np.array(model.contact_groups, dtype=np.int64))
@@ -208,14 +208,14 @@ class PlanarBody:
                 g, sign = self.groups.of[j]
                 damping[g] += sign * sign * b
         self.drive = tau + damping  # drive_values' layout, without its check (every frame)
-        if jit.COMPILED:
+        if dynamics.COMPILED:
             self._drive_array = np.array(self.drive)
 
     def run(self, n: int, dt: float) -> None:
         """``n`` substeps of ``dt`` s (compiled when numba is installed)."""
-        if jit.COMPILED:
+        if dynamics.COMPILED:
             car, contacts, groups = self._arrays
-            jit.run_car(self.state, car, contacts, groups, self._drive_array, dt, n)
+            dynamics.run_car(self.state, car, contacts, groups, self._drive_array, dt, n)
             return
         m = self.model
         state, car, contacts, groups, drive = (self.state, m.car, m.contacts, m.contact_groups,

@@ -335,8 +335,9 @@ class BarnTask(NavTask):
         pose, now = state.pose, state.now_ns
         if self.path_progress_weight:
             to_go = self._reward_trackers.to_go(np.arange(self.num), pose[:, :2])
-            reward = reward + self.path_progress_weight * (self._to_go - to_go)
+            self.terms["path"] = self.path_progress_weight * (self._to_go - to_go)
             self._to_go = to_go
+            reward = self.reward()
         running = np.flatnonzero(~state.parked)
         for i in running.tolist():
             self._clocks[i].update(pose[i, :2], int(now[i]) / NS_PER_S)

@@ -30,6 +30,7 @@ expected. The lines name the options of the commands built on this module: ``--m
 needs the ``train`` extra (Stable-Baselines3, torch): ``ImportError`` naming it otherwise.
 """
 
+from smartcar_gym.agents.models import PRETRAINED_POLICIES
 from smartcar_gym.agents.policies import (
     DEFAULT_ENV_ID,
     ObsNormalizer,
@@ -39,5 +40,5 @@ from smartcar_gym.agents.policies import (
     choose_normalizer,
 )
 
-__all__ = ["DEFAULT_ENV_ID", "ObsNormalizer", "Policy", "PolicyError", "as_policy",
-           "choose_normalizer"]
+__all__ = ["DEFAULT_ENV_ID", "PRETRAINED_POLICIES", "ObsNormalizer", "Policy", "PolicyError",
+           "as_policy", "choose_normalizer"]

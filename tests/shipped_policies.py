@@ -7,7 +7,8 @@ from importlib import resources
 from typing import Any
 
 from smartcar_gym.agents.episodes import evaluate_policy_episodes, summarize
-from smartcar_gym.policy import PRETRAINED_POLICIES, Policy
+from smartcar_gym.agents.models import PRETRAINED_POLICIES
+from smartcar_gym.policy import Policy
 
 
 def folder(name: str = "default"):

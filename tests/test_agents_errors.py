@@ -168,7 +168,7 @@ def no_evaluation(monkeypatch):
 
 @pytest.mark.parametrize(("argv", "message"), [
     (["--n-envs", "2", "--env-kwargs", "bogus=1"],
-     "cannot make SmartCar-v0 with bogus=1: SmartCarEnv got an unexpected keyword "
+     "cannot make SmartCar-v0 with bogus=1: SmartCar-v0 got an unexpected keyword "
      "argument 'bogus'; it takes arena_size, "),
     (["--env-kwargs", "goal_range=abc"], "goal_range must be a (min, max) pair of numbers"),
     (["--env", "Nope-v0"], "unknown env id 'Nope-v0': Environment Nope doesn't exist; "

@@ -11,9 +11,12 @@ import numpy as np
 import pytest
 
 from smartcar_gym.agents import cli_eval
-from smartcar_gym.agents.episodes import RECORD_TOLERANCE, evaluate_batched_episodes
 from smartcar_gym.agents.env_factory import EnvSetupError
-from smartcar_gym.agents.episodes import evaluate_policy_episodes
+from smartcar_gym.agents.episodes import (
+    RECORD_TOLERANCE,
+    evaluate_batched_episodes,
+    evaluate_policy_episodes,
+)
 from smartcar_gym.envs.vector import SmartCarSimVectorEnv
 from smartcar_gym.policy import Policy
 from smartcar_gym.testing import FunctionModel
@@ -103,7 +106,7 @@ def test_a_vector_env_without_partial_resets_is_one_line(monkeypatch):
     monkeypatch.setattr(SmartCarSimVectorEnv, "_reset_mask", everyone)
     with pytest.raises(EnvSetupError, match=r"^SmartCarSim-v0's vector env "
                        r"\(SmartCarSimVectorEnv\) cannot reset single cars .* it reset cars "
-                       r"\[0, 1\], not \[0\]$"):
+                       r"\[0, 1\], not \[0\], which --vectorization batched needs$"):
         evaluate_batched_episodes(FunctionModel(go_to_goal), "SmartCarSim-v0", n_episodes=3,
                                   n_envs=2, env_kwargs=NEAR)
 

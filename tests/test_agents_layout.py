@@ -1,7 +1,9 @@
-"""agents/ by concern: the package's module map names every module, the old module paths still
-import what they exported, and the console scripts name the command-line modules."""
+"""agents/ by concern: the package's module map names every module, the old module paths are
+gone (each name they exported lives in one module of the new layout, which the commands use),
+and the console scripts name the command-line modules."""
 
 import importlib
+import inspect
 import re
 from pathlib import Path
 
@@ -12,28 +14,52 @@ import smartcar_gym.agents as agents
 ROOT = Path(__file__).resolve().parent.parent
 AGENTS = Path(agents.__file__).parent
 
-# what each old module path exported, as earlier code and the docs import it
-OLD_NAMES = {
-    "train": ("main", "build_parser", "FAILED_EXIT_CODE", "INTERRUPTED_EXIT_CODE", "train"),
-    "evaluate": ("main", "build_parser", "check_outputs", "evaluate_policy_episodes",
-                 "load_model", "summarize", "count", "summary_title", "PRETRAINED_MODEL"),
-    "rollouts": ("EpisodeRecord", "RandomPolicy", "evaluate_policy_episodes", "record_video",
-                 "summarize", "ObservationShapeError", "DEFAULT_ENV_ID"),
-    "batched_rollouts": ("DEFAULT_BATCH", "RECORD_TOLERANCE", "act_batch",
-                         "evaluate_batched_episodes", "make_batched_env"),
-    "vec_env": ("GymVectorVecEnv", "make_batched_vec_env"),
-    "env_factory": ("make_env", "check_env", "EnvSetupError", "make_vec_env", "close_vec_env",
-                    "wrap_normalize", "env_fns", "INFO_KEYWORDS"),
-    "hyperparams": ("key_value_arg", "non_negative_int_arg", "positive_int_arg",
-                    "output_path_error", "load_hyperparams"),
-    "run_files": ("atomic_write_text", "file_mode", "save_model_atomic", "CHECKPOINT_RE",
-                  "checkpoint_steps", "find_latest_checkpoint", "replay_buffer_path_for"),
-    "run_folder": ("new_run", "resume_config", "new_config", "saved_models", "REQUIRED_KEYS",
-                   "utc_timestamp", "_versions"),
-    "model_files": ("PRETRAINED_MODEL", "PRETRAINED_POLICIES", "locate_model", "load_model",
-                    "find_vecnormalize", "saved_algo", "vecnormalize_path_for"),
-    "zoo_folder": ("read_zoo_run", "load_zoo_yaml", "Unreadable", "ZooRunError"),
+# each removed module path, and where what it exported lives now: {new module: names}
+MOVED = {
+    "train": {"cli_train": ("main", "build_parser", "FAILED_EXIT_CODE",
+                            "INTERRUPTED_EXIT_CODE"),
+              "training": ("train",)},
+    "evaluate": {"cli_eval": ("main", "build_parser", "check_outputs", "count",
+                              "summary_title"),
+                 "episodes": ("evaluate_policy_episodes", "summarize"),
+                 "models": ("load_model", "PRETRAINED_MODEL")},
+    "rollouts": {"episodes": ("EpisodeRecord", "RandomPolicy", "evaluate_policy_episodes",
+                              "summarize", "ObservationShapeError", "DEFAULT_ENV_ID"),
+                 "video": ("record_video",)},
+    "batched_rollouts": {"episodes": ("DEFAULT_BATCH", "RECORD_TOLERANCE", "act_batch",
+                                      "evaluate_batched_episodes"),
+                         "vec_envs": ("make_batched_env",)},
+    "vec_env": {"sb3_vec_env": ("GymVectorVecEnv",), "vec_envs": ("make_batched_vec_env",)},
+    "run_files": {"atomic_files": ("atomic_write_text", "file_mode", "save_model_atomic"),
+                  "runs": ("CHECKPOINT_RE", "checkpoint_steps", "find_latest_checkpoint",
+                           "replay_buffer_path_for")},
+    "run_folder": {"runs": ("new_run", "resume_config", "new_config", "saved_models",
+                            "REQUIRED_KEYS", "utc_timestamp", "_versions")},
+    "model_files": {"models": ("PRETRAINED_MODEL", "PRETRAINED_POLICIES", "locate_model",
+                               "load_model", "find_vecnormalize", "saved_algo",
+                               "vecnormalize_path_for")},
+    "zoo_folder": {"zoo_runs": ("read_zoo_run", "load_zoo_yaml", "Unreadable", "ZooRunError")},
 }
+
+# modules that stay but no longer re-export other modules' names: {module: (its own names,
+# {the names' new module: names})}
+NARROWED = {
+    "env_factory": (("make_env", "check_env", "EnvSetupError", "INFO_KEYWORDS"),
+                    {"vec_envs": ("make_vec_env", "close_vec_env", "wrap_normalize",
+                                  "env_fns")}),
+    "hyperparams": (("load_hyperparams",),
+                    {"cli_args": ("key_value_arg", "non_negative_int_arg",
+                                  "positive_int_arg"),
+                     "atomic_files": ("output_path_error",)}),
+}
+
+
+def _defined_in(module, name: str) -> None:
+    """``module.name`` exists, and a function or class is defined there (not re-exported)."""
+    value = getattr(module, name)
+    assert value is not None, f"{module.__name__}.{name}"
+    if inspect.isfunction(value) or inspect.isclass(value):
+        assert value.__module__ == module.__name__, f"{module.__name__}.{name}"
 
 
 def test_the_module_map_names_every_module_of_the_package():
@@ -43,23 +69,49 @@ def test_the_module_map_names_every_module_of_the_package():
     assert not missing, f"agents/__init__.py's module map does not name {missing}"
 
 
-@pytest.mark.parametrize("old", sorted(OLD_NAMES))
-def test_old_module_paths_still_import_their_names(old):
-    module = importlib.import_module(f"smartcar_gym.agents.{old}")
-    for name in OLD_NAMES[old]:
-        assert getattr(module, name) is not None, f"{old}.{name}"
-    with pytest.raises(AttributeError):
-        module.no_such_name  # noqa: B018
+@pytest.mark.parametrize("old", sorted(MOVED))
+def test_old_module_paths_are_gone(old):
+    assert not (AGENTS / f"{old}.py").exists()
+    with pytest.raises(ModuleNotFoundError, match=f"smartcar_gym.agents.{old}"):
+        importlib.import_module(f"smartcar_gym.agents.{old}")
 
 
-def test_an_old_name_is_the_object_of_its_new_module():
-    from smartcar_gym.agents import cli_eval, episodes, rollouts, vec_envs, video
+@pytest.mark.parametrize("old", sorted(MOVED))
+def test_each_old_name_lives_in_its_new_module(old):
+    for new, names in MOVED[old].items():
+        module = importlib.import_module(f"smartcar_gym.agents.{new}")
+        for name in names:
+            _defined_in(module, name)
 
-    assert rollouts.evaluate_policy_episodes is episodes.evaluate_policy_episodes
-    assert rollouts.record_video is episodes.record_video is video.record_video
-    assert cli_eval.main is cli_eval.main
-    assert importlib.import_module("smartcar_gym.agents.env_factory").make_vec_env is (
-        vec_envs.make_vec_env)
+
+@pytest.mark.parametrize("kept", sorted(NARROWED))
+def test_kept_modules_no_longer_re_export_other_modules_names(kept):
+    module = importlib.import_module(f"smartcar_gym.agents.{kept}")
+    own, elsewhere = NARROWED[kept]
+    for name in own:
+        assert getattr(module, name) is not None, f"{kept}.{name}"
+    for new, names in elsewhere.items():
+        home = importlib.import_module(f"smartcar_gym.agents.{new}")
+        for name in names:
+            _defined_in(home, name)
+            assert not hasattr(module, name), f"{kept} still re-exports {name}"
+
+
+def test_the_commands_use_the_library_s_objects():
+    from smartcar_gym import extras
+    from smartcar_gym.agents import cli_eval, episodes, vec_envs, video
+
+    assert cli_eval.evaluate_policy_episodes is episodes.evaluate_policy_episodes
+    assert cli_eval.record_video is video.record_video
+    assert not hasattr(episodes, "record_video")  # import it from agents.video
+    assert video.evaluate_policy_episodes is episodes.evaluate_policy_episodes
+    assert episodes.make_batched_env is vec_envs.make_batched_env
+    assert not hasattr(importlib.import_module("smartcar_gym.agents.env_factory"),
+                       "make_vec_env")
+    # missing_modules lives in smartcar_gym.extras; agents still exports it
+    assert "missing_modules" in agents.__all__
+    assert agents.missing_modules is extras.missing_modules
+    assert not hasattr(agents, "moved")
 
 
 def test_the_console_scripts_run_the_command_line_modules():

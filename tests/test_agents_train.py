@@ -248,7 +248,8 @@ def test_a_run_that_failed_to_start_is_simply_started_again(tmp_path, capsys):
 
 @pytest.mark.slow
 @pytest.mark.parametrize(("signum", "exit_code"), [
-    (signal.SIGINT, cli_train.INTERRUPTED_EXIT_CODE), (signal.SIGTERM, cli_train.TERMINATED_EXIT_CODE),
+    (signal.SIGINT, cli_train.INTERRUPTED_EXIT_CODE),
+    (signal.SIGTERM, cli_train.TERMINATED_EXIT_CODE),
 ])
 def test_a_signal_to_the_process_group_saves_a_checkpoint(signum, exit_code, tmp_path):
     """Ctrl-C in a terminal (or ``timeout``, a batch system...) signals the whole process

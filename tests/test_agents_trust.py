@@ -12,8 +12,7 @@ from importlib import resources
 import pytest
 import yaml
 
-from smartcar_gym import policy
-from smartcar_gym.agents import cli_eval, cli_train
+from smartcar_gym.agents import cli_eval, cli_train, policies
 from smartcar_gym.agents.models import (
     SHIPPED,
     TRAIN_RUN,
@@ -134,7 +133,7 @@ def fake_package(tiny_run, tmp_path, monkeypatch):
     def pretrained_files(name="default"):
         yield folder
 
-    monkeypatch.setattr(policy, "pretrained_files", pretrained_files)
+    monkeypatch.setattr(policies, "pretrained_files", pretrained_files)
     return folder, marker
 
 

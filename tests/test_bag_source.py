@@ -332,9 +332,9 @@ def test_empty_still_and_unreadable_bags(tmp_path):
 
 
 def test_without_the_ros_extra_one_line_names_it(monkeypatch, drive_bag):
-    import smartcar_gym.agents
+    import smartcar_gym.extras
 
-    monkeypatch.setattr(smartcar_gym.agents, "missing_modules", lambda names: ["rosbags"])
+    monkeypatch.setattr(smartcar_gym.extras, "missing_modules", lambda names: ["rosbags"])
     with pytest.raises(BagError) as error:
         read_recordings(drive_bag, rate_hz=RATE_HZ)
     assert str(error.value) == ('rosbags not installed; reading bags needs the ros extra: '
@@ -344,8 +344,8 @@ def test_without_the_ros_extra_one_line_names_it(monkeypatch, drive_bag):
 def test_a_missing_bag_is_named_before_the_missing_extra(monkeypatch, tmp_path):
     """`smartcar-calibrate --fit planar --bag typo.bag` without the ros extra: the file's name
     first (the extra would not help)."""
-    import smartcar_gym.agents
+    import smartcar_gym.extras
 
-    monkeypatch.setattr(smartcar_gym.agents, "missing_modules", lambda names: ["rosbags"])
+    monkeypatch.setattr(smartcar_gym.extras, "missing_modules", lambda names: ["rosbags"])
     with pytest.raises(BagError, match=r"typo\.bag: no such file or folder"):
         read_recordings(tmp_path / "typo.bag", rate_hz=RATE_HZ)

@@ -9,7 +9,7 @@ import pytest
 
 from smartcar_gym.bench.cli import main
 from smartcar_gym.bench.report import summarize
-from smartcar_gym.bench.runner import RunRecord, barn_jobs
+from smartcar_gym.bench.runs import RunRecord, barn_jobs
 
 
 def _run(argv: list[str], capsys) -> tuple[int, str, str]:
@@ -55,7 +55,7 @@ def test_dwa_on_two_worlds_prints_the_table_writes_json_and_misses_a_mark(tmp_pa
     (["--pretrained", "jackal"], "--pretrained: no shipped policy 'jackal'; the shipped ones "
                                  "are default, robust, nav, ros, mujoco, barn"),
     (["--env-kwargs", "lasr=1"], "cannot make SmartCarBARN-v0 with engine='mujoco', lasr=1, "
-                                 "world_file=None: SmartCarBARNEnv got an unexpected keyword "
+                                 "world_file=None: SmartCarBARN-v0 got an unexpected keyword "
                                  "argument 'lasr' (did you mean 'laser'?)"),
     (["--env-kwargs", "engine=planar"], "--env-kwargs: engine is set by --engine, not here"),
 ])

@@ -4,16 +4,14 @@ from __future__ import annotations
 
 import json
 
-import gymnasium as gym
 import numpy as np
 import pytest
 
 import smartcar_gym  # noqa: F401
-from smartcar_gym.bench.batched import run_barn_vector
 from smartcar_gym.bench.cli import main
-from smartcar_gym.bench.runner import barn_jobs, run_barn
-from smartcar_gym.envs.vector import SmartCarBatchVectorEnv
 from smartcar_gym.bench.dwa import DWADriver
+from smartcar_gym.bench.runs import barn_jobs, run_barn
+from smartcar_gym.envs.vector import SmartCarBatchVectorEnv, SmartCarLoopVectorEnv
 
 
 @pytest.mark.parametrize("kwargs", [{}, {"localize": True}])
@@ -23,18 +21,17 @@ def test_dwa_on_a_batch_gives_the_single_envs_records_bit_for_bit(kwargs):
     following the path from the odometry or (``localize``) from the pose on the map. A car
     left without a run is parked where it stands: three worlds are built, one per run."""
     jobs = barn_jobs((0, 6), runs=2, seed=3)[:3]
-    singles = [gym.make("SmartCarBARN-v0", engine="planar", **kwargs) for _ in range(2)]
+    singles = SmartCarLoopVectorEnv("SmartCarBARN-v0", num_envs=2, engine="planar", **kwargs)
     batch = SmartCarBatchVectorEnv("SmartCarBARN-v0", num_envs=2, engine="planar", **kwargs)
     builds = []
     reset = batch.builder.reset
     batch.builder.reset = lambda **kw: builds.append(kw["options"]["world"]) or reset(**kw)
     try:
         want = run_barn(singles, DWADriver(), jobs, keep=lambda job: True)
-        got = run_barn_vector(batch, DWADriver(), jobs, keep=lambda job: True)
+        got = run_barn(batch, DWADriver(), jobs, keep=lambda job: True)
     finally:
         batch.close()
-        for env in singles:
-            env.close()
+        singles.close()
     assert [r.outcome for r in want] == ["success"] * 3
     assert builds == [job.world for job in jobs]
     for g, w in zip(got, want, strict=True):

@@ -106,14 +106,19 @@ def test_a_misspelt_kwarg_in_make_vec_names_the_closest_one():
 
 
 def test_the_env_signature_stays_inspectable():
-    """The keyword check wraps __init__; inspect (and the ROS settings' defaults) still see
-    SmartCarEnv's own parameters."""
+    """inspect (and the ROS settings' defaults) see SmartCarEnv's own parameters; only the
+    task's and the engines' keywords go through ``**kwargs`` (checked by name inside)."""
     import inspect
 
+    from smartcar_gym.envs.settings import own_keywords
     from smartcar_gym.envs.smartcar_env import SmartCarEnv
 
     parameters = inspect.signature(SmartCarEnv).parameters
-    assert parameters["max_linear"].default == 0.5 and "kwargs" not in parameters
+    assert parameters["max_linear"].default == 0.5 and parameters["task"].default == "reach"
+    assert [p.name for p in parameters.values() if p.kind is p.VAR_KEYWORD] == ["kwargs"]
+    assert not any(p.kind is p.VAR_POSITIONAL for p in parameters.values())
+    own = own_keywords(SmartCarEnv.__init__)
+    assert own["max_linear"] == 0.5 and "kwargs" not in own and "self" not in own
 
 
 @pytest.mark.parametrize("cli", ["smartcar-eval", "smartcar-train"])
@@ -128,7 +133,7 @@ def test_the_clis_env_kwargs_name_the_closest_kwarg(cli, capsys, tmp_path):
     code, _, err = _run(main, [*argv, "--env-kwargs", "max_linar=0.2"], capsys)
     assert code == 2
     [line] = [x for x in err.splitlines() if x.startswith(f"{cli}: error:")]
-    assert line == (f"{cli}: error: cannot make SmartCar-v0 with max_linar=0.2: SmartCarEnv got "
+    assert line == (f"{cli}: error: cannot make SmartCar-v0 with max_linar=0.2: SmartCar-v0 got "
                     "an unexpected keyword argument 'max_linar' (did you mean 'max_linear'?)")
 
 

@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 
 import smartcar_gym  # noqa: F401
-from smartcar_gym.navigation.dwa import DWAConfig, DWAPlanner
 from smartcar_gym.bench.dwa import DWADriver, turn_command
+from smartcar_gym.envs.vector.view import CarView
+from smartcar_gym.navigation.dwa import DWAConfig, DWAPlanner
 from smartcar_gym.navigation.footprint import COMPILED, footprint_check, to_nearest
 from smartcar_gym.navigation.grid_planner import distance_grid, plan_path
 from smartcar_gym.navigation.obstacles import ObstacleLayers, ObstacleMemory, scan_points
@@ -261,11 +262,11 @@ def _drive(centres: list, goal: tuple[float, float], path: np.ndarray | None = N
             grid = distance_grid(np.array(centres), np.full(len(centres), DIAMETER / 2),
                                  [-0.5, -1.5], [goal[0] + 0.5, 1.5], 0.02)
             path = plan_path(grid, np.zeros(2), np.array(goal), 0.09)
-        driver = DWADriver()
-        driver.reset([env], paths=[path])
+        driver, cars = DWADriver(), CarView([env])
+        driver.reset(cars, paths=[path])
         way = []
         for _ in range(steps):
-            _, _, terminated, truncated, info = env.step(driver.act([env])[0])
+            _, _, terminated, truncated, info = env.step(driver.act(cars)[0])
             way.append(info["pose"][:2])
             if terminated or truncated:
                 break
@@ -309,7 +310,6 @@ def test_in_a_dead_end_it_stops_short_of_the_wall_and_turns_without_touching_it(
 def test_the_compiled_driver_drives_as_numpys_bit_for_bit():
     """Three cars of a planar BARN batch, 40 steps among the pillars: DWA with its obstacle
     layers and footprint check compiled sends exactly numpy's cmd_vel at every step."""
-    from smartcar_gym.bench.batched import BatchCar
     from smartcar_gym.envs.vector import SmartCarBatchVectorEnv
 
     actions = {}
@@ -317,7 +317,7 @@ def test_the_compiled_driver_drives_as_numpys_bit_for_bit():
         env = SmartCarBatchVectorEnv("SmartCarBARN-v0", num_envs=3, engine="planar")
         try:
             env.reset(seed=[0, 1, 2], options={"world": [0, 120, 234]})
-            cars = [BatchCar(env, i) for i in range(3)]
+            cars = CarView(env)
             driver = DWADriver(compiled=compiled)
             driver.reset(cars)
             steps = []

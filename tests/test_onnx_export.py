@@ -21,9 +21,10 @@ pytest.importorskip("stable_baselines3")
 
 from smartcar_gym.agents.cli_eval import main as eval_main  # noqa: E402
 from smartcar_gym.agents.episodes import RECORD_TOLERANCE, act_batch  # noqa: E402
+from smartcar_gym.agents.models import PRETRAINED_POLICIES  # noqa: E402
 from smartcar_gym.export.checks import episode_observations  # noqa: E402
 from smartcar_gym.export.cli import main as export_main  # noqa: E402
-from smartcar_gym.policy import PRETRAINED_POLICIES, Policy, PolicyError  # noqa: E402
+from smartcar_gym.policy import Policy, PolicyError  # noqa: E402
 from smartcar_gym.runtime.metadata import METADATA_KEY, side_file  # noqa: E402
 from smartcar_gym.runtime.onnx_file import read_model  # noqa: E402
 

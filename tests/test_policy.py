@@ -15,14 +15,14 @@ from importlib import resources
 import numpy as np
 import pytest
 
+from smartcar_gym.agents.models import PRETRAINED_POLICIES
+from smartcar_gym.envs.policy_settings import policy_settings
 from smartcar_gym.policy import (
-    PRETRAINED_POLICIES,
     ObsNormalizer,
     Policy,
     PolicyError,
     as_policy,
 )
-from smartcar_gym.envs.policy_settings import policy_settings
 
 
 def _provenance(name):
@@ -100,7 +100,7 @@ def test_deterministic_act_is_repeatable_and_sampling_is_seeded(shipped):
 def test_settings_are_the_ros_policy_settings_of_the_env(shipped):
     assert shipped["robust"].settings == policy_settings("SmartCar-v0",
                                                          {"randomize": "default"})
-    with pytest.raises(ValueError, match="SmartCarNav-v0 is not a SmartCarEnv"):
+    with pytest.raises(ValueError, match="SmartCarNav-v0 is not a goal-reaching SmartCarEnv"):
         shipped["nav"].settings  # noqa: B018
 
 

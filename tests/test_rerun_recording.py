@@ -47,14 +47,15 @@ def _drive(env, seed, steps=None):
     """One episode with seeded random actions; what the env said at every step."""
     obs, info = env.reset(seed=seed)
     env.action_space.seed(seed)
-    poses, rewards, scans = [info["pose"]], [], [env.unwrapped.laser.latest.ranges.copy()
-                                                  if hasattr(env.unwrapped, "laser") else None]
+    laser = env.unwrapped.laser  # None: the task's car carries no laser
+    poses, rewards, scans = [info["pose"]], [], [None if laser is None
+                                                  else laser.latest.ranges.copy()]
     done = False
     while not done:
         obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
         poses.append(info["pose"])
         rewards.append(reward)
-        if hasattr(env.unwrapped, "laser"):
+        if laser is not None:
             scans.append(env.unwrapped.laser.latest.ranges.copy())
         done = terminated or truncated or (steps is not None and len(rewards) == steps)
     return np.array(poses), np.array(rewards), scans, env.unwrapped.goal.copy()
@@ -181,11 +182,12 @@ def test_eval_cli_records_without_importing_pandas(tmp_path):
     assert path.stat().st_size > 10_000
 
 
-def test_eval_cli_names_the_extra_when_rerun_is_missing(monkeypatch, capsys):
-    import smartcar_gym.agents as agents
+def test_eval_cli_names_the_extra_when_rerun_is_missing(monkeypatch, capsys, tmp_path):
+    monkeypatch.chdir(tmp_path)  # were the check missed, nothing is written into the tree
+    import smartcar_gym.extras as extras
 
-    real = agents.missing_modules
-    monkeypatch.setattr(agents, "missing_modules",
+    real = extras.missing_modules
+    monkeypatch.setattr(extras, "missing_modules",
                         lambda names: ["rerun"] if "rerun" in names else real(names))
     with pytest.raises(SystemExit) as exit_info:
         eval_main(["--random", "--episodes", "1", "--rerun", "x.rrd"])

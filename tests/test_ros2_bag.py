@@ -161,11 +161,12 @@ def test_cli_writes_mcap_and_sqlite3_bags_and_refuses_an_existing_folder(tmp_pat
     assert "exists; a ROS 2 bag is a new folder" in capsys.readouterr().err
 
 
-def test_cli_names_the_extra_when_rosbags_is_missing(monkeypatch, capsys):
-    import smartcar_gym.agents as agents
+def test_cli_names_the_extra_when_rosbags_is_missing(monkeypatch, capsys, tmp_path):
+    monkeypatch.chdir(tmp_path)  # were the check missed, nothing is written into the tree
+    import smartcar_gym.extras as extras
 
-    real = agents.missing_modules
-    monkeypatch.setattr(agents, "missing_modules",
+    real = extras.missing_modules
+    monkeypatch.setattr(extras, "missing_modules",
                         lambda names: ["rosbags"] if "rosbags" in names else real(names))
     with pytest.raises(SystemExit) as exit_info:
         eval_main(["--random", "--episodes", "1", "--bag", "b", "--bag-format", "ros2"])

@@ -13,11 +13,11 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from smartcar_gym.controller import Odometry
-from smartcar_gym.envs.robots.smartcar import JointStates
 from smartcar_gym.bags import messages as m
-from smartcar_gym.ros.driving import STOP, GoalDriver
+from smartcar_gym.controller import Odometry
 from smartcar_gym.envs.policy_settings import policy_settings
+from smartcar_gym.envs.robots.smartcar import JointStates
+from smartcar_gym.ros.driving import STOP, GoalDriver
 
 S = m.NS_PER_S
 WHEELS = ("left_front_wheel_joint", "left_back_wheel_joint", "right_front_wheel_joint",

@@ -15,10 +15,10 @@ import pytest
 import shipped_policies as shipped
 
 from smartcar_gym.agents.models import PRETRAINED_MODEL
+from smartcar_gym.envs.policy_settings import policy_settings
 from smartcar_gym.policy import Policy
 from smartcar_gym.ros.cli import ROS_POLICY, build_parser
 from smartcar_gym.ros.goal_run import GoalResult, drive_goals, meant_goal, next_goal
-from smartcar_gym.envs.policy_settings import policy_settings
 
 REST_M_S = 0.01
 TOLERANCE_M = 0.1  # SmartCar-v0's goal_tolerance: what a user clicking goals is promised

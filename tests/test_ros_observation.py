@@ -15,11 +15,11 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from smartcar_gym.envs.observation import Readings
-from smartcar_gym.policy import Policy
 from smartcar_gym.bags import messages as m
-from smartcar_gym.ros.driving import GoalDriver
 from smartcar_gym.envs.policy_settings import policy_settings
+from smartcar_gym.envs.state import CarState
+from smartcar_gym.policy import Policy
+from smartcar_gym.ros.driving import GoalDriver
 
 HAS_ROSBAGS = importlib.util.find_spec("rosbags") is not None
 
@@ -116,17 +116,29 @@ def test_node_observation_equals_the_envs_bit_for_bit(policy, backend):
 
 
 def test_theta_through_a_quaternion_keeps_the_float32_observation():
-    """The env reads odometry's unwrapped theta; the node only sees a quaternion."""
+    """The env reads odometry's unwrapped theta; the node only sees a quaternion. The task
+    builds both observations from a one-car state (``CarState``) that differs only there."""
     settings = policy_settings("SmartCar-v0")
-    observation = settings.observation
+    task = settings.task
     rng = np.random.default_rng(0)
     types = NamespaceTypes()
+
+    def observe(odometry):
+        state = CarState.zeros(1, len(settings.wheel_joints))
+        state.odometry[0] = (odometry.x, odometry.y, odometry.theta, odometry.v,
+                             odometry.omega)
+        state.wheel_position[0] = [0.1, 0.2, 0.3, 0.4]
+        state.wheel_velocity[0] = [1.0, 2.0, 3.0, 4.0]
+        state.goal[0] = [0.5, -0.7]
+        state.previous_action[0] = [0.1, -0.2]
+        return task.observe(SimpleNamespace(state=state, threads=1))[0]
+
     for _ in range(2000):
         theta = rng.uniform(-30, 30)
         odom = m.Odometry(0.0, "odom", "base_link", *rng.uniform(-2, 2, 2), theta,
                           *rng.uniform(-1, 1, 2))
         reading = m.read_odometry(m.odometry_message(types, odom, 0))
-        args = ([0.1, 0.2, 0.3, 0.4], [1.0, 2.0, 3.0, 4.0], [0.5, -0.7], [0.1, -0.2])
-        env_obs = observation.build(Readings(odom, *args))
-        node_obs = observation.build(Readings(reading, *args))
+        assert abs(reading.theta) <= np.pi  # the quaternion's angle, wrapped
+        env_obs, node_obs = observe(odom), observe(reading)
+        assert env_obs.dtype == node_obs.dtype == np.float32
         assert env_obs.tobytes() == node_obs.tobytes(), theta

@@ -19,7 +19,9 @@ Modules (imported on demand; this package imports nothing heavy), by concern:
 * Episodes: ``runner`` (the one episode runner: jobs handed to the cars of a vector env,
   with hooks), ``episodes`` (every evaluation's episodes, sequential, batched and SB3's during
   training; ``EpisodeRecord``, ``summarize``, ``RandomPolicy``), ``video`` (episodes
-  rendered to a .gif or .mp4), ``eval_worker`` (evaluations in a second process while
+  rendered to a .gif or .mp4) and ``bag`` (as a ROS 1 bag or MCAP file), both through the
+  runner's hooks, ``references`` (a Minari dataset's reference scores), ``eval_worker``
+  (evaluations in a second process while
   training goes on).
 * Training: ``training`` (``train()``: a run with checkpoints and evaluation),
   ``callbacks`` (checkpoints, evaluation by success rate, progress bar, Ctrl-C).
@@ -31,8 +33,9 @@ Modules (imported on demand; this package imports nothing heavy), by concern:
   with a safe YAML loader), ``export`` (package a run as the shipped policy with
   ``provenance.json``).
 * Figures: ``plots`` (learning curve and top-down trajectory figures).
-* ``smartcar_gym.policy`` (outside this package, used by the commands here and in ``ros``):
-  ``Policy.load()``, a model with its normaliser and env settings, and ``act(obs)``.
+* ``policies``: ``Policy.load()``, a model with its normaliser and env settings, and
+  ``act(obs)``; ``smartcar_gym.policy`` is its public face (used by users, the commands here
+  and ``ros``).
 """
 
 from __future__ import annotations

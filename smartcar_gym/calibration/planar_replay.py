@@ -74,7 +74,7 @@ class FleetReplay:
         starts = np.array([self.body.spawn_state(*r.truth[0]) for r in recs]).T
         cars.reset(np.arange(n), np.tile(starts, (1, len(candidates))))
         venv.base.reset(0.0, venv.cars.encoder_angles())
-        venv._motors_to_wheels(np.ones(n, dtype=bool))
+        venv.cars.set_drive(np.ones(n, dtype=bool), venv.base.drive_torque, venv.base.damping)
         commands = np.full((self.length, n, 2), np.nan)
         for k, r in enumerate(recs):
             commands[:len(r.commands), k::nr] = r.commands[:, None, :]
@@ -87,8 +87,8 @@ class FleetReplay:
             if sent.any():
                 venv.base.cmd_vel(np.nan_to_num(commands[t, :, 0]),
                                   np.nan_to_num(commands[t, :, 1]),
-                                  venv._now / NS_PER_S, sent)
-            venv._run_period()
+                                  venv.state.now_ns / NS_PER_S, sent)
+            venv.clocks.run_period()
             self._record(venv, truth, odom, t + 1, yaw)
         out = []
         for c in range(len(candidates)):

@@ -125,6 +125,20 @@ class ReachTask(Task):
                              f"the arena (half size {self.arena_half_size_m} m): every position "
                              "would be a success")
 
+    def __eq__(self, other: object) -> bool:
+        """Two reaching tasks are equal when they score alike: the same class, goals, arena,
+        weights and (bound) wheels; their cars' numbers do not count."""
+        return type(other) is type(self) and self._settings() == other._settings()
+
+    __hash__ = None  # type: ignore[assignment]  (a task holds arrays that change)
+
+    def _settings(self) -> tuple:
+        car = self.__dict__.get("car")
+        return (self.goal_range_m, self.goal_tolerance_m, self.arena_half_size_m,
+                self.stop_speed_m_s, self.progress_weight, self.success_bonus,
+                self.failure_penalty, self.time_cost, self.action_cost, self.speed_cost,
+                self.odometry_cost, None if car is None else tuple(car.wheel_joints))
+
     @property
     def needs_speed(self) -> bool:  # type: ignore[override]
         """``stop_speed``'s success needs the true speed."""

@@ -1,7 +1,7 @@
 """Wall time of ``smartcar-bench barn`` on the planar batch: the issue's 500 runs in 60 s.
 
     python benchmarks/barn_speed.py [--driver dwa | --pretrained barn] [--localize]
-        [--cars 100 500] [--rounds 2] [--runs 10] [--out FILE.json]
+        [--cars 100 500] [--rounds 2] [--runs 10] [--out FILE.json] [--base REV]
 
 Each round runs, one after the other, the command a user types for each number of cars:
 ``smartcar-bench barn --driver dwa --engine planar --runs 10 --n-envs N`` (with
@@ -10,7 +10,9 @@ command's wall time (start-up included) and CPU time (its process and threads, f
 ``getrusage``) are measured, with the load average before it; ratios are taken within a round
 (this shared machine's speed drifts). The runs' records must be the same for every number of
 cars (each run's seed and world make it): the script says where they differ. Prints a
-Markdown table; ``--out FILE.json`` keeps the numbers. Run it once first if numba's cache is
+Markdown table; ``--out FILE.json`` keeps the numbers. ``--base REV`` measures that commit
+too (a temporary git worktree), interleaved with this checkout in each round, and compares
+their records run by run. Run it once first if numba's cache is
 cold (the first run after an install compiles, about 20 s more).
 """
 
@@ -18,6 +20,8 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
+import subprocess
 import sys
 import tempfile
 from pathlib import Path
@@ -28,16 +32,19 @@ TARGET_S = 60.0  # the issue's: the 500-run benchmark, batched on planar
 RECORD_KEYS = ("world", "run", "outcome", "time_s", "steps", "final_distance_m")
 
 
-def run(cars: int, args: argparse.Namespace, folder: Path) -> dict:
-    """One ``smartcar-bench barn`` command: its wall and CPU seconds and its records."""
-    out = folder / f"cars_{cars}.json"
+def run(cars: int, args: argparse.Namespace, folder: Path, checkout: Path | None = None
+        ) -> dict:
+    """One ``smartcar-bench barn`` command (``checkout``: that checkout's package, first on
+    the path): its wall and CPU seconds and its records."""
+    out = folder / f"cars_{cars}_{'base' if checkout else 'this'}.json"
     driver = ["--pretrained", args.pretrained] if args.pretrained else ["--driver", args.driver]
     argv = [sys.executable, "-m", "smartcar_gym.bench.cli", "barn", *driver, "--engine",
             "planar", "--runs", str(args.runs), "--n-envs", str(cars), "--quiet", "--json",
             str(out)]
     if args.localize:
         argv += ["--env-kwargs", "localize=true"]
-    timing = timed_run(argv)
+    env = None if checkout is None else {**os.environ, "PYTHONPATH": str(checkout)}
+    timing = timed_run(argv, env, None if checkout is None else str(checkout))
     data = json.loads(out.read_text())
     records = [{k: r[k] for k in RECORD_KEYS} for r in data["records"]]
     return {"cars": cars, **timing, "car_steps": sum(r["steps"] for r in records),
@@ -59,7 +66,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--rounds", type=int, default=2)
     parser.add_argument("--runs", type=int, default=10, help="runs per test world")
     parser.add_argument("--out", type=Path, default=None)
+    parser.add_argument("--base", default=None,
+                        help="a commit to measure too, interleaved (its records must be the "
+                             "same)")
     args = parser.parse_args(argv)
+    if args.base is not None:
+        return versus(args)
     results = []
     with tempfile.TemporaryDirectory() as tmp:
         for round_ in range(1, args.rounds + 1):
@@ -83,6 +95,39 @@ def main(argv: list[str] | None = None) -> int:
     if args.out is not None:
         args.out.write_text(json.dumps([{k: v for k, v in r.items() if k != "records"}
                                         for r in results], indent=2))
+    return 0 if same else 1
+
+
+def versus(args: argparse.Namespace) -> int:
+    """Each round, for each number of cars: this checkout and ``args.base`` (a temporary git
+    worktree) in turn, the order alternating; the ratios within rounds and the records
+    compared."""
+    root = Path(__file__).resolve().parent.parent
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        base = Path(tmp) / "base"
+        subprocess.run(["git", "-C", str(root), "worktree", "add", "-q", "--detach", str(base),
+                        args.base], check=True)
+        try:
+            for round_ in range(1, args.rounds + 1):
+                for cars in args.cars:
+                    sides = [("this", None), ("base", base)][::1 if round_ % 2 else -1]
+                    got = {side: run(cars, args, Path(tmp), path) for side, path in sides}
+                    rows.append((round_, cars, got))
+                    print(f"round {round_}, {cars} cars: this {got['this']['wall_s']:.1f} s, "
+                          f"{args.base} {got['base']['wall_s']:.1f} s", file=sys.stderr)
+        finally:
+            subprocess.run(["git", "-C", str(root), "worktree", "remove", "--force", str(base)],
+                           check=False)
+    print(f"| round | cars | this (s) | {args.base} (s) | ratio | records |")
+    print("|---|---|---|---|---|---|")
+    same = True
+    for round_, cars, got in rows:
+        diff = differing(got["this"]["records"], got["base"]["records"])
+        same &= not diff
+        this, then = got["this"]["wall_s"], got["base"]["wall_s"]
+        print(f"| {round_} | {cars} | {this:.1f} | {then:.1f} | {this / then:.3f} | "
+              f"{'the same' if not diff else f'{len(diff)} differ'} |")
     return 0 if same else 1
 
 

@@ -8,14 +8,16 @@ import subprocess
 import time
 
 
-def timed_run(argv: list[str]) -> dict[str, float]:
-    """Run ``argv`` (its output discarded; an error exit raises): its wall seconds, its CPU
+def timed_run(argv: list[str], env: dict[str, str] | None = None,
+              cwd: str | None = None) -> dict[str, float]:
+    """Run ``argv`` (its output discarded; an error exit raises; ``env`` and ``cwd``: its
+    environment and folder, as ``subprocess.run``'s): its wall seconds, its CPU
     seconds (the process and its threads and children, from ``getrusage``) and the load
     average before it."""
     load = os.getloadavg()[0]
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
-    subprocess.run(argv, check=True, stdout=subprocess.DEVNULL)
+    subprocess.run(argv, check=True, stdout=subprocess.DEVNULL, env=env, cwd=cwd)
     wall = time.perf_counter() - start
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)

@@ -54,22 +54,27 @@ class Observation:
         self.high = np.concatenate([[e.high] * e.size for e in self.entries]).astype(np.float32)
         self.low = np.concatenate([[e.low] * e.size for e in self.entries]).astype(np.float32)
         self.space = spaces.Box(self.low, self.high, dtype=np.float32)
+        self._sizes = tuple((e.key, e.size) for e in self.entries)
 
     def build(self, columns: Mapping[str, Sequence[Any]]) -> np.ndarray:
         """Every car's observation from each entry's ``columns`` (by key: one float64 array or
-        number per name, over the N cars): (N, D) float32, each value rounded once, clipped
-        into the bounds."""
-        first = columns[self.entries[0].key][0]
-        obs = np.empty((np.size(first), len(self.names)), dtype=np.float32)
-        k = 0
-        for entry in self.entries:
-            values = columns[entry.key]
-            if len(values) != entry.size:
-                raise ValueError(f"observation entry {entry.key!r} gave {len(values)} columns "
-                                 f"for its {entry.size} names")
-            for column in values:
-                obs[:, k] = column
-                k += 1
+        number per name, over the N cars, or a (names, N) array): (N, D) float32, each value
+        rounded once, clipped into the bounds."""
+        values: list[Any] = []
+        for key, size in self._sizes:
+            given = columns[key]
+            if len(given) != size:
+                raise ValueError(f"observation entry {key!r} gave {len(given)} columns for "
+                                 f"its {size} names")
+            values.extend(given)
+        try:  # every column an (N,) array: one copy
+            table = np.array(values, dtype=np.float64)
+        except ValueError:  # numbers among arrays: each broadcast over the cars
+            table = None
+        if table is None or table.ndim != 2:
+            n = max(np.size(v) for v in values)
+            table = np.array([np.broadcast_to(v, (n,)) for v in values], dtype=np.float64)
+        obs = table.T.astype(np.float32, order="C")
         return np.minimum(np.maximum(obs, self.low, out=obs), self.high, out=obs)
 
     @classmethod

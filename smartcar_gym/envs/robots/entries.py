@@ -60,17 +60,15 @@ def heading(state: CarState) -> tuple[np.ndarray, np.ndarray]:
 
 def robot_columns(state: CarState, cos: np.ndarray, sin: np.ndarray) -> dict[str, Any]:
     """The columns of ``robot_entries`` and ``previous_action_entry`` over the cars
-    (``cos``, ``sin``: ``heading(state)``)."""
-    odometry = state.odometry
+    (``cos``, ``sin``: ``heading(state)``; a 2-D value holds one column a row)."""
+    x, y, _, v, w = state.odometry.T
     wrapped = (state.wheel_position + math.pi) % TWO_PI - math.pi
-    wheels = range(wrapped.shape[1])
-    previous = state.previous_action
     return {
-        "odom_position": (odometry[:, 0], odometry[:, 1]),
+        "odom_position": (x, y),
         "odom_heading": (cos, sin),
-        "odom_linear": (odometry[:, 3],),
-        "odom_angular": (odometry[:, 4],),
-        "wheel_positions": [wrapped[:, k] for k in wheels],
-        "wheel_velocities": [state.wheel_velocity[:, k] for k in wheels],
-        "previous_action": (previous[:, 0], previous[:, 1]),
+        "odom_linear": (v,),
+        "odom_angular": (w,),
+        "wheel_positions": wrapped.T,
+        "wheel_velocities": state.wheel_velocity.T,
+        "previous_action": state.previous_action.T,
     }

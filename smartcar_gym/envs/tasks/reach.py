@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from smartcar_gym import checks
-from smartcar_gym.envs.exact import exact_hypot, planar_norms, wrap_angles
+from smartcar_gym.envs.exact import exact_hypot, wrap_angles
 from smartcar_gym.envs.observation import Entry, Observation
 from smartcar_gym.envs.robots.entries import (
     heading,
@@ -178,12 +178,12 @@ class ReachTask(Task):
     def columns(self, cars: Cars) -> dict[str, Any]:
         state = cars.state
         cos, sin = heading(state)
-        goal, odometry = state.goal, state.odometry
-        gx, gy = goal[:, 0] - odometry[:, 0], goal[:, 1] - odometry[:, 1]
+        goal = state.goal.T
+        gx, gy = (state.goal - state.odometry[:, :2]).T
         return {**robot_columns(state, cos, sin),
                 "goal_base": (cos * gx + sin * gy, -sin * gx + cos * gy),
                 "goal_distance": (np.hypot(gx, gy),),
-                "goal_odom": (goal[:, 0], goal[:, 1])}
+                "goal_odom": goal}
 
     # -- cars ----------------------------------------------------------------------------------
     def attach(self, num: int) -> None:
@@ -255,22 +255,20 @@ class ReachTask(Task):
         """Progress, time and action costs, the success bonus and the failure penalty (and
         ``stop_speed``'s arrival terms) from each car's true position."""
         state = cars.state
-        px, py = state.pose[:, 0], state.pose[:, 1]
-        gx, gy = state.goal[:, 0], state.goal[:, 1]
-        dx, dy = px - gx, py - gy
-        distance = np.sqrt(dx * dx + dy * dy)
+        position = state.pose[:, :2]
+        d = position - state.goal
+        distance = np.sqrt(np.add.reduce(d * d, axis=1))  # dx * dx + dy * dy
         success = distance < self.goal_tolerance_m
         arrival = None
         if self.stop_speed_m_s is not None:
-            success, arrival = self._arrival(state, px, py, success)
-        half = self.arena_half_size_m
-        failure = (state.up_z < FLIP_UP_Z) | (np.abs(px) > half) | (np.abs(py) > half)
-        a0, a1 = action[:, 0], action[:, 1]
+            success, arrival = self._arrival(state, position[:, 0], position[:, 1], success)
+        failure = (state.up_z < FLIP_UP_Z) | (np.abs(position) > self.arena_half_size_m).any(
+            axis=1)
         self.terms = {"progress": self.progress_weight * (self.distance - distance),
                       "time": -self.time_cost,
-                      "action": -(self.action_cost * (a0 * a0 + a1 * a1)),
-                      "success": self.success_bonus * success.astype(np.float64),
-                      "failure": -(self.failure_penalty * failure.astype(np.float64))}
+                      "action": -(self.action_cost * np.add.reduce(action * action, axis=1)),
+                      "success": self.success_bonus * success,
+                      "failure": -(self.failure_penalty * failure)}
         if arrival is not None:
             self.terms["arrival"] = -arrival
         self.distance = distance
@@ -310,13 +308,15 @@ class ReachTask(Task):
         """Success, the distance, the true and odometry poses and their gap."""
         state = cars.state
         odometry, pose = state.odometry, state.pose
+        odom_pose = odometry[:, :3].copy()
+        odom_pose[:, 2] = wrap_angles(odom_pose[:, 2])
+        d = odometry[:, :2] - pose[:, :2]
         return {
             "is_success": success.copy(),
             "distance": self.distance.copy(),
             "pose": pose.copy(),
-            "odom_pose": np.stack([odometry[:, 0], odometry[:, 1], wrap_angles(odometry[:, 2])],
-                                  axis=1),
-            "odom_error": planar_norms(odometry[:, 0] - pose[:, 0], odometry[:, 1] - pose[:, 1]),
+            "odom_pose": odom_pose,
+            "odom_error": np.sqrt(np.add.reduce(d * d, axis=1)),  # planar_norms
         }
 
 

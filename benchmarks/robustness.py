@@ -30,7 +30,8 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from smartcar_gym.agents.episodes import evaluate_policy_episodes, summarize
+from smartcar_gym.agents.episodes import evaluate_policy_episodes
+from smartcar_gym.agents.records import summarize
 from smartcar_gym.envs.randomization import FACTORS, Randomization
 from smartcar_gym.policy import Policy
 

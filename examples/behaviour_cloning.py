@@ -23,7 +23,8 @@ import numpy as np
 import torch
 from torch import nn
 
-from smartcar_gym.agents.episodes import evaluate_batched_episodes, summarize
+from smartcar_gym.agents.episodes import evaluate_batched_episodes
+from smartcar_gym.agents.records import summarize
 from smartcar_gym.policy import Policy
 
 

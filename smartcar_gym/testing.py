@@ -42,13 +42,12 @@ import numpy as np
 
 from smartcar_gym.agents.episodes import (
     DEFAULT_BATCH,
-    EpisodeRecord,
-    RandomPolicy,
     evaluate_batched_episodes,
     evaluate_policy_episodes,
-    summarize,
 )
 from smartcar_gym.agents.policies import DEFAULT_ENV_ID, Policy, as_policy
+from smartcar_gym.agents.random_policy import RandomPolicy
+from smartcar_gym.agents.records import EpisodeRecord, summarize
 from smartcar_gym.checks import distinct_figure
 
 __all__ = ["FunctionModel", "Metrics", "RandomPolicy", "assert_success", "evaluate"]

@@ -6,8 +6,9 @@ import json
 from importlib import resources
 from typing import Any
 
-from smartcar_gym.agents.episodes import evaluate_policy_episodes, summarize
+from smartcar_gym.agents.episodes import evaluate_policy_episodes
 from smartcar_gym.agents.models import PRETRAINED_POLICIES
+from smartcar_gym.agents.records import summarize
 from smartcar_gym.policy import Policy
 
 

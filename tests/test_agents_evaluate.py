@@ -11,14 +11,11 @@ import numpy as np
 import pytest
 
 from smartcar_gym.agents import cli_eval, cli_train
-from smartcar_gym.agents.episodes import (
-    EpisodeRecord,
-    evaluate_policy_episodes,
-    summarize,
-)
+from smartcar_gym.agents.episodes import evaluate_policy_episodes
 from smartcar_gym.agents.export import export_run
 from smartcar_gym.agents.models import find_run_config, find_vecnormalize, load_model
 from smartcar_gym.agents.plots import plot_trajectories
+from smartcar_gym.agents.records import EpisodeRecord, summarize
 from smartcar_gym.agents.video import record_video
 
 SHORT = {"max_episode_steps": 30}

@@ -21,10 +21,11 @@ MOVED = {
               "training": ("train",)},
     "evaluate": {"cli_eval": ("main", "build_parser", "check_outputs", "count",
                               "summary_title"),
-                 "episodes": ("evaluate_policy_episodes", "summarize"),
+                 "episodes": ("evaluate_policy_episodes",), "records": ("summarize",),
                  "models": ("load_model", "PRETRAINED_MODEL")},
-    "rollouts": {"episodes": ("EpisodeRecord", "RandomPolicy", "evaluate_policy_episodes",
-                              "summarize", "ObservationShapeError", "DEFAULT_ENV_ID"),
+    "rollouts": {"episodes": ("evaluate_policy_episodes", "ObservationShapeError"),
+                 "records": ("EpisodeRecord", "summarize"),
+                 "random_policy": ("RandomPolicy",), "policies": ("DEFAULT_ENV_ID",),
                  "video": ("record_video",)},
     "batched_rollouts": {"episodes": ("DEFAULT_BATCH", "RECORD_TOLERANCE", "act_batch",
                                       "evaluate_batched_episodes"),
@@ -99,13 +100,15 @@ def test_kept_modules_no_longer_re_export_other_modules_names(kept):
 
 def test_the_commands_use_the_library_s_objects():
     from smartcar_gym import extras
-    from smartcar_gym.agents import cli_eval, episodes, vec_envs, video
+    from smartcar_gym.agents import cli_eval, episodes, random_policy, records, vec_envs, video
 
     assert cli_eval.evaluate_policy_episodes is episodes.evaluate_policy_episodes
     assert cli_eval.record_video is video.record_video
     assert not hasattr(episodes, "record_video")  # import it from agents.video
     assert video.evaluate_policy_episodes is episodes.evaluate_policy_episodes
     assert episodes.make_batched_env is vec_envs.make_batched_env
+    assert cli_eval.summarize is records.summarize
+    assert cli_eval.RandomPolicy is random_policy.RandomPolicy
     assert not hasattr(importlib.import_module("smartcar_gym.agents.env_factory"),
                        "make_vec_env")
     # missing_modules lives in smartcar_gym.extras; agents still exports it

@@ -10,9 +10,10 @@ import pytest
 import yaml
 
 from smartcar_gym.agents import cli_eval, cli_train
-from smartcar_gym.agents.episodes import RandomPolicy, evaluate_policy_episodes
+from smartcar_gym.agents.episodes import evaluate_policy_episodes
 from smartcar_gym.agents.hyperparams import build_algo_kwargs, load_hyperparams, normalize_kwargs
 from smartcar_gym.agents.models import load_model
+from smartcar_gym.agents.random_policy import RandomPolicy
 
 FAST = ["max_episode_steps=20", "controller_mode=sim"]
 

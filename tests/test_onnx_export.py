@@ -121,7 +121,7 @@ def test_the_shipped_policy_drives_from_onnx_where_torch_cannot_be_imported(expo
     result = _run_blocked("""
         import json
         from smartcar_gym.agents.episodes import evaluate_batched_episodes
-        from smartcar_gym.agents.episodes import summarize
+        from smartcar_gym.agents.records import summarize
         from smartcar_gym.policy import Policy
         try:
             import torch

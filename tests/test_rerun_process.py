@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 import smartcar_gym  # noqa: F401  (registers the envs)
-from smartcar_gym.agents.episodes import RandomPolicy, evaluate_policy_episodes
+from smartcar_gym.agents.episodes import evaluate_policy_episodes
+from smartcar_gym.agents.random_policy import RandomPolicy
 from tests.test_rerun_recording import _store, needs_reader, pytestmark  # noqa: F401
 
 

@@ -14,7 +14,8 @@ import pytest
 
 import smartcar_gym  # noqa: F401  (registers the envs)
 from smartcar_gym.agents.cli_eval import main as eval_main
-from smartcar_gym.agents.episodes import RandomPolicy, evaluate_policy_episodes
+from smartcar_gym.agents.episodes import evaluate_policy_episodes
+from smartcar_gym.agents.random_policy import RandomPolicy
 
 pytestmark = pytest.mark.skipif(importlib.util.find_spec("rerun") is None,
                                 reason='rerun-sdk not installed: pip install '

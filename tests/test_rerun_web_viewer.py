@@ -11,7 +11,8 @@ import socket
 import numpy as np
 import pytest
 
-from smartcar_gym.agents.episodes import RandomPolicy, evaluate_policy_episodes
+from smartcar_gym.agents.episodes import evaluate_policy_episodes
+from smartcar_gym.agents.random_policy import RandomPolicy
 from smartcar_gym.viewers.chromium import color_pixels, find_chromium
 
 pytestmark = [

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from smartcar_gym.agents.cli_eval import main as eval_main
-from smartcar_gym.agents.episodes import RandomPolicy, evaluate_policy_episodes
+from smartcar_gym.agents.episodes import evaluate_policy_episodes
+from smartcar_gym.agents.random_policy import RandomPolicy
 
 pytestmark = pytest.mark.skipif(importlib.util.find_spec("rosbags") is None,
                                 reason='rosbags not installed: pip install "smartcar-gym[ros]"')

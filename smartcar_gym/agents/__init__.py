@@ -18,7 +18,8 @@ Modules (imported on demand; this package imports nothing heavy), by concern:
   vector env seen as an SB3 VecEnv).
 * Episodes: ``runner`` (the one episode runner: jobs handed to the cars of a vector env,
   with hooks), ``episodes`` (every evaluation's episodes, sequential, batched and SB3's during
-  training; ``EpisodeRecord``, ``summarize``, ``RandomPolicy``), ``video`` (episodes
+  training), ``records`` (``EpisodeRecord``, ``summarize``, the hooks that record them),
+  ``random_policy`` (``RandomPolicy``, the baseline), ``video`` (episodes
   rendered to a .gif or .mp4) and ``bag`` (as a ROS 1 bag or MCAP file), both through the
   runner's hooks, ``references`` (a Minari dataset's reference scores), ``eval_worker``
   (evaluations in a second process while

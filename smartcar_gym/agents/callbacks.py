@@ -2,7 +2,7 @@
 
 The files are written atomically (``atomic_files``; those functions and the checkpoint names
 of ``runs`` can also be imported from here). The evaluations' episodes are run by
-``episodes.run_sb3_episodes`` and summarised by ``episodes.summarize``.
+``episodes.run_sb3_episodes`` and summarised by ``records.summarize``.
 """
 
 from __future__ import annotations
@@ -30,9 +30,10 @@ from smartcar_gym.agents.atomic_files import (
     remove_model,
     save_model_atomic,
 )
-from smartcar_gym.agents.episodes import EpisodeRecord, run_sb3_episodes, summarize
+from smartcar_gym.agents.episodes import run_sb3_episodes
 from smartcar_gym.agents.eval_worker import EvalWorker, Records, normalization_stats
 from smartcar_gym.agents.models import vecnormalize_path_for
+from smartcar_gym.agents.records import EpisodeRecord, summarize
 from smartcar_gym.agents.runs import (
     CHECKPOINT_RE,
     checkpoint_info_path_for,
@@ -304,7 +305,7 @@ class SuccessEvalCallback(BaseCallback):
 
 
 def _summarise(steps: int, records: list[EpisodeRecord]) -> EvalResult:
-    """One evaluation's ``EvalResult``: ``episodes.summarize``'s figures, under zoo's names."""
+    """One evaluation's ``EvalResult``: ``records.summarize``'s figures, under zoo's names."""
     summary = summarize(records)
     return EvalResult(
         timesteps=int(steps), success_rate=summary["success_rate"],

@@ -39,16 +39,15 @@ from smartcar_gym.agents.cli_args import (
 from smartcar_gym.agents.env_factory import EnvSetupError, check_env
 from smartcar_gym.agents.episodes import (
     DEFAULT_BATCH,
-    DEFAULT_ENV_ID,
     ObservationShapeError,
-    RandomPolicy,
     evaluate_batched_episodes,
     evaluate_policy_episodes,
-    summarize,
 )
 from smartcar_gym.agents.hyperparams import ALGOS
 from smartcar_gym.agents.models import PRETRAINED_MODEL, PRETRAINED_POLICIES, load_model
-from smartcar_gym.agents.policies import Policy, PolicyError
+from smartcar_gym.agents.policies import DEFAULT_ENV_ID, Policy, PolicyError
+from smartcar_gym.agents.random_policy import RandomPolicy
+from smartcar_gym.agents.records import summarize
 from smartcar_gym.agents.video import record_video
 from smartcar_gym.checks import distinct_figure
 from smartcar_gym.datasets.eval_options import (

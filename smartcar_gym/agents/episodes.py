@@ -10,7 +10,8 @@
 * ``run_sb3_episodes``: SB3's ``evaluate_policy`` on an SB3 VecEnv: the evaluations during
   training, in the training process or in the evaluation worker (``eval_worker``).
 
-Each gives ``EpisodeRecord``s; ``summarize`` turns them into the figures every caller shows.
+Each gives ``records.EpisodeRecord``s; ``records.summarize`` turns them into the figures every
+caller shows. ``random_policy.RandomPolicy`` is the baseline.
 In the first two, episode ``i`` is reset with seed ``seed + i`` whichever car or worker runs
 it, and a car whose episode ends is reset at once with the next episode's seed (Gymnasium's
 partial reset, ``reset(seed=[...], options={"reset_mask": mask})``), so the records do not
@@ -35,7 +36,6 @@ import math
 import os
 import sys
 from collections.abc import Callable, Iterator, Mapping, Sequence
-from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import gymnasium as gym
@@ -43,12 +43,12 @@ import numpy as np
 
 from smartcar_gym.agents.env_factory import EnvSetupError
 from smartcar_gym.agents.policies import DEFAULT_ENV_ID, Policy, as_policy
+from smartcar_gym.agents.records import CaptureHook, EpisodeRecord, RecordHook, StepsHook
 from smartcar_gym.agents.runner import Hooks, Job, ResetError, run_jobs
 from smartcar_gym.agents.vec_envs import make_batched_env, make_single_env_vector
 
-__all__ = ["DEFAULT_BATCH", "DEFAULT_ENV_ID", "RECORD_TOLERANCE", "EpisodeRecord",
-           "ObservationShapeError", "RandomPolicy", "act_batch", "evaluate_batched_episodes",
-           "evaluate_policy_episodes", "make_batched_env", "run_sb3_episodes", "summarize"]
+__all__ = ["DEFAULT_BATCH", "RECORD_TOLERANCE", "ObservationShapeError", "act_batch",
+           "evaluate_batched_episodes", "evaluate_policy_episodes", "run_sb3_episodes"]
 
 #: cars in the batch when ``n_envs`` is not given: more cars spread the batch's numpy cost
 #: further, and the cars left without an episode at the end are parked where the batch can
@@ -59,108 +59,6 @@ DEFAULT_BATCH = 128
 #: bound on |batched - sequential| of an SB3 model's returns, final distances and paths (m) in
 #: the hardware mode, as the tests check it (measured: 0 m for paths, about 5e-8 for returns)
 RECORD_TOLERANCE = 1e-4
-
-
-def _no_path() -> np.ndarray:
-    return np.zeros((0, 2))
-
-
-@dataclass
-class EpisodeRecord:
-    """One episode. Positions are ground-truth (``path``) or odometry, in metres.
-
-    ``seed`` is None and the paths are empty (the goal NaN) for the episodes of
-    ``run_sb3_episodes``: SB3's VecEnvs reset a finished env unseeded, and keep no path."""
-
-    episode: int
-    seed: int | None
-    success: bool
-    episode_return: float
-    length: int
-    time_to_goal_s: float | None
-    final_distance_m: float
-    final_odom_error_m: float
-    goal: tuple[float, float]
-    path: np.ndarray = field(repr=False, default_factory=_no_path)
-    odom_path: np.ndarray = field(repr=False, default_factory=_no_path)
-
-    def to_dict(self, include_paths: bool = False) -> dict[str, Any]:
-        """JSON-ready fields (paths as lists of [x, y] only if ``include_paths``)."""
-        data = asdict(self)
-        data["goal"] = [float(g) for g in self.goal]
-        for key, name in (("final_pose", "path"), ("final_odom_pose", "odom_path")):
-            points = np.asarray(getattr(self, name))
-            data[key] = points[-1].tolist() if len(points) else None
-        for key in ("path", "odom_path"):
-            data[key] = np.asarray(data[key]).tolist() if include_paths else None
-            if not include_paths:
-                del data[key]
-        return data
-
-
-def summarize(records: Sequence[EpisodeRecord]) -> dict[str, float | int | None]:
-    """Success rate, mean return, mean time to goal (s, successes only), distances (m; the
-    mean of the episodes that know theirs)."""
-    if not records:
-        raise ValueError("no episodes to summarize")
-    times = [r.time_to_goal_s for r in records if r.success and r.time_to_goal_s is not None]
-    returns = np.array([r.episode_return for r in records])
-    return {
-        "episodes": len(records),
-        "success_rate": float(np.mean([r.success for r in records])),
-        "mean_return": float(returns.mean()),
-        "std_return": float(returns.std()),
-        "mean_time_to_goal_s": float(np.mean(times)) if times else None,
-        "mean_final_distance_m": _nanmean([r.final_distance_m for r in records]),
-        "mean_final_odom_error_m": _nanmean([r.final_odom_error_m for r in records]),
-        "mean_length": float(np.mean([r.length for r in records])),
-    }
-
-
-def _nanmean(values: list[float]) -> float:
-    """The mean of the values that are not NaN; NaN (without a warning) if none is."""
-    array = np.asarray(values, dtype=float)
-    return float(np.nanmean(array)) if not np.isnan(array).all() else math.nan
-
-
-class RandomPolicy:
-    """Uniform random actions in [-1, 1]^2, seeded: a baseline (and the README's GIF).
-
-    In the episodes run here each episode's actions are drawn from a generator seeded with
-    ``(seed, episode)`` (``act_episodes``), as its reset is seeded with ``seed + episode``: the
-    records do not depend on ``n_envs``, on batching or on which car ran an episode.
-    ``predict`` (SB3's interface, for other callers) draws from one generator seeded with
-    ``seed``."""
-
-    observation_space = None
-
-    def __init__(self, seed: int = 0) -> None:
-        self.seed = seed
-        self.action_space = gym.spaces.Box(-1.0, 1.0, (2,), dtype=np.float32)
-        self.action_space.seed(seed)
-        self._episodes: dict[int, np.random.Generator] = {}
-
-    def predict(self, obs: np.ndarray, deterministic: bool = True) -> tuple[np.ndarray, None]:
-        """One sampled action per observation in the batch (a dict of batches for a Dict)."""
-        first = np.asarray(next(iter(obs.values())) if isinstance(obs, dict) else obs)
-        batch = first.reshape(-1, first.shape[-1])
-        return np.stack([self.action_space.sample() for _ in batch]), None
-
-    def act_episodes(self, episodes: np.ndarray, steps: np.ndarray) -> np.ndarray:
-        """Each car's action (float32, ``(N, 2)``) at step ``steps[car]`` of the episode
-        ``episodes[car]`` it runs (-1: none, a zero action); step 0 seeds the episode's
-        generator anew."""
-        actions = np.zeros((len(episodes), 2), dtype=np.float32)
-        for car, (episode, step) in enumerate(zip(episodes.tolist(), steps.tolist(),
-                                                  strict=True)):
-            if episode < 0:
-                continue
-            if step == 0 or episode not in self._episodes:
-                self._episodes[episode] = np.random.default_rng([self.seed, episode])
-            actions[car] = self._episodes[episode].uniform(-1.0, 1.0, 2)
-        running = set(episodes.tolist())
-        self._episodes = {e: g for e, g in self._episodes.items() if e in running}
-        return actions
 
 
 class ObservationShapeError(ValueError):
@@ -360,12 +258,12 @@ def _episodes(envs: gym.vector.VectorEnv, policy: Policy, env_id: str, n_episode
             from tqdm.auto import tqdm
 
             bar = tqdm(total=n_episodes, unit="episode", desc=desc, dynamic_ncols=True)
-        tracks = _Tracks(envs.num_envs, _step_s(envs.metadata), bar)
+        tracks = RecordHook(envs.num_envs, _step_s(envs.metadata), bar)
         every: list[Hooks] = [tracks, *hooks]
         if steps is not None:
-            every.append(_StepsHook(steps))
+            every.append(StepsHook(steps))
         if collector is not None:
-            every.append(_CaptureHook(collector))
+            every.append(CaptureHook(collector))
 
         def by_episode(obs: Any, running: list[Job | None], steps: np.ndarray) -> np.ndarray:
             episode_of = np.array([-1 if job is None else job.episode for job in running])
@@ -408,103 +306,3 @@ def _one_torch_thread() -> Iterator[None]:
 def _car(obs: np.ndarray | dict[str, np.ndarray], car: int) -> Any:
     """Car ``car``'s observation of a batch (a dict of batches for a Dict space)."""
     return {k: v[car] for k, v in obs.items()} if isinstance(obs, dict) else obs[car]
-
-
-def _goals(envs: gym.vector.VectorEnv) -> np.ndarray:
-    """Every car's goal (x, y) now: the sub-envs' ``goal`` (single envs) or the batch's
-    ``(N, 2)`` ``goal``; NaN where the env exposes none."""
-    get_attr = getattr(envs, "get_attr", None)
-    try:
-        goals = get_attr("goal") if get_attr is not None else envs.unwrapped.goal
-    except AttributeError:
-        return np.full((envs.num_envs, 2), math.nan)
-    return np.array([np.asarray(g, dtype=float)[:2] for g in goals])
-
-
-class _Tracks(Hooks):
-    """Every car's episode so far, and the records of those that ended."""
-
-    def __init__(self, n: int, step_s: float, bar: Any) -> None:
-        self.step_s, self.bar = step_s, bar
-        self.records: list[EpisodeRecord] = []
-        self.episode = np.zeros(n, dtype=np.int64)
-        self.seed = np.zeros(n, dtype=np.int64)
-        self.goal = np.zeros((n, 2))
-        self.ret = np.zeros(n)
-        self.length = np.zeros(n, dtype=np.int64)
-        self.path: list[list[np.ndarray]] = [[] for _ in range(n)]
-        self.odom: list[list[np.ndarray]] = [[] for _ in range(n)]
-
-    def begin(self, envs: gym.vector.VectorEnv, cars: np.ndarray, jobs: list[Job], obs: Any,
-              info: dict[str, Any]) -> None:
-        """The listed cars begin their jobs (``info``: their reset's)."""
-        pose, odom, goals = _xy(info, "pose"), _xy(info, "odom_pose"), _goals(envs)
-        for car, job in zip(cars.tolist(), jobs, strict=True):
-            self.path[car], self.odom[car] = [pose[car]], [odom[car]]
-            self.episode[car], self.seed[car] = job.episode, job.seed
-            self.goal[car] = goals[car]
-            self.ret[car], self.length[car] = 0.0, 0
-
-    def step(self, cars: np.ndarray, actions: np.ndarray, obs: Any, reward: np.ndarray,
-             terminated: np.ndarray, truncated: np.ndarray, info: dict[str, Any]) -> None:
-        """One step of the running cars."""
-        self.ret[cars] += np.asarray(reward, dtype=np.float64)[cars]
-        self.length[cars] += 1
-        pose, odom = _xy(info, "pose"), _xy(info, "odom_pose")
-        for car in cars.tolist():
-            self.path[car].append(pose[car])
-            self.odom[car].append(odom[car])
-
-    def end(self, car: int, job: Job, info: dict[str, Any]) -> None:
-        """Car ``car``'s episode, ended at this step (``info``: the step's)."""
-        success = bool(info["is_success"][car])
-        length = int(self.length[car])
-        self.records.append(EpisodeRecord(
-            episode=int(self.episode[car]), seed=int(self.seed[car]), success=success,
-            episode_return=float(self.ret[car]), length=length,
-            time_to_goal_s=length * self.step_s if success else None,
-            final_distance_m=float(info["distance"][car]),
-            final_odom_error_m=float(info["odom_error"][car]),
-            goal=(float(self.goal[car, 0]), float(self.goal[car, 1])),
-            path=np.array(self.path[car]), odom_path=np.array(self.odom[car])))
-        if self.bar is not None:
-            self.bar.update(1)
-
-
-class _StepsHook(Hooks):
-    """Every reset and step told to a ``datasets.steps.EpisodeSteps``."""
-
-    def __init__(self, steps: Any) -> None:
-        self.steps = steps
-
-    def begin(self, envs: gym.vector.VectorEnv, cars: np.ndarray, jobs: list[Job], obs: Any,
-              info: dict[str, Any]) -> None:
-        self.steps.begin(cars, [job.episode for job in jobs], obs, info)
-
-    def step(self, cars: np.ndarray, actions: np.ndarray, obs: Any, reward: np.ndarray,
-             terminated: np.ndarray, truncated: np.ndarray, info: dict[str, Any]) -> None:
-        self.steps.step(cars, actions, obs, reward, terminated, truncated, info)
-
-
-class _CaptureHook(Hooks):
-    """The frames every sub-env captured (``viewers.capture``) to an ``EpisodeCollector``."""
-
-    def __init__(self, collector: Any) -> None:
-        from smartcar_gym.viewers.capture import CAPTURE_KEY
-
-        self.collector, self.key = collector, CAPTURE_KEY
-
-    def begin(self, envs: gym.vector.VectorEnv, cars: np.ndarray, jobs: list[Job], obs: Any,
-              info: dict[str, Any]) -> None:
-        for car, job in zip(cars.tolist(), jobs, strict=True):
-            self.collector.begin(car, job.episode, job.seed, info[self.key][car])
-
-    def step(self, cars: np.ndarray, actions: np.ndarray, obs: Any, reward: np.ndarray,
-             terminated: np.ndarray, truncated: np.ndarray, info: dict[str, Any]) -> None:
-        for car in cars.tolist():
-            self.collector.add(car, info[self.key][car])
-
-
-def _xy(info: dict[str, Any], key: str) -> np.ndarray:
-    """Every car's x, y of ``info[key]`` as a float64 ``(N, 2)`` copy."""
-    return np.array(np.asarray(info[key])[:, :2], dtype=float)

@@ -19,7 +19,8 @@ import traceback
 from collections.abc import Callable
 from typing import Any
 
-from smartcar_gym.agents.episodes import EpisodeRecord, run_sb3_episodes
+from smartcar_gym.agents.episodes import run_sb3_episodes
+from smartcar_gym.agents.records import EpisodeRecord
 
 #: what the worker's forkserver imports once (as for SubprocVecEnv's workers)
 PRELOAD = ("stable_baselines3.common.evaluation", "smartcar_gym.envs.smartcar_env")

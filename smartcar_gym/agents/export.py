@@ -22,13 +22,14 @@ from typing import Any
 
 import yaml
 
-from smartcar_gym.agents.episodes import evaluate_policy_episodes, summarize
+from smartcar_gym.agents.episodes import evaluate_policy_episodes
 from smartcar_gym.agents.models import (
     PRETRAINED_MODEL,
     PRETRAINED_POLICIES,
     find_vecnormalize,
     load_model,
 )
+from smartcar_gym.agents.records import summarize
 
 DEFAULT_OUT = Path(__file__).resolve().parent.parent / "pretrained"
 

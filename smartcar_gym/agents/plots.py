@@ -23,7 +23,7 @@ from matplotlib.patches import Circle
 from matplotlib.ticker import FuncFormatter, MaxNLocator
 
 if TYPE_CHECKING:
-    from smartcar_gym.agents.episodes import EpisodeRecord
+    from smartcar_gym.agents.records import EpisodeRecord
 
 MONITOR_RE = re.compile(r"^seg(\d+)_(\d+)\.monitor\.csv$")
 # Trajectory figure: inches per episode panel, minimum width, title characters per inch.

@@ -10,9 +10,10 @@ from typing import Any
 
 import numpy as np
 
-from smartcar_gym.agents.episodes import RandomPolicy, evaluate_batched_episodes
+from smartcar_gym.agents.episodes import evaluate_batched_episodes
 from smartcar_gym.agents.models import PRETRAINED_POLICIES
 from smartcar_gym.agents.policies import Policy, PolicyError
+from smartcar_gym.agents.random_policy import RandomPolicy
 from smartcar_gym.datasets.minari_writer import REFERENCE_EPISODES, References
 
 

@@ -34,8 +34,9 @@ def episode_observations(policy: Any, n: int, cars: int = 64) -> np.ndarray:
     ``i``), driven by ``policy``, through the episode runner on ``cars`` cars of a batching
     engine (the policy's own where it batches: ``sim.engines.batch_engine``): every running
     car's observation at each reset and step, in order, until there are ``n``."""
-    from smartcar_gym.agents.episodes import act_batch, make_batched_env
+    from smartcar_gym.agents.episodes import act_batch
     from smartcar_gym.agents.runner import Hooks, Job, run_jobs
+    from smartcar_gym.agents.vec_envs import make_batched_env
     from smartcar_gym.sim.engines import batch_engine
 
     engine = batch_engine(policy.env_kwargs.get("engine"))

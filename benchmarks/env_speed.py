@@ -98,7 +98,7 @@ def worker_raw(steps: int, contact: str, robot: str = "smartcar") -> float:
     from smartcar_gym.controller import load_controller_config
     from smartcar_gym.envs.robots import SmartCarRobot
     from smartcar_gym.model import load_model
-    from smartcar_gym.sim import Simulator
+    from smartcar_gym.sim.pybullet.simulator import Simulator
 
     sim = Simulator(max_substep_s=0.002)
     config = load_controller_config()

@@ -429,7 +429,7 @@ def test_bringup_refuses_a_bad_configuration_in_one_line(case, ros, tmp_path):
 @pytest.mark.skipif(importlib.util.find_spec("rosbags") is None,
                     reason='rosbags not installed: pip install "smartcar-gym[ros]"')
 def test_rosbag_play_publishes_a_written_bag(ros, tmp_path):
-    from smartcar_gym.bags.ros1 import write_bag
+    from smartcar_gym.agents.bag import write_bag
     from smartcar_gym.policy import Policy
 
     bag = tmp_path / "episode.bag"

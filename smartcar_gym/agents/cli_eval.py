@@ -14,8 +14,6 @@ finds and loads the model and the normaliser (VecNormalize statistics, a pickle)
 loaded with it (``models`` says which). ``--vectorization batched`` runs the same episodes on
 the cars of one vector env (``episodes.evaluate_batched_episodes``); ``--fail-under`` and
 ``--max-final-distance`` are pass marks (exit status 1 when one is missed: docs/ci.md).
-``smartcar_gym.agents.evaluate``, this module's old path, still imports its names (and
-``evaluate_policy_episodes``, ``load_model`` and ``summarize``).
 """
 
 from __future__ import annotations

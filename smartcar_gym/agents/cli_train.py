@@ -10,7 +10,6 @@ A run folder holds ``config.yaml`` (what ran), ``model.zip`` (+ ``vecnormalize.p
 ``checkpoints/``, ``best_model.zip``, ``eval/evaluations.npz``, ``monitor/*.monitor.csv``,
 ``tb/`` (TensorBoard), ``summary.json`` and ``learning_curve.png``. See ``build_parser``;
 ``runs`` makes and checks the folder, ``training`` (the library this command calls) trains.
-``smartcar_gym.agents.train``, this module's old path, still imports its names.
 """
 
 from __future__ import annotations

@@ -5,7 +5,7 @@ base_link`` transform) plus the wheel ``joint_states``, ``cmd_vel``, a goal and 
 take a ``MessageTypes``: rospy's classes for the live bridge (``RospyTypes``) or a rosbags
 typestore for bag files written without ROS (``RosbagsTypes``), so both carry the same fields.
 
-The readers turn received messages into what ``smartcar_gym.envs.observation.Readings`` holds,
+The readers turn received messages into what ``smartcar_gym.envs.state.CarState`` holds,
 refusing malformed ones with a ``MessageError`` that says what is wrong.
 """
 
@@ -193,7 +193,7 @@ def _finite(what: str, **values: float) -> None:
 
 @dataclass(frozen=True)
 class OdometryReading:
-    """What the observation reads of an ``odom`` message (see ``Readings.odometry``)."""
+    """What the observation reads of an ``odom`` message (``CarState.odometry``'s row)."""
 
     x: float
     y: float

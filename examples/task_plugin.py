@@ -55,7 +55,8 @@ class ParkTask(ReachTask):
     ## Episode End
 
     Terminated when parked (inside the box, within the heading tolerance, at rest by
-    odometry) or on a failure; ``info["parked"]`` says which cars are parked.
+    odometry) or on a failure; ``info["in_box"]`` says which cars are parked in the box (the
+    state's ``parked`` is another thing: cars not simulated until a reset).
 
     ## Arguments
 
@@ -91,9 +92,9 @@ class ParkTask(ReachTask):
     # -- the cars ------------------------------------------------------------------------------
     def attach(self, num: int) -> None:
         super().attach(num)
-        #: each car's heading to park at (rad), and whether it is parked
+        #: each car's heading to park at (rad), and whether it is parked in the box
         self.heading = np.zeros(num)
-        self.parked = np.zeros(num, dtype=bool)
+        self.in_box = np.zeros(num, dtype=bool)
 
     def check_option(self, key: str, value: Any, vector: bool) -> list[Any]:
         if key != "heading":
@@ -101,9 +102,6 @@ class ParkTask(ReachTask):
         if not (isinstance(value, int | float) and math.isfinite(value)):
             raise ValueError(f"options['heading'] must be a finite angle (rad), got {value!r}")
         return [float(value)] * self.num
-
-    def options_help(self) -> str:
-        return "'goal', 'heading'"
 
     def start(self, cars: Any, idx: np.ndarray, options: list[dict[str, Any]]) -> None:
         """The goal (SmartCar-v0's), then the heading: given, or drawn with the car's
@@ -116,7 +114,7 @@ class ParkTask(ReachTask):
 
     def begin(self, cars: Any, idx: np.ndarray) -> None:
         super().begin(cars, idx)
-        self.parked[idx] = False
+        self.in_box[idx] = False
 
     def score(self, cars: Any, action: np.ndarray) -> tuple[np.ndarray, ...]:
         """Reaching's reward, with success replaced by parking."""
@@ -128,13 +126,13 @@ class ParkTask(ReachTask):
         error = np.abs(np.remainder(state.pose[:, 2] - self.heading + np.pi, 2 * np.pi) - np.pi)
         rest = ((np.abs(state.odometry[:, 3]) < REST_SPEED_M_S)
                 & (np.abs(state.odometry[:, 4]) < REST_TURN_RAD_S))
-        self.parked = ((along < self.box[0]) & (across < self.box[1])
+        self.in_box = ((along < self.box[0]) & (across < self.box[1])
                        & (error < self.heading_tolerance) & rest)
-        bonus = self.success_bonus * (self.parked.astype(float) - reached.astype(float))
-        return reward + bonus, self.parked.copy(), failure
+        bonus = self.success_bonus * (self.in_box.astype(float) - reached.astype(float))
+        return reward + bonus, self.in_box.copy(), failure
 
     def info(self, cars: Any, success: np.ndarray) -> dict[str, np.ndarray]:
-        return {**super().info(cars, success), "parked": self.parked.copy()}
+        return {**super().info(cars, success), "in_box": self.in_box.copy()}
 
 
 def register() -> None:
@@ -165,7 +163,7 @@ def step_batched(engine: str, steps: int = 5) -> None:
         for _ in range(steps):
             _, _, _, _, info = envs.step(np.stack([envs.single_action_space.sample()
                                                    for _ in range(4)]))
-            assert info["parked"].shape == (4,)
+            assert info["in_box"].shape == (4,)
     finally:
         envs.close()
 

@@ -7,12 +7,10 @@ so every message says which value was wrong, what it was and what was expected.
 from __future__ import annotations
 
 import difflib
-import functools
-import inspect
 import math
 import numbers
 import os
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from typing import Any
 
 Error = type[Exception]
@@ -41,6 +39,13 @@ def positive_number(name: str, value: Any, upper: float | None = None,
     if upper is not None and value > upper:
         raise error(f"{name} must be at most {upper:g}{f' ({why})' if why else ''}, "
                     f"got {value!r}")
+    return float(value)
+
+
+def non_negative_number(name: str, value: Any, error: Error = ValueError) -> float:
+    """``value`` as a float if it is a finite number >= 0."""
+    if not (is_finite(value) and value >= 0):
+        raise error(f"{name} must be a number >= 0, got {value!r}")
     return float(value)
 
 
@@ -97,42 +102,6 @@ def source(name: str, value: Any, loaded: type) -> Any:
         f"{name} must be a file path or a {loaded.__name__} (or None for the shipped one), "
         f"got {type(value).__name__}: {value!r}"
     )
-
-
-def keywords(cls: type) -> set[str] | None:
-    """The keyword arguments ``cls(...)`` takes: its ``__init__``'s, and where that passes
-    ``**kwargs`` on, those of the next ``__init__`` up the MRO; None if they end open."""
-    names: set[str] = set()
-    for klass in cls.__mro__:
-        init = klass.__dict__.get("__init__")
-        if init is None or klass is object:
-            continue
-        params = list(inspect.signature(init).parameters.values())[1:]  # after self
-        names |= {p.name for p in params
-                  if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)}
-        if not any(p.kind is p.VAR_KEYWORD for p in params):
-            return names
-    return None
-
-
-def keyword_checked(init: Callable[..., None]) -> Callable[..., None]:
-    """An ``__init__`` that names a keyword argument it does not take with the closest one
-    its class takes (``max_linar`` -> ``max_linear``; a subclass's ``__init__`` that passes
-    ``**kwargs`` on counts) instead of Python's bare "unexpected keyword argument". The
-    signature stays ``init``'s (``inspect.signature`` follows ``__wrapped__``)."""
-    params = list(inspect.signature(init).parameters.values())[1:]
-    own = {p.name for p in params if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)}
-
-    @functools.wraps(init)
-    def checked(self: Any, *args: Any, **kwargs: Any) -> None:
-        if not own.issuperset(kwargs):
-            cls = type(self)
-            name = next(k.__name__ for k in cls.__mro__ if not k.__name__.startswith("_"))
-            check_keywords(name, [k for k in kwargs if k not in own], sorted(keywords(cls)
-                                                                           or own))
-        init(self, *args, **kwargs)
-
-    return checked
 
 
 def check_keywords(name: str, kwargs: dict[str, Any] | Sequence[str], names: Sequence[str],

@@ -124,4 +124,4 @@ def test_the_info_arithmetic_is_the_single_envs_to_the_bit():
     assert np.array_equal(got, want) and np.array_equal(np.signbit(got), np.signbit(want))
     dx, dy = rng.normal(0, 1e-3, 20000), rng.normal(0, 1e-3, 20000)
     want = [math.sqrt(x * x + y * y) for x, y in zip(dx.tolist(), dy.tolist(), strict=True)]
-    assert np.array_equal(planar_norms(dx, dy), want)
+    assert np.array_equal(planar_norms(np.stack([dx, dy], axis=1)), want)

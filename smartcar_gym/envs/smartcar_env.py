@@ -41,7 +41,13 @@ from smartcar_gym.envs.world import World
 from smartcar_gym.model import RobotModel
 from smartcar_gym.model.contact import check_wheel_contact
 from smartcar_gym.sim.contracts import window_of
-from smartcar_gym.sim.engines import DEFAULT_ENGINE, engine_kwargs, engine_options, get_engine
+from smartcar_gym.sim.engines import (
+    DEFAULT_ENGINE,
+    check_engine_keywords,
+    engine_kwargs,
+    engine_options,
+    get_engine,
+)
 
 _ONE = np.zeros(1, dtype=np.int64)  # the single env's car, as a task's list of cars
 #: what the env shows of its world (``envs.world.World``), by the name it shows it under
@@ -207,8 +213,7 @@ class SmartCarEnv(gym.Env):
         self.metadata = {**self.metadata, "render_modes": render_modes(spec, render_mode)}
         checks.one_of("render_mode", render_mode, list(self.metadata["render_modes"]),
                       none_ok=True)
-        #: the env keywords only this env's engine takes, resolved for the robot below
-        self.engine_options = engine_options(spec, given)
+        check_engine_keywords(spec, given)  # another engine's keyword fails before any loading
         checks.one_of("controller_mode", controller_mode, MODES, none_ok=True)
         self.render_mode = render_mode
         self.wheel_contact = check_wheel_contact(wheel_contact)
@@ -226,6 +231,7 @@ class SmartCarEnv(gym.Env):
         self.controller_config = load_config(
             controller_config, task_class.env_defaults.get("controller_config"))
         check_tick_targets(self.controller_config, self.max_linear, self.max_angular)
+        #: the env keywords only this env's engine takes, resolved for the robot
         self.engine_options = engine_options(spec, given, self.robot_model)
         if controller_mode is None:  # as the driver: its `sim` parameter picks the mode
             controller_mode = KINEMATIC if self.controller_config.kinematic else HARDWARE

@@ -76,11 +76,6 @@ class CarState:
         """How many cars (rows)."""
         return len(self.pose)
 
-    @property
-    def odometry_pose(self) -> np.ndarray:
-        """(N, 3): the odometry's x, y and theta (a view)."""
-        return self.odometry[:, :3]
-
     def take(self, car: int, other: CarState, row: int = 0) -> None:
         """Car ``car``'s row becomes ``other``'s row ``row`` (every field, every reading)."""
         for f in fields(self):

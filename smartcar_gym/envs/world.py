@@ -90,6 +90,10 @@ class World:
         """Free the simulator (``open`` makes a new one)."""
         if self.sim is not None:
             self.sim.close()
+        self._forget()
+
+    def _forget(self) -> None:
+        """No world held: no simulator, robot, markers, laser or obstacle bodies."""
         self.sim = self.robot = self.markers = self.laser = self.scan_markers = None
         self.bodies = []
 
@@ -120,8 +124,7 @@ class World:
         """A copy with the settings and none of the world (an env's copy opens its own)."""
         copy = World.__new__(World)
         copy.__setstate__(self.__getstate__())
-        copy.sim = copy.robot = copy.markers = copy.laser = copy.scan_markers = None
-        copy.bodies = []
+        copy._forget()
         return copy
 
     # -- an episode ----------------------------------------------------------------------------

@@ -149,12 +149,9 @@ def resolve(engine: str | Engine) -> Engine:
     return engine if isinstance(engine, Engine) else get_engine(engine)
 
 
-def engine_options(engine: str | Engine, given: dict[str, Any],
-                   model: Any = None) -> dict[str, Any]:
-    """The env keywords only some engine takes (``given``: name -> value, None where not
-    given), for a world of ``engine`` and the robot ``model``: each of ``engine``'s own
-    resolved by its ``kwargs`` function (None included: its default for that robot);
-    ValueError for a value given for another engine's."""
+def check_engine_keywords(engine: str | Engine, given: dict[str, Any]) -> None:
+    """ValueError for a value in ``given`` (engine keywords: name -> value, None where not
+    given) that ``engine`` does not take: another engine's, naming it, or no engine's."""
     spec = resolve(engine)
     for key, value in given.items():
         if value is not None and key not in spec.kwargs:
@@ -164,6 +161,16 @@ def engine_options(engine: str | Engine, given: dict[str, Any],
                                  f"{sorted(engine_kwargs())}")
             raise ValueError(f"{key} is the {owner} engine's; pass engine={owner!r} "
                              f"(engine is {spec.name!r})")
+
+
+def engine_options(engine: str | Engine, given: dict[str, Any],
+                   model: Any = None) -> dict[str, Any]:
+    """The env keywords only some engine takes (``given``: name -> value, None where not
+    given), for a world of ``engine`` and the robot ``model``: each of ``engine``'s own
+    resolved by its ``kwargs`` function (None included: its default for that robot);
+    ValueError for a value given for another engine's (``check_engine_keywords``)."""
+    spec = resolve(engine)
+    check_engine_keywords(spec, given)
     return {key: resolve(given.get(key), model) for key, resolve in spec.kwargs.items()}
 
 

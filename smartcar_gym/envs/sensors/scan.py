@@ -56,9 +56,7 @@ class LaserConfig:
             raise ValueError(f"laser range_min must be a number in [0, range_max="
                              f"{self.range_max:g}), got {self.range_min!r}")
         checks.positive_number("laser rate_hz", self.rate_hz)
-        if not (checks.is_real(self.noise_std_m) and math.isfinite(self.noise_std_m)
-                and self.noise_std_m >= 0):
-            raise ValueError(f"laser noise_std_m must be a number >= 0, got {self.noise_std_m!r}")
+        checks.non_negative_number("laser noise_std_m", self.noise_std_m)
 
     @property
     def beams(self) -> int:

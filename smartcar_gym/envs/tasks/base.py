@@ -25,14 +25,12 @@ registered by name (``envs.tasks.registry``), each with the ids made from it.
 from __future__ import annotations
 
 import copy
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 
 import numpy as np
 
-from smartcar_gym import checks
 from smartcar_gym.envs.observation import Observation
 from smartcar_gym.envs.state import SCAN, SCAN_TIME, CarState
 from smartcar_gym.sim.clock import seconds_to_ns
@@ -251,9 +249,3 @@ class Task:
         """Every car's ``info`` values by key (arrays over the cars)."""
         return {}
 
-
-def check_number(name: str, value: Any, low: float = 0.0) -> float:
-    """``value`` as a float if it is a finite number >= ``low``; one line otherwise."""
-    if not (checks.is_real(value) and math.isfinite(value) and value >= low):
-        raise ValueError(f"{name} must be a number >= {low:g}, got {value!r}")
-    return float(value)

@@ -179,10 +179,18 @@ class GoalTask(ReachTask):
         return outside | info_flags(info, FLIPPED, np.shape(outside))
 
     # -- the cars ------------------------------------------------------------------------------
+    @staticmethod
+    def _goal_columns(state: Any) -> dict[str, Any]:
+        """The achieved (the odometry's position) and desired goals' columns."""
+        return {"achieved_goal": (state.odometry[:, 0], state.odometry[:, 1]),
+                "desired_goal": (state.goal[:, 0], state.goal[:, 1])}
+
     def _goals(self, cars: Cars) -> tuple[np.ndarray, np.ndarray]:
-        """Every car's observed achieved and desired goals ((N, 2) float32)."""
-        obs = self.observe(cars)
-        return obs["achieved_goal"], obs["desired_goal"]
+        """Every car's observed achieved and desired goals ((N, 2) float32), as ``observe``
+        gives them."""
+        columns, observation = self._goal_columns(cars.state), self.observation()
+        return (observation["achieved_goal"].build(columns),
+                observation["desired_goal"].build(columns))
 
     def begin(self, cars: Cars, idx: np.ndarray) -> None:
         super().begin(cars, idx)
@@ -209,9 +217,7 @@ class GoalTask(ReachTask):
 
     def observe(self, cars: Cars) -> dict[str, np.ndarray]:
         state = cars.state
-        columns = robot_columns(state, *heading(state))
-        columns["achieved_goal"] = (state.odometry[:, 0], state.odometry[:, 1])
-        columns["desired_goal"] = (state.goal[:, 0], state.goal[:, 1])
+        columns = {**robot_columns(state, *heading(state)), **self._goal_columns(state)}
         return {key: o.build(columns) for key, o in self.observation().items()}
 
     def info(self, cars: Cars, success: np.ndarray) -> dict[str, np.ndarray]:

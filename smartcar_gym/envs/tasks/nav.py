@@ -8,7 +8,6 @@ touching an obstacle costs ``collision_penalty`` and ends the episode.
 from __future__ import annotations
 
 import dataclasses
-import math
 import os
 from collections.abc import Mapping, Sequence
 from typing import Any
@@ -187,16 +186,11 @@ class NavTask(ReachTask):
         #: the layout of every episode (None: drawn)
         self.layout = None if obstacle_layout is None else read_layout(obstacle_layout,
                                                                        "obstacle_layout")
-        rewards = {"collision_penalty": collision_penalty,
-                   "proximity_penalty": proximity_penalty}
-        for name, value in rewards.items():
-            if not (checks.is_real(value) and math.isfinite(value) and value >= 0):
-                raise ValueError(f"{name} must be a number >= 0, got {value!r}")
-        if not (checks.is_real(proximity_m) and math.isfinite(proximity_m) and proximity_m > 0):
-            raise ValueError(f"proximity_m must be a positive number, got {proximity_m!r}")
-        self.collision_penalty = float(collision_penalty)
-        self.proximity_penalty = float(proximity_penalty)
-        self.proximity_m = float(proximity_m)
+        self.collision_penalty = checks.non_negative_number("collision_penalty",
+                                                            collision_penalty)
+        self.proximity_penalty = checks.non_negative_number("proximity_penalty",
+                                                            proximity_penalty)
+        self.proximity_m = checks.positive_number("proximity_m", proximity_m)
         self._mount_pose = laser_mount
         self._field = (obstacles, obstacle_size, obstacle_clearance)
         super().__init__(goal_range, goal_tolerance, arena_size, stop_speed)
@@ -258,9 +252,6 @@ class NavTask(ReachTask):
             if goal is not None and layout is not None and clearance(layout, goal) <= 0:
                 raise ValueError(f"options['goal'] {goal.tolist()} lies inside an obstacle")
         return cars
-
-    def options_help(self) -> str:
-        return "'goal', 'obstacles'"
 
     def check_option(self, key: str, value: Any, vector: bool) -> list[Any]:
         if key != "obstacles":
@@ -328,7 +319,7 @@ class NavTask(ReachTask):
             self._sectors[stale] = scan_sectors(readings[SCAN][stale],
                                                 self.laser_config.range_max, self.scan_sectors)
             self._sectors_of[stale] = readings[SCAN_TIME][stale]
-        columns[SCAN_KEY] = tuple(self._sectors.T.copy())
+        columns[SCAN_KEY] = self._sectors.T
         return columns
 
     def info(self, cars: Cars, success: np.ndarray) -> dict[str, np.ndarray]:

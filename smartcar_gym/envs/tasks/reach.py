@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from smartcar_gym import checks
-from smartcar_gym.envs.exact import exact_hypot, wrap_angles
+from smartcar_gym.envs.exact import exact_hypot, planar_norms, wrap_angles
 from smartcar_gym.envs.observation import Entry, Observation
 from smartcar_gym.envs.robots.entries import (
     heading,
@@ -209,9 +209,6 @@ class ReachTask(Task):
         rows = [self.check_goal(g) for g in goal.reshape(-1, 2)]
         return rows if len(rows) == self.num else rows * self.num
 
-    def options_help(self) -> str:
-        return "'goal'"
-
     def check_goal(self, value: object) -> np.ndarray:
         """A user's goal (``reset(options={"goal": ...})``): a finite (x, y) in the arena."""
         expected = f"options['goal'] must be a finite (x, y) pair, got {value!r}"
@@ -244,7 +241,7 @@ class ReachTask(Task):
     def begin(self, cars: Cars, idx: np.ndarray) -> None:
         state = cars.state
         d = state.pose[idx, :2] - state.goal[idx]
-        self.distance[idx] = np.sqrt(np.add.reduce(d * d, axis=-1))
+        self.distance[idx] = planar_norms(d)
         if self.stop_speed_m_s is not None:
             odometry, pose = state.odometry[idx], state.pose[idx]
             self.odometry_error[idx] = exact_hypot(odometry[:, 0] - pose[:, 0],
@@ -257,7 +254,7 @@ class ReachTask(Task):
         state = cars.state
         position = state.pose[:, :2]
         d = position - state.goal
-        distance = np.sqrt(np.add.reduce(d * d, axis=1))  # dx * dx + dy * dy
+        distance = planar_norms(d)
         success = distance < self.goal_tolerance_m
         arrival = None
         if self.stop_speed_m_s is not None:
@@ -316,7 +313,7 @@ class ReachTask(Task):
             "distance": self.distance.copy(),
             "pose": pose.copy(),
             "odom_pose": odom_pose,
-            "odom_error": np.sqrt(np.add.reduce(d * d, axis=1)),  # planar_norms
+            "odom_error": planar_norms(d),
         }
 
 

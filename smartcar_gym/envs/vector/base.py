@@ -20,9 +20,15 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
+from smartcar_gym.controller.batched import BatchedArbotix
 from smartcar_gym.envs.state import CarState
 from smartcar_gym.envs.tasks.base import Task
-from smartcar_gym.envs.vector.common import check_actions, check_seeds, vector_info
+from smartcar_gym.envs.vector.common import (
+    check_actions,
+    check_reset_mask,
+    check_seeds,
+    vector_info,
+)
 from smartcar_gym.envs.vector.render import top_down_tiles
 
 
@@ -42,6 +48,8 @@ class CarsVectorEnv(gym.vector.VectorEnv):
     state: CarState
     #: the task, run over every car
     task: Task
+    #: every car's ArbotiX controller (and boards), in arrays
+    base: BatchedArbotix
 
     def _take_settings(self, s: Any) -> None:
         """The task, spaces and metadata of the single env ``s`` that every car is."""
@@ -130,17 +138,15 @@ class CarsVectorEnv(gym.vector.VectorEnv):
         # a parked car has no episode: it never ends, so it is never autoreset
         terminated &= ~parked
         truncated &= ~parked
-        if self.autoreset_mode == AutoresetMode.NEXT_STEP:
-            if restart.any():
-                self._reset_cars(restart, None)
-                reward[restart] = 0.0
-                terminated[restart] = truncated[restart] = success[restart] = False
-            obs = self._observe()
-            info = self._info(np.ones(self.num_envs, dtype=bool), success)
-        else:
+        if restart.any():  # NextStep: the cars that ended at the last step start afresh
+            self._reset_cars(restart, None)
+            reward[restart] = 0.0
+            terminated[restart] = truncated[restart] = success[restart] = False
+        everyone = np.ones(self.num_envs, dtype=bool)
+        obs = self._observe()
+        info = self._info(everyone, success)
+        if self.autoreset_mode == AutoresetMode.SAME_STEP:
             done = terminated | truncated
-            obs = self._observe()
-            info = self._info(np.ones(self.num_envs, dtype=bool), success)
             if done.any():
                 final_obs = np.full(self.num_envs, None, dtype=object)
                 for i in np.flatnonzero(done):
@@ -148,7 +154,7 @@ class CarsVectorEnv(gym.vector.VectorEnv):
                 final_info = self._info(done, success)
                 self._reset_cars(done, None)
                 obs = self._observe()
-                info = self._info(np.ones(self.num_envs, dtype=bool), success & ~done)
+                info = self._info(everyone, success & ~done)
                 info["final_obs"], info["_final_obs"] = final_obs, done.copy()
                 info["final_info"], info["_final_info"] = final_info, done.copy()
         self._autoreset = terminated | truncated
@@ -177,15 +183,11 @@ class CarsVectorEnv(gym.vector.VectorEnv):
         if not isinstance(options, dict) or "reset_mask" not in options:
             return options, everyone
         options = dict(options)
-        mask = options.pop("reset_mask")
-        if not (isinstance(mask, np.ndarray) and mask.dtype == np.bool_
-                and mask.shape == (self.num_envs,) and mask.any()):
-            raise ValueError(f"options['reset_mask'] must be a bool array of shape "
-                             f"({self.num_envs},) with a car to reset, got {mask!r}")
+        mask = check_reset_mask(options.pop("reset_mask"), self.num_envs)
         if self._needs_reset and not mask.all():
             raise gym.error.ResetNeeded(f"{self.label}: the first reset() resets every car (no "
                                         "reset_mask)")
-        return options or None, mask.copy()
+        return options or None, mask
 
     def _reset_cars(self, mask: np.ndarray, options: list[dict[str, Any]] | None) -> None:
         """The masked cars afresh, each with its episode's ``options`` (None: none)."""
@@ -194,6 +196,12 @@ class CarsVectorEnv(gym.vector.VectorEnv):
     def _run(self, linear_x: np.ndarray, angular_z: np.ndarray) -> None:
         """Every car's ``cmd_vel`` now, one controller period, and the state read after it."""
         raise NotImplementedError
+
+    def _read_odometry(self) -> None:
+        """Every car's odometry in the state, from the batched controllers (``base``)."""
+        odometry, b = self.state.odometry, self.base
+        odometry[:, 0], odometry[:, 1], odometry[:, 2] = b.x, b.y, b.theta
+        odometry[:, 3], odometry[:, 4] = b.odom_v, b.odom_w
 
     # -- observations and infos ----------------------------------------------------------------
     def _observe(self) -> Any:

@@ -29,6 +29,7 @@ from smartcar_gym.envs.vector.common import (
     check_max_episode_steps,
     check_num_envs,
     check_num_threads,
+    check_park_mask,
 )
 from smartcar_gym.envs.vector.events import Clocks
 from smartcar_gym.envs.vector.laser import BatchLaser
@@ -194,13 +195,7 @@ class SmartCarBatchVectorEnv(CarsVectorEnv):
         left than cars: the idle cars cost no physics and no new world
         (``smartcar-eval --vectorization batched``, ``smartcar-bench barn``). The other cars step
         exactly as they would have. ``mask`` is a numpy bool array of shape (N,)."""
-        if not (isinstance(mask, np.ndarray) and mask.dtype == np.bool_
-                and mask.shape == (self.num_envs,)):
-            got = (f"a {mask.dtype} array of shape {mask.shape}" if isinstance(mask, np.ndarray)
-                   else f"a {type(mask).__name__}")
-            raise ValueError(f"park: expected a bool mask of shape ({self.num_envs},) (a numpy "
-                             f"array of dtype bool), got {got}")
-        self.state.parked |= mask
+        self.state.parked |= check_park_mask(mask, self.num_envs)
 
     # -- what the task sees (``tasks.base.Cars``) ------------------------------------------------
     def clearances(self, cars: np.ndarray, max_distance_m: float) -> np.ndarray:
@@ -262,11 +257,9 @@ class SmartCarBatchVectorEnv(CarsVectorEnv):
 
     def _read(self) -> None:
         """Every car's state from the engine and the boards: pose, odometry, wheels."""
-        state, b = self.state, self.base
+        state = self.state
         state.up_z[:] = self.cars.read_pose(state.pose)
-        odometry = state.odometry
-        odometry[:, 0], odometry[:, 1], odometry[:, 2] = b.x, b.y, b.theta
-        odometry[:, 3], odometry[:, 4] = b.odom_v, b.odom_w
+        self._read_odometry()
         state.wheel_position[:], state.wheel_velocity[:] = self.cars.read_wheels()
 
     def _report_unstable(self, found: Sequence[Warning]) -> None:

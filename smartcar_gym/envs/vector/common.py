@@ -141,6 +141,26 @@ def check_actions(actions: Any, num_envs: int) -> np.ndarray:
     return np.clip(arr, -1.0, 1.0)
 
 
+def check_reset_mask(mask: Any, num_envs: int) -> np.ndarray:
+    """``options["reset_mask"]``: a bool array of shape (num_envs,) naming a car, copied."""
+    if not (isinstance(mask, np.ndarray) and mask.dtype == np.bool_
+            and mask.shape == (num_envs,) and mask.any()):
+        raise ValueError(f"options['reset_mask'] must be a bool array of shape "
+                         f"({num_envs},) with a car to reset, got {mask!r}")
+    return mask.copy()
+
+
+def check_park_mask(mask: Any, num_envs: int) -> np.ndarray:
+    """``park``'s mask: a bool array of shape (num_envs,)."""
+    if not (isinstance(mask, np.ndarray) and mask.dtype == np.bool_
+            and mask.shape == (num_envs,)):
+        got = (f"a {mask.dtype} array of shape {mask.shape}" if isinstance(mask, np.ndarray)
+               else f"a {type(mask).__name__}")
+        raise ValueError(f"park: expected a bool mask of shape ({num_envs},) (a numpy "
+                         f"array of dtype bool), got {got}")
+    return mask
+
+
 def vector_info(values: dict[str, Any], mask: np.ndarray) -> dict[str, Any]:
     """A Gymnasium vector ``info``: each key's per-car array and its ``_key`` mask (a dict of
     them, such as ``randomization``'s, as a vector info of its own)."""

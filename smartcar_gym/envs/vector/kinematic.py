@@ -72,7 +72,7 @@ class SmartCarSimVectorEnv(CarsVectorEnv):
       after a car's episode ends resets that car, ignores its action and returns its first
       observation with reward 0. ``autoreset_mode="SameStep"`` resets it in the step that ends
       the episode and puts its last observation and info in ``info["final_obs"]`` and
-      ``info["final_info"]`` (what SB3 expects; ``agents.vec_env`` uses it).
+      ``info["final_info"]`` (what SB3 expects; ``agents.sb3_vec_env`` uses it).
       ``metadata["autoreset_mode"]`` says which.
     - **Episode limit**: ``max_episode_steps`` as ``gym.make`` reads it: None the id's
       registered limit (200 steps), -1 none, a positive integer that limit; others refused.
@@ -176,13 +176,11 @@ class SmartCarSimVectorEnv(CarsVectorEnv):
     def _read(self, steps: np.ndarray) -> None:
         """The state: the position as pybullet stores it (float32), the exact heading, the
         odometry, the wheels; each car's clock at ``steps`` periods."""
-        state, b, body = self.state, self.base, self._body
+        state, body = self.state, self._body
         state.pose[:, 0] = body[:, 0].astype(np.float32)
         state.pose[:, 1] = body[:, 1].astype(np.float32)
         state.pose[:, 2] = wrap_angles(body[:, 2])
-        odometry = state.odometry
-        odometry[:, 0], odometry[:, 1], odometry[:, 2] = b.x, b.y, b.theta
-        odometry[:, 3], odometry[:, 4] = b.odom_v, b.odom_w
+        self._read_odometry()
         state.wheel_position[:] = self._wheels[:, self._wheel_group]
         state.wheel_velocity[:] = self._wheel_speed[:, self._wheel_group]
         state.now_ns[:] = steps * self.period_ns

@@ -15,6 +15,8 @@ from smartcar_gym.envs.vector.common import (
     check_max_episode_steps,
     check_num_envs,
     check_num_threads,
+    check_park_mask,
+    check_reset_mask,
     check_seeds,
 )
 
@@ -66,12 +68,8 @@ class SmartCarLoopVectorEnv(SyncVectorEnv):
         seeds = check_seeds(seed, self.num_envs)
         options = dict(options or {})
         mask = options.pop("reset_mask", None)
-        if mask is None:
-            mask = np.ones(self.num_envs, dtype=bool)
-        elif not (isinstance(mask, np.ndarray) and mask.dtype == np.bool_
-                  and mask.shape == (self.num_envs,) and mask.any()):
-            raise ValueError(f"options['reset_mask'] must be a bool array of shape "
-                             f"({self.num_envs},) with a car to reset, got {mask!r}")
+        mask = (np.ones(self.num_envs, dtype=bool) if mask is None
+                else check_reset_mask(mask, self.num_envs))
         cars = (self._options.check_options(options or None, vector=True)
                 if self._options is not None and options else [options or None] * self.num_envs)
         self.parked[mask] = False
@@ -124,11 +122,7 @@ class SmartCarLoopVectorEnv(SyncVectorEnv):
     def park(self, mask: np.ndarray) -> None:
         """Stop stepping the masked envs until a ``reset`` names each one (as the batches'
         ``park``)."""
-        if not (isinstance(mask, np.ndarray) and mask.dtype == np.bool_
-                and mask.shape == (self.num_envs,)):
-            raise ValueError(f"park: expected a bool mask of shape ({self.num_envs},) (a numpy "
-                             f"array of dtype bool), got {mask!r}")
-        self.parked |= mask
+        self.parked |= check_park_mask(mask, self.num_envs)
 
     def _copy(self, obs: Any) -> Any:
         from copy import deepcopy

@@ -238,9 +238,6 @@ class BarnTask(NavTask):
         return tuple(float(v) for v in self.map_poses[0])
 
     # -- reset ---------------------------------------------------------------------------------
-    def options_help(self) -> str:
-        return "'world'"
-
     def check_option(self, key: str, value: Any, vector: bool) -> list[Any]:
         if key != "world":
             return super().check_option(key, value, vector)

@@ -8,7 +8,7 @@ VecNormalize statistics. ``act(obs)`` turns one observation (an array, or a dict
 ``SmartCarGoal-v0``) into an action: normalised with the frozen statistics, then the model's
 ``predict`` on a batch of one, so actions do not depend on batching::
 
-    from smartcar_gym.agents.policies import Policy
+    from smartcar_gym.policy import Policy
 
     policy = Policy.load("default")        # or "runs/ppo_SmartCar-v0_s0", "model.zip"
     env = policy.make_env()                # gym.make(policy.env_id, **policy.env_kwargs)

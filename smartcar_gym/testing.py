@@ -2,7 +2,7 @@
 
 ::
 
-    from smartcar_gym.agents.policies import Policy
+    from smartcar_gym.policy import Policy
     from smartcar_gym.testing import assert_success, evaluate
 
     def test_my_policy_reaches_its_goals():

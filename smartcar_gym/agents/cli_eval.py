@@ -46,6 +46,7 @@ from smartcar_gym.agents.models import PRETRAINED_MODEL, PRETRAINED_POLICIES, lo
 from smartcar_gym.agents.policies import DEFAULT_ENV_ID, Policy, PolicyError
 from smartcar_gym.agents.random_policy import RandomPolicy
 from smartcar_gym.agents.records import summarize
+from smartcar_gym.agents.references import reference_scores
 from smartcar_gym.agents.video import record_video
 from smartcar_gym.checks import distinct_figure
 from smartcar_gym.datasets.eval_options import (
@@ -220,7 +221,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         outputs: dict[str, Any] = {} if args.random else {"normaliser": vecnormalize or source}
         outputs.update(_close_recorders(recorders))
         outputs.update(write_minari(args, policy, records, steps, env_id, env_kwargs,
-                                    _reference_scores))
+                                    reference_scores))
         summary = summarize(records)
         marks = check_marks(summary, args)
         if args.json is not None:
@@ -309,13 +310,6 @@ def _evaluate(args: argparse.Namespace, policy: Policy, recorders: list[Any],
         evaluate_policy_episodes(policy, n_episodes=_recorded(args), recorders=recorders,
                                  **common)
     return records
-
-
-def _reference_scores(*args: Any) -> Any:
-    """``agents.references.reference_scores`` (imported when a dataset is written)."""
-    from smartcar_gym.agents.references import reference_scores
-
-    return reference_scores(*args)
 
 
 def check_marks(summary: dict[str, Any], args: argparse.Namespace) -> list[dict[str, Any]]:

@@ -346,6 +346,3 @@ def _buffer_class(name: str) -> type:
                                    f"{name!r}; give an import path such as module.Name")
         return found
     return import_object(name, "replay_buffer_class")
-
-
-# the command line's value types moved to cli_args, output_path_error to atomic_files

@@ -55,7 +55,7 @@ class ObsNormalizer:
     """Applies saved ``VecNormalize`` observation statistics (frozen) to raw observations.
 
     Unpickles ``vecnormalize_path``: only for a file the user named or the model's place
-    assigns to it (see the module docstring)."""
+    assigns to it (see ``smartcar_gym.policy``)."""
 
     def __init__(self, vecnormalize_path: str | os.PathLike) -> None:
         with open(vecnormalize_path, "rb") as f:
@@ -67,7 +67,7 @@ class ObsNormalizer:
 
 @dataclass(eq=False)
 class Policy:
-    """A model with its normaliser and the env it acts in (see the module docstring).
+    """A model with its normaliser and the env it acts in (see ``smartcar_gym.policy``).
 
     Attributes:
         model: the SB3 model (or anything with SB3's ``predict(obs, deterministic=...)``).
@@ -168,7 +168,7 @@ class Policy:
 
     @cached_property
     def settings(self) -> PolicySettings:
-        """What acting outside the env needs of it (``ros.settings.PolicySettings``: wheel
+        """What acting outside the env needs of it (``envs.policy_settings.PolicySettings``: wheel
         joints, task, action scales, controller rate) for ``env_id`` with ``env_kwargs``,
         computed on first use. Raises ``ValueError`` (or ``ModelError``, ``OSError``) for env
         settings that the env would refuse, or an env that is not a ``SmartCarEnv``."""

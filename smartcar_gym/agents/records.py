@@ -96,11 +96,8 @@ class RecordHook(Hooks):
     def __init__(self, n: int, step_s: float, bar: Any) -> None:
         self.step_s, self.bar = step_s, bar
         self.records: list[EpisodeRecord] = []
-        self.episode = np.zeros(n, dtype=np.int64)
-        self.seed = np.zeros(n, dtype=np.int64)
         self.goal = np.zeros((n, 2))
         self.ret = np.zeros(n)
-        self.length = np.zeros(n, dtype=np.int64)
         self.path: list[list[np.ndarray]] = [[] for _ in range(n)]
         self.odom: list[list[np.ndarray]] = [[] for _ in range(n)]
 
@@ -108,17 +105,15 @@ class RecordHook(Hooks):
               info: dict[str, Any]) -> None:
         """The listed cars begin their jobs (``info``: their reset's)."""
         pose, odom, goals = _xy(info, "pose"), _xy(info, "odom_pose"), _goals(envs)
-        for car, job in zip(cars.tolist(), jobs, strict=True):
+        for car in cars.tolist():
             self.path[car], self.odom[car] = [pose[car]], [odom[car]]
-            self.episode[car], self.seed[car] = job.episode, job.seed
             self.goal[car] = goals[car]
-            self.ret[car], self.length[car] = 0.0, 0
+            self.ret[car] = 0.0
 
     def step(self, cars: np.ndarray, actions: np.ndarray, obs: Any, reward: np.ndarray,
              terminated: np.ndarray, truncated: np.ndarray, info: dict[str, Any]) -> None:
         """One step of the running cars."""
         self.ret[cars] += np.asarray(reward, dtype=np.float64)[cars]
-        self.length[cars] += 1
         pose, odom = _xy(info, "pose"), _xy(info, "odom_pose")
         for car in cars.tolist():
             self.path[car].append(pose[car])
@@ -127,9 +122,9 @@ class RecordHook(Hooks):
     def end(self, car: int, job: Job, info: dict[str, Any]) -> None:
         """Car ``car``'s episode, ended at this step (``info``: the step's)."""
         success = bool(info["is_success"][car])
-        length = int(self.length[car])
+        length = len(self.path[car]) - 1  # the steps after the reset's pose
         self.records.append(EpisodeRecord(
-            episode=int(self.episode[car]), seed=int(self.seed[car]), success=success,
+            episode=int(job.episode), seed=int(job.seed), success=success,
             episode_return=float(self.ret[car]), length=length,
             time_to_goal_s=length * self.step_s if success else None,
             final_distance_m=float(info["distance"][car]),

@@ -13,6 +13,7 @@ bags run their episodes here.
 
 from __future__ import annotations
 
+from collections import deque
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -62,20 +63,20 @@ def run_jobs(envs: gym.vector.VectorEnv, jobs: Sequence[Job], act: Act,
     asked after every step, True ends the run there (the jobs running are left as they
     are)."""
     n = envs.num_envs
-    queue = list(jobs)
+    queue = deque(jobs)
     running: list[Job | None] = [None] * n
     for car in range(min(n, len(queue))):
-        running[car] = queue.pop(0)
+        running[car] = queue.popleft()
     first = [job for job in running if job is not None]
     obs, info = envs.reset(seed=[None if j is None else j.seed for j in running],
                            options=_options(running, first, np.ones(n, dtype=bool)))
-    started = np.flatnonzero([job is not None for job in running])
+    active = np.array([job is not None for job in running])  # the cars with a job
+    started = np.flatnonzero(active)
     for hook in hooks:
         hook.begin(envs, started, [running[i] for i in started], obs, info)
     steps = np.zeros(n, dtype=np.int64)
     park = getattr(envs.unwrapped, "park", None)
-    while any(job is not None for job in running):
-        active = np.array([job is not None for job in running])
+    while active.any():
         actions = act(obs, running, steps)
         if park is not None:  # where the env can, a car with no job is not simulated
             park(~active)
@@ -93,13 +94,15 @@ def run_jobs(envs: gym.vector.VectorEnv, jobs: Sequence[Job], act: Act,
             for hook in hooks:
                 hook.end(car, running[car], info)
             running[car] = None
+        active &= ~done
         refill = np.flatnonzero(done)[:len(queue)]
         if refill.size == 0:
             continue  # the cars left without a job are not read again
         mask = np.zeros(n, dtype=bool)
         mask[refill] = True
         for car in refill.tolist():
-            running[car] = queue.pop(0)
+            running[car] = queue.popleft()
+        active[refill] = True
         steps[refill] = 0
         new = [running[car] for car in refill.tolist()]
         new_obs, new_info = _partial_reset(envs, running, new, mask, check_resets)

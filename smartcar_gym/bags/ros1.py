@@ -3,8 +3,7 @@
 ``smartcar-eval --bag FILE`` runs the evaluation's episodes (episode ``i`` with seed
 ``seed + i``: the same episodes, step for step) in one env through the episode runner
 (``agents.bag.write_bag``), and ``BagRecorder``, a hook of the runner, writes per controller
-period
-what the bringup node would publish: ``/odom``, ``/tf``, ``/joint_states``,
+period what the bringup node would publish: ``/odom``, ``/tf``, ``/joint_states``,
 ``/base_pose_ground_truth``, and the ``/cmd_vel`` sent, plus each episode's goal on
 ``/move_base_simple/goal``. Stamps are simulated time: episode ``i`` starts
 ``EPISODE_GAP_S`` after the end of episode ``i - 1``, the first at ``START_S``. Each ``/cmd_vel``
@@ -177,6 +176,7 @@ class BagRecorder:
             raise ValueError(f"--bag records SmartCarEnv episodes; the env is a "
                              f"{type(base).__name__}")
         self._env = base
+        self._scale = np.array([base.max_linear, base.max_angular])
         frame = base.robot.odometry.frame_id
         self.writer.write("/move_base_simple/goal",
                           m.goal_message(self.types, base.goal, self.offset_ns, frame),
@@ -186,8 +186,8 @@ class BagRecorder:
     def step(self, cars: Any, actions: np.ndarray, obs: Any, reward: Any, terminated: Any,
              truncated: Any, info: Any) -> None:
         base = self._env
-        scale = np.array([base.max_linear, base.max_angular])
-        linear, angular = np.clip(np.asarray(actions[0], dtype=np.float64), -1.0, 1.0) * scale
+        linear, angular = (np.clip(np.asarray(actions[0], dtype=np.float64), -1.0, 1.0)
+                           * self._scale)
         now_ns = base.sim.now_ns
         sent_ns = self.offset_ns + now_ns - base.robot.update_period_ns + COMMAND_LAG_NS
         self.writer.write("/cmd_vel", m.twist_message(self.types, linear, angular), sent_ns)

@@ -80,7 +80,7 @@ def typestore() -> Any:
 
 
 class Ros2Types(m.RosbagsTypes):
-    """``ros.messages``' builders with ROS 2 messages: a ``std_msgs/Header`` has no ``seq``."""
+    """``bags.messages``' builders with ROS 2 messages: a ``std_msgs/Header`` has no ``seq``."""
 
     def __init__(self, typestore: Any) -> None:
         super().__init__(typestore)

@@ -119,8 +119,8 @@ class DWADriver:
             slots, np.array(state.readings[SCAN][slots], dtype=float), config_laser.angles,
             mount, poses, config.reach_m)
         if getattr(cars.task, "localize", False):  # the path from the pose on the map
-            poses = np.array([cars.per_car("map_poses")[i] for i in slots],
-                             dtype=float).reshape(-1, 3)
+            map_poses = cars.per_car("map_poses")
+            poses = np.array([map_poses[i] for i in slots], dtype=float).reshape(-1, 3)
         cos, sin = np.cos(poses[:, 2]), np.sin(poses[:, 2])
         d = self.trackers.waypoints(slots, poses[:, :2]) - poses[:, :2]
         goals = np.stack([cos * d[:, 0] + sin * d[:, 1], -sin * d[:, 0] + cos * d[:, 1]], -1)

@@ -6,7 +6,7 @@ terminations, truncations, array infos, each episode's seed) under Minari's loca
 spec is the registered one with the evaluation's kwargs (engine included), so
 ``dataset.recover_environment()`` makes the env the episodes ran in. The reference scores are
 the mean returns of uniform random actions (``ref_min_score``) and of the shipped policy
-trained on the env (``ref_max_score``: ``shipped_reference``) over the first
+trained on the env (``ref_max_score``: ``agents.references.shipped_reference``) over the first
 ``REFERENCE_EPISODES`` of the same seeds; the description says which policy, engine and seeds
 made the dataset. ``check_dataset_id`` refuses a malformed id or an existing one (unless
 ``overwrite``) before anything is evaluated; ``missing_minari`` names a missing extra.

@@ -44,19 +44,25 @@ def episode_observations(policy: Any, n: int, cars: int = 64) -> np.ndarray:
     rows: list[np.ndarray] = []
 
     class Observations(Hooks):
-        def begin(self, envs: Any, idx: np.ndarray, jobs: Any, obs: Any, info: Any) -> None:
+        count = 0  # the observations kept so far
+
+        def keep(self, obs: Any, idx: np.ndarray) -> None:
             rows.append(np.array(obs[idx], dtype=np.float32))
+            self.count += len(idx)
+
+        def begin(self, envs: Any, idx: np.ndarray, jobs: Any, obs: Any, info: Any) -> None:
+            self.keep(obs, idx)
 
         def step(self, idx: np.ndarray, actions: Any, obs: Any, *rest: Any) -> None:
-            rows.append(np.array(obs[idx], dtype=np.float32))
+            self.keep(obs, idx)
 
     def act(obs: Any, running: list, steps: np.ndarray) -> np.ndarray:
         return act_batch(policy, obs)
 
     jobs = [Job(i, i) for i in range(max(n, cars))]  # more than enough: each takes a step
     try:
-        run_jobs(envs, jobs, act, [Observations()],
-                 stop=lambda: sum(len(r) for r in rows) >= n)
+        kept = Observations()
+        run_jobs(envs, jobs, act, [kept], stop=lambda: kept.count >= n)
     finally:
         envs.close()
     return np.concatenate(rows)[:n]

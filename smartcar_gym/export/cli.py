@@ -81,7 +81,8 @@ def _count_arg(text: str) -> int:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """``smartcar-export``: 0 when written, 2 for bad input."""
-    from smartcar_gym.agents import missing_modules, require_train_extra
+    from smartcar_gym.agents import require_train_extra
+    from smartcar_gym.extras import missing_modules
 
     parser = build_parser()
     args = parser.parse_args(argv)

@@ -33,6 +33,7 @@ from smartcar_gym.envs.policy_settings import PolicySettings
 from smartcar_gym.envs.state import CarState
 
 STOP = (0.0, 0.0)
+STOP_ON = ("odometry", "ground_truth")
 
 
 @dataclass
@@ -41,8 +42,6 @@ class _Car:
 
     state: CarState
     threads: int = 1
-
-STOP_ON = ("odometry", "ground_truth")
 
 
 @dataclass(frozen=True)
@@ -69,7 +68,6 @@ class GoalDriver:
             raise ValueError(f"stop_on must be one of {STOP_ON}, got {stop_on!r}")
         self.stop_on = stop_on
         self.settings = settings
-        self.observation = settings.observation
         #: the one car the task sees: its state, filled from the messages
         self.cars = _Car(CarState.zeros(1, len(settings.wheel_joints)))
         self.act = act

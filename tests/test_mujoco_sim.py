@@ -110,12 +110,10 @@ def test_friction_is_the_product_of_the_ground_s_and_the_wheel_s(world, car):
 
 
 def test_engine_names_and_the_factory():
-    # the built-in engines first (a plug-in's, registered in this process, may follow)
-    assert engine_names()[:3] == ("pybullet", "mujoco", "planar")
+    assert engine_names() == ("pybullet", "mujoco", "planar")
     assert check_engine("mujoco") == "mujoco" == get_engine("mujoco").name
     with pytest.raises(ValueError,
-                       match=r"^engine must be one of 'pybullet', 'mujoco', 'planar'(, '\w+')*, "
-                             r"got 'ode'$"):
+                       match="engine must be one of 'pybullet', 'mujoco', 'planar', got 'ode'"):
         check_engine("ode")
     sim = make_simulator("pybullet")
     assert sim.engine == "pybullet"

@@ -8,7 +8,6 @@ import math
 import numpy as np
 import pytest
 
-from smartcar_gym.envs.state import CarState
 from smartcar_gym.envs.tasks.nav import NavTask
 from smartcar_gym.envs.tasks.obstacles import (
     MIN_GAP_M,
@@ -17,6 +16,7 @@ from smartcar_gym.envs.tasks.obstacles import (
     clearance,
     read_layout,
 )
+from tests.stub_cars import StubCars
 
 
 def test_box_distance_is_signed_and_turns_with_yaw():
@@ -129,26 +129,12 @@ def test_bad_layout_files_name_the_file(tmp_path):
         read_layout(entry)
 
 
-class Cars:
-    """The env a task runs in (``tasks.base.Cars``): cars at the origin, their goals 1 m ahead,
-    each ``clearance`` m from its nearest obstacle."""
-
-    threads = 1
-
-    def __init__(self, clearance) -> None:
-        self.clearance = np.asarray(clearance, dtype=float)
-        self.state = CarState.zeros(len(self.clearance), 4)
-        self.state.goal[:] = (1.0, 0.0)
-
-    def clearances(self, cars: np.ndarray, max_distance_m: float) -> np.ndarray:
-        return np.minimum(self.clearance[cars], max_distance_m)
-
-
 def nav_terms(task: NavTask, clearance) -> tuple[np.ndarray, np.ndarray]:
     """The collision and proximity terms of a step's reward (the reaching terms, a car that
     made no progress with no action, taken off) and the failures, of cars that far from an
     obstacle."""
-    cars = Cars(clearance)
+    cars = StubCars(len(clearance), clearance=clearance)
+    cars.state.goal[:] = (1.0, 0.0)  # cars at the origin, their goals 1 m ahead
     task.attach(len(cars.clearance))
     task.distance[:] = 1.0  # no progress
     reward, _, failure = task.score(cars, np.zeros((len(cars.clearance), 2)))

@@ -27,8 +27,8 @@ import pytest
 import smartcar_gym  # noqa: F401
 from smartcar_gym.registration import ENV_IDS
 
-#: the ids whose rollouts were recorded (ids added since, such as SmartCarBARN-v0, have none:
-#: their behaviour is new, not a redesign's to keep)
+#: the ids whose rollouts were recorded on 094ff80 (SmartCarBARN-v0's, recorded on 49d6fad, are
+#: their own cases below)
 RECORDED_IDS = ("SmartCar-v0", "SmartCarSim-v0", "SmartCarArrive-v0", "SmartCarNav-v0",
                 "SmartCarGoal-v0")
 HASHES = Path(__file__).parent / "fixtures" / "rollout_hashes.json"

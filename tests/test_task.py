@@ -5,28 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from smartcar_gym.envs.state import CarState
 from smartcar_gym.envs.tasks.reach import ReachTask
-
-
-class Cars:
-    """The env a task runs in (``tasks.base.Cars``), for ``num`` cars on an empty plane: their
-    state, one generator each, and no obstacles."""
-
-    threads = 1
-
-    def __init__(self, num: int, seed: int = 0) -> None:
-        self.state = CarState.zeros(num, 4)
-        self.rngs = [np.random.default_rng(seed + i) for i in range(num)]
-
-    def rng(self, car: int) -> np.random.Generator:
-        return self.rngs[car]
-
-    def clearances(self, cars: np.ndarray, max_distance_m: float) -> np.ndarray:
-        return np.full(len(cars), max_distance_m)
-
-    def place_obstacles(self, car, obstacles, pillars) -> None:
-        raise AssertionError("the reaching task places no obstacles")
+from tests.stub_cars import StubCars as Cars
 
 
 def attached(task: ReachTask, num: int) -> ReachTask:

@@ -3,6 +3,7 @@ the task registry refuses what would make two tasks one."""
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -12,6 +13,7 @@ import numpy as np
 import pytest
 
 import smartcar_gym  # noqa: F401
+from smartcar_gym.envs.tasks import registry
 from smartcar_gym.envs.tasks.reach import ReachTask
 from smartcar_gym.envs.tasks.registry import (
     EnvId,
@@ -29,24 +31,29 @@ EXAMPLE = ROOT / "examples" / "task_plugin.py"
 
 @pytest.mark.slow
 def test_the_task_plugin_example_prints_ok():
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get(
+        "PYTHONPATH", "")])}
     result = subprocess.run([sys.executable, str(EXAMPLE)], capture_output=True, text=True,
-                            timeout=600, cwd=ROOT)
+                            timeout=600, cwd=ROOT, env=env)
     assert result.returncode == 0, result.stderr[-2000:]
     assert result.stdout.strip().splitlines()[-1] == "ok"
 
 
-def _park():
+@pytest.fixture
+def plugin():
+    """The example's ``park`` task and its id registered, for this test only."""
     sys.path.insert(0, str(EXAMPLE.parent))
     try:
         import task_plugin
     finally:
         sys.path.remove(str(EXAMPLE.parent))
     task_plugin.register()
-    return task_plugin
+    yield task_plugin
+    registry._REGISTRY.pop("park")
+    gym.registry.pop(task_plugin.ENV_ID)
 
 
-def test_a_plugged_task_batched_is_its_single_env_bit_for_bit():
-    plugin = _park()
+def test_a_plugged_task_batched_is_its_single_env_bit_for_bit(plugin):
     seeds, steps = [3, 4], 30
     actions = np.random.default_rng(0).uniform(-1, 1, (steps, 2, 2)).astype(np.float32)
     envs = gym.make_vec(plugin.ENV_ID, num_envs=2, vectorization_mode="vector_entry_point",
@@ -67,7 +74,7 @@ def test_a_plugged_task_batched_is_its_single_env_bit_for_bit():
                 obs, reward, terminated, truncated, info = env.step(a[car])
                 assert np.array_equal(obs, batched[k + 1][0][car])
                 assert reward == batched[k + 1][1][car]
-                assert "parked" in info and isinstance(info["parked"], bool)
+                assert "in_box" in info and isinstance(info["in_box"], bool)
         finally:
             env.close()
 

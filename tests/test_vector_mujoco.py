@@ -105,8 +105,11 @@ def test_the_kinematic_mode_on_mujoco_falls_back_to_the_loop_of_its_single_envs(
                           controller_mode="sim")
     try:
         got, want = rollout(envs, 10, 2), rollout(single, 10, 2)
+        assert np.array_equal(got[0][0], want[0][0])
         for k, (g, w) in enumerate(zip(got[1:], want[1:], strict=True), 1):
+            assert np.array_equal(g[0], w[0]), f"step {k}: observations differ"
             assert np.array_equal(g[1], w[1]), f"step {k}: rewards differ"
+            assert np.array_equal(g[2], w[2]) and np.array_equal(g[3], w[3]), f"step {k}"
         assert isinstance(envs, SmartCarLoopVectorEnv)
     finally:
         envs.close()

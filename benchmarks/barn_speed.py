@@ -21,12 +21,11 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import subprocess
 import sys
 import tempfile
 from pathlib import Path
 
-from timed import timed_run  # benchmarks/timed.py, beside this script
+from timed import timed_run, worktree_at  # benchmarks/timed.py, beside this script
 
 TARGET_S = 60.0  # the issue's: the 500-run benchmark, batched on planar
 RECORD_KEYS = ("world", "run", "outcome", "time_s", "steps", "final_distance_m")
@@ -104,21 +103,14 @@ def versus(args: argparse.Namespace) -> int:
     compared."""
     root = Path(__file__).resolve().parent.parent
     rows = []
-    with tempfile.TemporaryDirectory() as tmp:
-        base = Path(tmp) / "base"
-        subprocess.run(["git", "-C", str(root), "worktree", "add", "-q", "--detach", str(base),
-                        args.base], check=True)
-        try:
-            for round_ in range(1, args.rounds + 1):
-                for cars in args.cars:
-                    sides = [("this", None), ("base", base)][::1 if round_ % 2 else -1]
-                    got = {side: run(cars, args, Path(tmp), path) for side, path in sides}
-                    rows.append((round_, cars, got))
-                    print(f"round {round_}, {cars} cars: this {got['this']['wall_s']:.1f} s, "
-                          f"{args.base} {got['base']['wall_s']:.1f} s", file=sys.stderr)
-        finally:
-            subprocess.run(["git", "-C", str(root), "worktree", "remove", "--force", str(base)],
-                           check=False)
+    with tempfile.TemporaryDirectory() as tmp, worktree_at(root, args.base) as base:
+        for round_ in range(1, args.rounds + 1):
+            for cars in args.cars:
+                sides = [("this", None), ("base", base)][::1 if round_ % 2 else -1]
+                got = {side: run(cars, args, Path(tmp), path) for side, path in sides}
+                rows.append((round_, cars, got))
+                print(f"round {round_}, {cars} cars: this {got['this']['wall_s']:.1f} s, "
+                      f"{args.base} {got['base']['wall_s']:.1f} s", file=sys.stderr)
     print(f"| round | cars | this (s) | {args.base} (s) | ratio | records |")
     print("|---|---|---|---|---|---|")
     same = True
@@ -128,6 +120,12 @@ def versus(args: argparse.Namespace) -> int:
         this, then = got["this"]["wall_s"], got["base"]["wall_s"]
         print(f"| {round_} | {cars} | {this:.1f} | {then:.1f} | {this / then:.3f} | "
               f"{'the same' if not diff else f'{len(diff)} differ'} |")
+    if args.out is not None:
+        args.out.write_text(json.dumps([
+            {"round": round_, "cars": cars, "base": args.base,
+             **{side: {k: v for k, v in got[side].items() if k != "records"} for side in got},
+             "records_differ": differing(got["this"]["records"], got["base"]["records"])}
+            for round_, cars, got in rows], indent=2))
     return 0 if same else 1
 
 

@@ -7,7 +7,7 @@ Each round times, one after the other in this process, with random actions:
 - one planar env (numba's compiled loop when installed), and the same without numba
   (Python floats: ``dynamics.COMPILED`` off for that env);
 - the planar batch (``gym.make_vec(..., vectorization_mode="vector_entry_point",
-  engine="planar")``) at ``--cars`` cars: numba's loops (the physics, ``jit``, and the boards
+  engine="planar")``) at ``--cars`` cars: numba's loops (the physics, ``dynamics``, and the boards
   and controllers, ``controller.compiled``), and numpy arrays (both switched off).
 
 Figures are env steps (car-steps for the batch) per second of this process's CPU time (the

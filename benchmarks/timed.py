@@ -1,11 +1,30 @@
-"""One command timed as the speed benchmarks time it (``eval_speed.py``, ``barn_speed.py``)."""
+"""One command timed as the speed benchmarks time it (``eval_speed.py``, ``barn_speed.py``),
+and the other commit they compare against (``versus.py``, ``barn_speed.py --base``)."""
 
 from __future__ import annotations
 
 import os
 import resource
 import subprocess
+import tempfile
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+
+@contextmanager
+def worktree_at(root: Path, commit: str) -> Iterator[Path]:
+    """A temporary git worktree of ``root``'s repository at ``commit``, removed afterwards."""
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "base"
+        subprocess.run(["git", "-C", str(root), "worktree", "add", "-q", "--detach", str(path),
+                        commit], check=True)
+        try:
+            yield path
+        finally:
+            subprocess.run(["git", "-C", str(root), "worktree", "remove", "--force", str(path)],
+                           check=False)
 
 
 def timed_run(argv: list[str], env: dict[str, str] | None = None,

@@ -20,8 +20,9 @@ import os
 import statistics
 import subprocess
 import sys
-import tempfile
 from pathlib import Path
+
+from timed import worktree_at  # benchmarks/timed.py, beside this script
 
 ROOT = Path(__file__).resolve().parent.parent
 CASES = {
@@ -86,28 +87,20 @@ def main() -> None:
     parser.add_argument("--only", default="", help="cases whose label starts with this")
     args = parser.parse_args()
     cases = {k: v for k, v in CASES.items() if k.startswith(args.only)}
-    with tempfile.TemporaryDirectory() as tmp:
-        base = Path(tmp) / "base"
-        subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "-q", "--detach", str(base),
-                        args.base], check=True)
-        try:
-            rates: dict[str, dict[str, list[float]]] = {k: {"this": [], "base": []}
-                                                       for k in cases}
-            ratios: dict[str, list[float]] = {k: [] for k in cases}
-            for r in range(args.rounds):
-                for label, case in cases.items():
-                    order = [("this", ROOT), ("base", base)]
-                    if r % 2:
-                        order.reverse()
-                    got = {side: measure(path, case, args.seconds) for side, path in order}
-                    for side, rate in got.items():
-                        rates[label][side].append(rate)
-                    ratios[label].append(got["this"] / got["base"])
-                    print(f"round {r}: {label}: this {got['this']:.0f}/s, base "
-                          f"{got['base']:.0f}/s, ratio {ratios[label][-1]:.3f}", flush=True)
-        finally:
-            subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(base)],
-                           check=False)
+    rates: dict[str, dict[str, list[float]]] = {k: {"this": [], "base": []} for k in cases}
+    ratios: dict[str, list[float]] = {k: [] for k in cases}
+    with worktree_at(ROOT, args.base) as base:
+        for r in range(args.rounds):
+            for label, case in cases.items():
+                order = [("this", ROOT), ("base", base)]
+                if r % 2:
+                    order.reverse()
+                got = {side: measure(path, case, args.seconds) for side, path in order}
+                for side, rate in got.items():
+                    rates[label][side].append(rate)
+                ratios[label].append(got["this"] / got["base"])
+                print(f"round {r}: {label}: this {got['this']:.0f}/s, base "
+                      f"{got['base']:.0f}/s, ratio {ratios[label][-1]:.3f}", flush=True)
     print(f"\n| case | this (steps/s) | {args.base} (steps/s) | ratio, median (min-max) |")
     print("|---|---|---|---|")
     for label in cases:

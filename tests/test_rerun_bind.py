@@ -83,12 +83,13 @@ def _serve(tmp_path: Path, *extra: str, sigint: Any = signal.SIG_DFL
     SIGINT's disposition ``sigint`` (SIG_IGN: as a shell script's background job is)."""
     grpc, web = _free_port(), _free_port()
     log = tmp_path / "eval.err"
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "smartcar_gym.agents.cli_eval", "--random", "--episodes", "1",
-         "--env", "SmartCarSim-v0", "--env-kwargs", "max_episode_steps=5", "--no-progress",
-         "--rerun-serve", "--rerun-ports", str(grpc), str(web), *extra],
-        stdout=subprocess.DEVNULL, stderr=log.open("w"), start_new_session=True,
-        preexec_fn=lambda: signal.signal(signal.SIGINT, sigint))
+    with log.open("w") as err:  # the child keeps its own copy
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "smartcar_gym.agents.cli_eval", "--random", "--episodes",
+             "1", "--env", "SmartCarSim-v0", "--env-kwargs", "max_episode_steps=5",
+             "--no-progress", "--rerun-serve", "--rerun-ports", str(grpc), str(web), *extra],
+            stdout=subprocess.DEVNULL, stderr=err, start_new_session=True,
+            preexec_fn=lambda: signal.signal(signal.SIGINT, sigint))
     deadline = time.monotonic() + 180
     while "Ctrl-C stops" not in log.read_text():
         if proc.poll() is not None or time.monotonic() > deadline:

@@ -24,7 +24,8 @@ def start() -> Iterator[str]:
         ["Xvfb", "-displayfd", "1", "-screen", "0", "640x480x24", "-nolisten", "tcp"],
         stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
     )
-    number = server.stdout.readline().decode().strip()  # Xvfb writes it once it is ready
+    with server.stdout:  # read once: the display's number, written once it is ready
+        number = server.stdout.readline().decode().strip()
     if not number.isdigit():
         server.kill()
         pytest.skip(f"Xvfb is installed but did not start (exit {server.wait()})")

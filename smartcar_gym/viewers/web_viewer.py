@@ -126,7 +126,9 @@ class WebViewerServer:
         except BaseException:
             self.stop()
             raise
-        threading.Thread(target=self._drain, name="rerun-web-viewer-log", daemon=True).start()
+        self._drainer = threading.Thread(target=self._drain, name="rerun-web-viewer-log",
+                                         daemon=True)
+        self._drainer.start()
         self.url = web_viewer_url(connect_to, self.port, self.bind)
 
     def _wait_ready(self, timeout_s: float) -> int:
@@ -177,6 +179,11 @@ class WebViewerServer:
             except subprocess.TimeoutExpired:
                 process.kill()
                 process.wait(10)
+        drainer = getattr(self, "_drainer", None)
+        if drainer is not None:
+            drainer.join(1.0)  # at the pipe's end once the command has ended
+            if not drainer.is_alive():
+                process.stderr.close()
         shutil.rmtree(self._home, ignore_errors=True)
         atexit.unregister(self.stop)
 

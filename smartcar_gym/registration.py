@@ -6,6 +6,8 @@ built-in tasks' ids, ``register_envs`` registers every registered task's.
 
 from __future__ import annotations
 
+# the env's module reserves its keywords (no engine may declare them) before any plug-in
+from smartcar_gym.envs import smartcar_env  # noqa: F401
 from smartcar_gym.envs.tasks.registry import ENTRY_POINT, built_in_ids, register_all
 
 #: every id of the built-in tasks

@@ -69,6 +69,92 @@ def test_an_engine_description_is_checked():
         dataclasses.replace(planar, name="coarse", max_substep_s=0.1)
 
 
+def test_an_engines_callables_and_keywords_are_checked_when_it_is_described():
+    planar = get_engine("planar")
+    with pytest.raises(TypeError, match="engine 'empty': simulator must be a callable that "
+                                        "makes a world, got None"):
+        dataclasses.replace(planar, name="empty", simulator=None)
+    with pytest.raises(TypeError, match="engine 'odd': car_batch must be None or a callable"):
+        dataclasses.replace(planar, name="odd", car_batch="cars")
+    with pytest.raises(TypeError, match=r"engine 'odd': kwargs\['wind'\] must be a function"):
+        dataclasses.replace(planar, name="odd", kwargs={"wind": 0.5})
+    for shared in ("max_substep_s", "gui", "draws"):  # the simulator's own: never the engine's
+        with pytest.raises(ValueError, match=f"engine 'odd': '{shared}' is a keyword every "
+                                             "engine's simulator takes"):
+            dataclasses.replace(planar, name="odd", kwargs={shared: lambda value, model: value})
+
+
+def test_an_engine_may_not_declare_a_keyword_of_the_env():
+    """A plug-in's keyword named like the env's own would never reach it (the env's signature
+    takes it first): refused when the engine is registered, and a built-in engine is never
+    replaced, so that no plug-in changes what pybullet, MuJoCo or planar run."""
+    planar = get_engine("planar")
+    for key in ("render_mode", "model", "engine", "max_linear"):
+        with pytest.raises(ValueError, match=f"engine 'odd' declares the keyword '{key}', which "
+                                             "is SmartCarEnv's own"):
+            register_engine(dataclasses.replace(planar, name="odd",
+                                                kwargs={key: lambda value, model: value}))
+    assert "odd" not in engine_names()
+    for name in ("pybullet", "planar"):
+        with pytest.raises(ValueError, match=f"engine '{name}' is built in and cannot be "
+                                             "replaced"):
+            register_engine(dataclasses.replace(planar, name=name), replace=True)
+    assert get_engine("planar") is planar and get_engine("pybullet").name == "pybullet"
+
+
+def test_an_entry_point_declaring_a_keyword_of_the_env_is_named(monkeypatch):
+    odd = dataclasses.replace(get_engine("planar"), name="odd",
+                              kwargs={"render_mode": lambda value, model: value})
+    _installed(monkeypatch, _Point("odd", odd))
+    with pytest.raises(ValueError, match=r"entry point 'odd' of smartcar_gym.engines "
+                                         r"\(other_package:odd\): engine 'odd' declares the "
+                                         "keyword 'render_mode'"):
+        engine_names()
+
+
+@pytest.fixture
+def windy():
+    """A planar copy with a keyword of its own (``wind``), recording what its simulator is
+    given, for this test only."""
+    planar, given = get_engine("planar"), []
+
+    def simulator(*, wind: float, **options):
+        given.append(wind)
+        return planar.simulator(**options)
+
+    def check(value, model):
+        return 0.0 if value is None else float(value)
+
+    register_engine(dataclasses.replace(
+        planar, name="windy", simulator=simulator, kwargs={**planar.kwargs, "wind": check}))
+    yield given
+    engines._REGISTRY.pop("windy")
+
+
+def test_an_engines_own_keyword_reaches_it_and_only_it(windy):
+    env = SmartCarEnv(engine="windy", wind=0.5)
+    try:
+        # every world it makes (the spawn check's scratch world too) gets it
+        assert windy and set(windy) == {0.5} and env.engine_options["wind"] == 0.5
+    finally:
+        env.close()
+    with pytest.raises(ValueError, match="wind is the windy engine's; pass engine='windy' "
+                                         "\\(engine is 'pybullet'\\)"):
+        SmartCarEnv(wind=0.5)
+
+
+def test_a_task_keyword_an_engine_also_declares_is_refused():
+    planar = get_engine("planar")
+    register_engine(dataclasses.replace(
+        planar, name="greedy", kwargs={**planar.kwargs, "goal_range": lambda value, model: value}))
+    try:
+        with pytest.raises(ValueError, match="the task's keyword 'goal_range' is also an "
+                                             "engine's \\(greedy\\); rename one of them"):
+            SmartCarEnv(engine="planar")
+    finally:
+        engines._REGISTRY.pop("greedy")
+
+
 def test_get_engine_names_the_engines(flatland):
     assert get_engine("flatland") is flatland
     with pytest.raises(ValueError, match=r"engine must be one of 'pybullet', 'mujoco', "

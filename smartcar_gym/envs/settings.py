@@ -17,6 +17,7 @@ from smartcar_gym.sim.engines import (
     Engine,
     default_max_substep,
     engine_kwargs,
+    engine_owners,
     substep_range,
     window_unavailable,
 )
@@ -120,6 +121,10 @@ def split_keywords(label: str, kwargs: Mapping[str, Any], task_keywords: Mapping
     """``kwargs`` (what the env did not name) as the engines' keywords and the task's; a
     keyword of neither is one line naming the closest of every keyword the env takes."""
     engines = engine_kwargs()
+    clash = sorted(set(task_keywords) & engines)
+    if clash:
+        raise ValueError(f"{label}: the task's keyword {clash[0]!r} is also an engine's "
+                         f"({', '.join(engine_owners(clash[0]))}); rename one of them")
     engine = {k: v for k, v in kwargs.items() if k in engines}
     task = {k: v for k, v in kwargs.items() if k not in engines}
     checks.check_keywords(label, task, sorted({*task_keywords, *env_keywords, *engines}))

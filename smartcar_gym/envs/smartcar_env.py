@@ -47,6 +47,7 @@ from smartcar_gym.sim.engines import (
     engine_kwargs,
     engine_options,
     get_engine,
+    reserve_keywords,
 )
 
 _ONE = np.zeros(1, dtype=np.int64)  # the single env's car, as a task's list of cars
@@ -392,6 +393,10 @@ class SmartCarEnv(gym.Env):
         if self.draw is not None:
             info["randomization"] = self.draw.info
         return info
+
+
+# no engine may declare one of the env's own keywords as its own (it would never reach it)
+reserve_keywords("SmartCarEnv", own_keywords(SmartCarEnv.__init__))
 
 
 def _scalar(value: Any) -> Any:

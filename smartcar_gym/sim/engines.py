@@ -17,7 +17,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import importlib.util
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from importlib.metadata import entry_points
 from typing import Any
@@ -27,6 +27,8 @@ DEFAULT_ENGINE = "pybullet"
 ENTRY_POINT_GROUP = "smartcar_gym.engines"
 #: the packages of the built-in engines, each exporting ``ENGINE``
 BUILT_IN = ("smartcar_gym.sim.pybullet", "smartcar_gym.sim.mujoco", "smartcar_gym.sim.planar")
+#: the keywords every engine's ``simulator`` is called with: none is an engine's own
+SIMULATOR_KEYWORDS = ("max_substep_s", "gui", "draws")
 
 
 @dataclass(frozen=True)
@@ -68,6 +70,26 @@ class Engine:
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name.isidentifier():
             raise ValueError(f"an engine's name must be an identifier, got {self.name!r}")
+        if not callable(self.simulator):
+            raise TypeError(f"engine {self.name!r}: simulator must be a callable that makes a "
+                            f"world, got {self.simulator!r}")
+        if self.car_batch is not None and not callable(self.car_batch):
+            raise TypeError(f"engine {self.name!r}: car_batch must be None or a callable that "
+                            f"makes a car batch, got {self.car_batch!r}")
+        if not isinstance(self.kwargs, dict):
+            raise TypeError(f"engine {self.name!r}: kwargs must be a dict of keyword -> check "
+                            f"function, got {type(self.kwargs).__name__}")
+        for key, check in self.kwargs.items():
+            if not isinstance(key, str) or not key.isidentifier():
+                raise ValueError(f"engine {self.name!r}: its keyword {key!r} is not an "
+                                 "identifier")
+            if key in SIMULATOR_KEYWORDS:
+                raise ValueError(f"engine {self.name!r}: {key!r} is a keyword every engine's "
+                                 f"simulator takes ({', '.join(SIMULATOR_KEYWORDS)}), not one "
+                                 "of its own: rename it")
+            if not callable(check):
+                raise TypeError(f"engine {self.name!r}: kwargs[{key!r}] must be a function "
+                                f"(value, robot model) -> value, got {check!r}")
         low, high = self.substep_range_s
         if not 0 < low <= self.max_substep_s <= high:
             raise ValueError(f"engine {self.name!r}: max_substep_s {self.max_substep_s} is not in "
@@ -86,16 +108,43 @@ class Engine:
 
 _REGISTRY: dict[str, Engine] = {}
 _loaded = False
+_BUILT_IN_NAMES: set[str] = set()
+#: env keywords no engine may declare, each with whose it is (``reserve_keywords``)
+_RESERVED: dict[str, str] = {}
+
+
+def reserve_keywords(owner: str, names: Iterable[str]) -> None:
+    """Keywords of ``owner`` (the env) that no engine may declare as its own: an engine
+    registered later that does is refused (``register_engine``)."""
+    for name in names:
+        _RESERVED.setdefault(name, owner)
+
+
+def clashes(engine: Engine) -> str | None:
+    """What is wrong with ``engine``'s keywords among the env's (None: nothing)."""
+    for key in engine.kwargs:
+        if key in _RESERVED:
+            return (f"engine {engine.name!r} declares the keyword {key!r}, which is "
+                    f"{_RESERVED[key]}'s own: an engine's keywords must be names the env does "
+                    "not take (rename it)")
+    return None
 
 
 def register_engine(engine: Engine, *, replace: bool = False) -> Engine:
-    """Add ``engine`` to the registry (``replace``: over one of the same name)."""
+    """Add ``engine`` to the registry (``replace``: over one of the same name, not over a
+    built-in engine); one line if its name is taken or a keyword of it is the env's."""
     if not isinstance(engine, Engine):
         raise TypeError(f"register_engine takes an Engine, got {type(engine).__name__}")
     _load()
     if engine.name in _REGISTRY and not replace:
         raise ValueError(f"engine {engine.name!r} is registered already (replace=True to "
                          "replace it)")
+    if engine.name in _BUILT_IN_NAMES:
+        raise ValueError(f"engine {engine.name!r} is built in and cannot be replaced: "
+                         "register yours under another name")
+    clash = clashes(engine)
+    if clash is not None:
+        raise ValueError(clash)
     _REGISTRY[engine.name] = engine
     return engine
 
@@ -109,11 +158,15 @@ def _load() -> None:
     for package in BUILT_IN:
         engine = importlib.import_module(package).ENGINE
         _REGISTRY.setdefault(engine.name, engine)
+        _BUILT_IN_NAMES.add(engine.name)
     for point in entry_points(group=ENTRY_POINT_GROUP):
         engine = point.load()
+        where = f"entry point {point.name!r} of {ENTRY_POINT_GROUP} ({point.value})"
         if not isinstance(engine, Engine):
-            raise TypeError(f"entry point {point.name!r} of {ENTRY_POINT_GROUP} ({point.value}) "
-                            f"is a {type(engine).__name__}, not an Engine")
+            raise TypeError(f"{where} is a {type(engine).__name__}, not an Engine")
+        clash = clashes(engine)
+        if clash is not None:
+            raise ValueError(f"{where}: {clash}")
         _REGISTRY.setdefault(engine.name, engine)
 
 
@@ -141,6 +194,12 @@ def engine_kwargs() -> set[str]:
     """Every env keyword that only one engine takes."""
     _load()
     return {key for engine in _REGISTRY.values() for key in engine.kwargs}
+
+
+def engine_owners(key: str) -> list[str]:
+    """The engines that take the env keyword ``key``."""
+    _load()
+    return [e.name for e in _REGISTRY.values() if key in e.kwargs]
 
 
 def resolve(engine: str | Engine) -> Engine:

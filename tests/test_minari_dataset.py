@@ -10,6 +10,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import gymnasium as gym
 import numpy as np
 import pytest
 
@@ -134,3 +135,152 @@ def test_overwrite_alone_is_refused(capsys):
     with pytest.raises(SystemExit):
         eval_main(["--random", "--episodes", "1", "--overwrite"])
     assert capsys.readouterr().err.strip().endswith("--overwrite: only with --minari")
+
+
+def _refusal(capsys, argv: list[str]) -> str:
+    """The one line ``smartcar-eval`` stops with (exit 2, no traceback)."""
+    with pytest.raises(SystemExit) as exit_info:
+        eval_main(argv)
+    assert exit_info.value.code == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    return err.strip().splitlines()[-1]
+
+
+def _no_evaluation(monkeypatch) -> None:
+    """Refusals come before any episode runs."""
+    from smartcar_gym.agents import cli_eval
+
+    def evaluate(*args, **kwargs):
+        pytest.fail("the evaluation ran before the refusal")
+
+    monkeypatch.setattr(cli_eval, "_evaluate", evaluate)
+
+
+def _disk_full(monkeypatch) -> None:
+    """The HDF5 file cannot be written: Minari has made the dataset's folder and metadata."""
+    from minari.dataset._storages import get_minari_storage
+
+    def update_episodes(self, episodes):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(get_minari_storage("hdf5"), "update_episodes", update_episodes)
+
+
+RANDOM = ["--random", "--engine", "planar", "--vectorization", "batched", "--no-progress"]
+
+
+def _entries(root: Path) -> list[str]:
+    return sorted(p.relative_to(root).as_posix() for p in root.rglob("*"))
+
+
+@pytest.mark.slow
+def test_the_barn_policy_writes_its_dataset(tmp_path):
+    # its env kwargs carry max_episode_steps, gym.make's keyword: the spec's field, not a kwarg
+    run = _evaluate(tmp_path, "--pretrained", "barn", "--engine", "planar", "--episodes", "2",
+                    "--minari", "test/barn-v0")
+    dataset = minari.load_dataset("test/barn-v0")
+    assert dataset.total_episodes == 2
+    assert [len(e.actions) for e in dataset.iterate_episodes()] == [
+        r["length"] for r in run["episode_records"]]
+    spec = dataset.spec.env_spec
+    assert spec.id == "SmartCarBARN-v0" and spec.max_episode_steps == 400
+    assert "max_episode_steps" not in spec.kwargs and spec.kwargs["engine"] == "planar"
+    env = dataset.recover_environment()
+    try:
+        assert env.spec.max_episode_steps == 400
+    finally:
+        env.close()
+
+
+def test_the_spec_takes_gym_make_keywords_as_its_fields():
+    from smartcar_gym.datasets.minari_writer import env_spec
+
+    spec = env_spec("SmartCar-v0", {"engine": "planar", "max_episode_steps": 50})
+    assert spec.max_episode_steps == 50 and spec.kwargs["engine"] == "planar"
+    assert "max_episode_steps" not in spec.kwargs
+    assert env_spec("SmartCar-v0", {"max_episode_steps": -1}).max_episode_steps is None
+    registered = gym.spec("SmartCar-v0").max_episode_steps
+    assert registered is not None and env_spec("SmartCar-v0", {}).max_episode_steps == registered
+
+
+@pytest.mark.filterwarnings("error")
+def test_a_failed_overwrite_keeps_the_old_dataset(tmp_path, capsys, monkeypatch, datasets):
+    _evaluate(tmp_path, *RANDOM, "--episodes", "2", "--minari", "smartcar/kept-v0")
+    before = _entries(datasets)
+    _disk_full(monkeypatch)
+    line = _refusal(capsys, [*RANDOM, "--episodes", "3", "--minari", "smartcar/kept-v0",
+                             "--overwrite"])
+    assert line == ("smartcar-eval: error: --minari: could not write the dataset "
+                    "smartcar/kept-v0 (OSError: [Errno 28] No space left on device); the "
+                    "datasets are as they were")
+    assert _entries(datasets) == before  # no scratch folder left either
+    assert minari.load_dataset("smartcar/kept-v0").total_episodes == 2
+
+
+@pytest.mark.filterwarnings("error")
+def test_a_failed_write_leaves_no_folder(capsys, monkeypatch, datasets):
+    _disk_full(monkeypatch)
+    _refusal(capsys, [*RANDOM, "--episodes", "2", "--minari", "smartcar/new-v0"])
+    assert not (datasets / "smartcar" / "new-v0").exists()
+    assert [p.name for p in datasets.iterdir() if p.name.startswith(".")] == []
+    assert minari.list_local_datasets() == {}
+
+
+@pytest.mark.filterwarnings("error")
+def test_a_folder_that_is_no_dataset_is_never_replaced(capsys, monkeypatch, datasets):
+    notes = datasets / "smartcar" / "mine-v0" / "notes.txt"
+    notes.parent.mkdir(parents=True)
+    notes.write_text("keep me")
+    _no_evaluation(monkeypatch)
+    line = _refusal(capsys, [*RANDOM, "--episodes", "2", "--minari", "smartcar/mine-v0",
+                             "--overwrite"])
+    assert line == (f"smartcar-eval: error: --minari: {notes.parent} exists and is not a "
+                    "Minari dataset (no data/metadata.json); remove it or pick another id")
+    assert notes.read_text() == "keep me"
+
+
+@pytest.mark.filterwarnings("error")
+def test_an_id_inside_a_dataset_is_refused(tmp_path, capsys, monkeypatch, datasets):
+    _evaluate(tmp_path, *RANDOM, "--episodes", "1", "--minari", "smartcar/a-v0")
+    _no_evaluation(monkeypatch)
+    line = _refusal(capsys, [*RANDOM, "--episodes", "1", "--minari", "smartcar/a-v0/b-v0"])
+    assert line == ("smartcar-eval: error: --minari: the dataset smartcar/a-v0/b-v0 would go "
+                    f"inside the dataset smartcar/a-v0 ({datasets / 'smartcar' / 'a-v0'}); "
+                    "pick another id")
+
+
+@pytest.mark.slow
+def test_empty_folders_left_by_an_older_write_need_overwrite(tmp_path, capsys, datasets):
+    leftover = datasets / "smartcar" / "left-v0"
+    (leftover / "data").mkdir(parents=True)
+    line = _refusal(capsys, [*RANDOM, "--episodes", "1", "--minari", "smartcar/left-v0"])
+    assert line == (f"smartcar-eval: error: --minari: {leftover} exists, empty folders with "
+                    "no dataset in them; pass --overwrite to replace it")
+    _evaluate(tmp_path, *RANDOM, "--episodes", "2", "--minari", "smartcar/left-v0",
+              "--overwrite")
+    assert minari.load_dataset("smartcar/left-v0").total_episodes == 2
+
+
+@pytest.mark.filterwarnings("error")
+@pytest.mark.parametrize("under", ["", "sub"])
+def test_a_datasets_path_through_a_file_is_one_line(tmp_path, capsys, monkeypatch, under):
+    a_file = tmp_path / "datasets.txt"
+    a_file.write_text("not a folder")
+    value = str(a_file / under) if under else str(a_file)
+    monkeypatch.setenv("MINARI_DATASETS_PATH", value)
+    _no_evaluation(monkeypatch)
+    line = _refusal(capsys, [*RANDOM, "--episodes", "1", "--minari", "smartcar/x-v0"])
+    where = f"is under {a_file}, which is" if under else "is"
+    assert line == (f"smartcar-eval: error: --minari: MINARI_DATASETS_PATH={value!r} {where} "
+                    "a file, not a folder; expected the folder Minari keeps its datasets in")
+    assert a_file.read_text() == "not a folder"
+
+
+@pytest.mark.filterwarnings("error")
+def test_an_empty_datasets_path_is_one_line(capsys, monkeypatch):
+    monkeypatch.setenv("MINARI_DATASETS_PATH", "")
+    _no_evaluation(monkeypatch)
+    assert _refusal(capsys, [*RANDOM, "--episodes", "1", "--minari", "smartcar/x-v0"]) == (
+        "smartcar-eval: error: --minari: MINARI_DATASETS_PATH='' is empty; expected the "
+        "folder Minari keeps its datasets in")

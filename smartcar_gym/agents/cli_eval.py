@@ -220,7 +220,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             parser.error(str(err))
         outputs: dict[str, Any] = {} if args.random else {"normaliser": vecnormalize or source}
         outputs.update(_close_recorders(recorders))
-        outputs.update(write_minari(args, policy, records, steps, env_id, env_kwargs,
+        outputs.update(write_minari(parser, args, policy, records, steps, env_id, env_kwargs,
                                     reference_scores))
         summary = summarize(records)
         marks = check_marks(summary, args)

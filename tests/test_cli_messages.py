@@ -193,3 +193,14 @@ def test_train_help_names_the_batched_engines(capsys):
     assert code == 0
     assert "SmartCarSim-v0: numpy arrays; --engine mujoco: MuJoCo in C; --engine planar: the " \
            "planar model in numpy arrays" in text
+
+
+@pytest.mark.filterwarnings("error")
+@pytest.mark.parametrize("value", ["-1", "-7"])
+def test_eval_seed_is_a_non_negative_integer(value, capsys, monkeypatch):
+    monkeypatch.setattr(cli_eval, "_evaluate", lambda *a, **k: pytest.fail("evaluated"))
+    code, _, err = _run(cli_eval.main, ["--random", "--episodes", "1", "--seed", value], capsys)
+    assert code == 2 and "Traceback" not in err
+    assert err.strip().splitlines()[-1] == (
+        f"smartcar-eval: error: argument --seed: expected a non-negative integer, got "
+        f"'{value}'")

@@ -31,6 +31,7 @@ from smartcar_gym.agents.atomic_files import output_path_error
 from smartcar_gym.agents.cli_args import (
     distance_arg,
     key_value_arg,
+    non_negative_int_arg,
     percent_arg,
     positive_int_arg,
 )
@@ -127,7 +128,8 @@ def build_parser() -> argparse.ArgumentParser:
     marks.add_argument("--max-final-distance", type=distance_arg, metavar="M",
                        help="fail when the mean final distance to the goal (m, ground truth) "
                             "is over M")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seed", type=non_negative_int_arg, default=0,
+                        help="episode i uses seed SEED+i (an integer >= 0; default 0)")
     parser.add_argument("--stochastic", action="store_true",
                         help="sample actions instead of taking the mean action")
     parser.add_argument("--device", default="cpu")

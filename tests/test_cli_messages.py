@@ -204,3 +204,18 @@ def test_eval_seed_is_a_non_negative_integer(value, capsys, monkeypatch):
     assert err.strip().splitlines()[-1] == (
         f"smartcar-eval: error: argument --seed: expected a non-negative integer, got "
         f"'{value}'")
+
+
+@pytest.mark.parametrize(("module", "required"), [
+    ("smartcar_gym.agents.cli_train", []), ("smartcar_gym.scale.rllib", ["--out", "x"]),
+    ("smartcar_gym.calibration.cli", [])])
+def test_every_seed_flag_is_a_non_negative_integer(module, required, capsys):
+    import importlib
+
+    parser = importlib.import_module(module).build_parser()
+    with pytest.raises(SystemExit) as exit_:
+        parser.parse_args([*required, "--seed", "-1"])
+    err = capsys.readouterr().err
+    assert exit_.value.code == 2 and err.strip().splitlines()[-1].endswith(
+        "error: argument --seed: expected a non-negative integer, got '-1'")
+    assert parser.parse_args([*required, "--seed", "3"]).seed == 3

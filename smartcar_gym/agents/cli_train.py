@@ -60,7 +60,8 @@ def build_parser() -> argparse.ArgumentParser:
                              "arrays; pybullet: a loop of single envs), with the "
                              "hyperparameters' <env>-batched-<engine>, else <env>-batched entry "
                              "if it has one")
-    parser.add_argument("--seed", type=int, default=None, help="default: 0")
+    parser.add_argument("--seed", type=non_negative_int_arg, default=None,
+                        help="an integer >= 0 (default: 0)")
     parser.add_argument("--timesteps", type=positive_int_arg, default=None,
                         help="total environment steps (default: the file's n_timesteps); with "
                              "--resume, the new total to reach")

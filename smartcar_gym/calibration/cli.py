@@ -36,6 +36,7 @@ from typing import Any
 import numpy as np
 import yaml
 
+from smartcar_gym.agents.cli_args import non_negative_int_arg
 from smartcar_gym.calibration import planar_cli
 from smartcar_gym.calibration.drives import DriveError, Plan
 from smartcar_gym.calibration.estimate import CalibrationError, RunError, umbmark_error
@@ -84,7 +85,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--randomize", metavar="SPEC", help="how the simulated car differs "
                         "from the YAML: a preset (default), a YAML file or a mapping such as "
                         "\"{track: 1.1}\"; drawn once")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the --randomize draw")
+    parser.add_argument("--seed", type=non_negative_int_arg, default=0,
+                        help="seed of the --randomize draw (an integer >= 0)")
     parser.add_argument("--fit", choices=(*FITS, "planar"), default="spin",
                         help="; ".join(f"{k}: {v}" for k, v in FIT_HELP.items())
                         + "; planar: the planar engine's tyre, rolling and dead-band "

@@ -180,7 +180,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--minibatch", type=positive_int_arg, default=128)
     parser.add_argument("--epochs", type=positive_int_arg, default=10)
     parser.add_argument("--lr", type=float, default=3e-4)
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seed", type=non_negative_int_arg, default=0)
     parser.add_argument("--eval-interval", type=non_negative_int_arg, default=10,
                         help="evaluate every N iterations (0: never)")
     parser.add_argument("--eval-episodes", type=positive_int_arg, default=10)

@@ -80,10 +80,10 @@ def _built_in() -> tuple[TaskEntry, ...]:
         # 10 s: HER learns from short episodes; goals 0.5-1.5 m away take 3-5 s
         TaskEntry("goal", "smartcar_gym.envs.tasks.goal:GoalTask",
                   {"SmartCarGoal-v0": EnvId(100)}, "goal-conditioned reaching, for HER"),
-        # the env ends its runs at the challenge's timeout (1675 steps for the shipped car);
-        # the limit is one step beyond, so that the env's own "timeout" outcome is always seen
+        # no step limit: the env ends every run at the protocol's timeout, which follows the
+        # car (1675 steps for the shipped car, 3349 at max_linear=0.25), with its own outcome
         TaskEntry("barn", "smartcar_gym.envs.tasks.barn:BarnTask",
-                  {"SmartCarBARN-v0": EnvId(1676)}, "the BARN challenge's worlds and score"),
+                  {"SmartCarBARN-v0": EnvId(None)}, "the BARN challenge's worlds and score"),
     )
 
 

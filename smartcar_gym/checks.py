@@ -13,6 +13,8 @@ import os
 from collections.abc import Sequence
 from typing import Any
 
+import numpy as np
+
 Error = type[Exception]
 
 
@@ -29,6 +31,13 @@ def is_finite(value: Any) -> bool:
 def is_whole(value: Any) -> bool:
     """An integer (numpy integers count; bool and integral floats do not)."""
     return isinstance(value, numbers.Integral) and not isinstance(value, bool)
+
+
+def flag(name: str, value: Any, error: Error = ValueError) -> bool:
+    """``value`` as a bool if it is True or False (numpy's bools count; 0 and 1 do not)."""
+    if not isinstance(value, bool | np.bool_):
+        raise error(f"{name} must be True or False, got {value!r}")
+    return bool(value)
 
 
 def positive_number(name: str, value: Any, upper: float | None = None,

@@ -37,12 +37,12 @@ def test_test_and_training_worlds_split_the_300():
     assert len(TRAIN_WORLDS) == 250 and not set(TEST_WORLDS) & set(TRAIN_WORLDS)
 
 
-@pytest.mark.parametrize("index", [-1, 300, 2.0, "3", True, None])
+@pytest.mark.parametrize("index", [-1, 300, np.int64(300)])
 def test_a_world_index_out_of_range_is_one_line_naming_it(index):
     with pytest.raises(BarnWorldError, match=r"^BARN world .* is out of range: the worlds are "
                                              r"0 to 299 \(") as err:
         load_worlds().world(index)
-    assert repr(index) in str(err.value) and "\n" not in str(err.value)
+    assert f"world {int(index)} " in str(err.value) and "\n" not in str(err.value)
 
 
 def test_a_missing_or_corrupt_world_file_is_one_line_naming_it(tmp_path):
@@ -60,7 +60,8 @@ def test_a_missing_or_corrupt_world_file_is_one_line_naming_it(tmp_path):
     bad = tmp_path / "bad.npz"
     np.savez(bad, centres=np.zeros((3, 2)), radii=np.zeros(3), offsets=np.array([0, 5]),
              paths=np.zeros((1, 2), int), path_offsets=np.array([0, 1]))
-    with pytest.raises(BarnWorldError, match="the arrays do not fit together"):
+    with pytest.raises(BarnWorldError, match=r"offsets must run from 0 to the 3 rows with at "
+                                             r"least one world, got \[0, 5\] \(2 values\)$"):
         load_worlds(bad)
 
 

@@ -19,6 +19,9 @@ from scipy.sparse.csgraph import dijkstra
 from scipy.spatial import cKDTree
 
 _NEIGHBOURS = ((1, 0), (0, 1), (1, 1), (1, -1))  # half of the 8; edges go both ways
+#: the most cells a grid may have (a BARN world's arena at 0.02 m: 274,000); Dijkstra's graph
+#: takes about 200 bytes a cell
+MAX_CELLS = 4_000_000
 
 
 class NoPathError(RuntimeError):
@@ -50,11 +53,18 @@ class DistanceGrid:
 def distance_grid(centres: np.ndarray, radii: np.ndarray, low: np.ndarray, high: np.ndarray,
                   resolution: float) -> DistanceGrid:
     """The distance grid of circles (``centres`` (K, 2), ``radii`` (K,), m) over the box from
-    ``low`` to ``high`` (x, y)."""
+    ``low`` to ``high`` (x, y); ValueError if that is more than ``MAX_CELLS`` cells."""
     if not resolution > 0:
         raise ValueError(f"resolution must be > 0 m, got {resolution!r}")
     low, high = np.asarray(low, dtype=float), np.asarray(high, dtype=float)
-    nx, ny = (np.floor((high - low) / resolution).astype(int) + 1).tolist()
+    if not (np.isfinite(low).all() and np.isfinite(high).all() and np.all(high >= low)):
+        raise ValueError(f"the grid's box must be finite with high >= low, got low "
+                         f"{low.tolist()}, high {high.tolist()}")
+    nx, ny = (np.floor((high - low) / resolution) + 1).tolist()
+    if nx * ny > MAX_CELLS:
+        raise ValueError(f"a grid from {low.tolist()} to {high.tolist()} at {resolution:g} m "
+                         f"would have {nx * ny:.3g} cells, more than {MAX_CELLS:,}")
+    nx, ny = int(nx), int(ny)
     xs = low[0] + resolution * np.arange(nx)
     ys = low[1] + resolution * np.arange(ny)
     cells = np.stack(np.meshgrid(xs, ys), axis=-1).reshape(-1, 2)

@@ -25,7 +25,7 @@ from smartcar_gym.envs.tasks.base import Cars, CarSettings, Score
 from smartcar_gym.envs.tasks.nav import NAV_OBSERVATION_ORDER, NavTask
 from smartcar_gym.envs.tasks.obstacles import Obstacle
 from smartcar_gym.model.footprint import car_width, footprint_half_extents
-from smartcar_gym.navigation.grid_planner import distance_grid, plan_path
+from smartcar_gym.navigation.grid_planner import NoPathError, distance_grid, plan_path
 from smartcar_gym.navigation.localization import (
     IDENTITY,
     Localizer,
@@ -39,8 +39,8 @@ from smartcar_gym.sim.clock import NS_PER_S
 from smartcar_gym.worlds.barn import (
     GOAL_XY,
     JACKAL_WIDTH_M,
-    TRAIN_WORLDS,
     BarnWorld,
+    BarnWorldError,
     load_worlds,
     to_car_frame,
 )
@@ -97,8 +97,10 @@ class BarnTask(NavTask):
 
     ## Episodes
 
-    ``reset(options={"world": i})`` picks world i (0-299); without it a world is drawn with
-    ``self.np_random`` from the 250 training worlds (the test worlds are 0, 6, ..., 294).
+    ``reset(options={"world": i})`` picks world i (an integer, 0-299); without it a world is
+    drawn with ``self.np_random`` from the world file's training worlds (the shipped file's
+    250; the test worlds are 0, 6, ..., 294). No step limit but the protocol's timeout,
+    which follows ``max_linear``: every run ends with an outcome.
     Batched, ``world`` is one index for every reset car or one per car.
 
     ## Info
@@ -139,17 +141,15 @@ class BarnTask(NavTask):
                  laser_mount: Sequence[float] | None = None, scan_sectors: int = 36,
                  progress: str = "goal", localize: bool = False,
                  stop_speed: float | None = None) -> None:
-        if not (checks.is_real(lookahead) and np.isfinite(lookahead) and lookahead > 0):
+        if not (checks.is_finite(lookahead) and lookahead > 0):
             raise ValueError(f"lookahead must be a distance > 0 m, got {lookahead!r}")
         self.worlds = load_worlds(world_file)
         self.lookahead_m = float(lookahead)
         if progress not in PROGRESS:
             raise ValueError(f"progress must be one of {', '.join(PROGRESS)}, got {progress!r}")
         self.progress = progress
-        if not isinstance(localize, bool):
-            raise ValueError(f"localize must be True or False, got {localize!r}")
         #: whether the waypoint follows the pose on the map (scan matching), else odometry
-        self.localize = localize
+        self.localize = checks.flag("localize", localize)
         #: the global paths planned so far, by world
         self.planned_paths: dict[int, np.ndarray] = {}
         # the reaching task's goal and arena come from the protocol, once the car is known
@@ -251,13 +251,13 @@ class BarnTask(NavTask):
         return [self.worlds.world(index).index for index in chosen]
 
     def start(self, cars: Cars, idx: np.ndarray, options: list[dict[str, Any]]) -> None:
-        """Each car's world (given, or drawn from the training worlds) and the goal the
-        protocol sets."""
+        """Each car's world (given, or drawn from the world file's training worlds) and the
+        goal the protocol sets."""
         goal = to_car_frame(np.array(GOAL_XY), self.protocol.scale)
         for i in idx.tolist():
             index = options[i].get("world")
             if index is None:
-                index = self.worlds.world(int(cars.rng(i).choice(TRAIN_WORLDS))).index
+                index = self.worlds.world(int(cars.rng(i).choice(self.worlds.train_worlds))).index
             self.world_index[i] = index
             cars.state.goal[i] = goal
 
@@ -271,20 +271,29 @@ class BarnTask(NavTask):
                            for (x, y), r in zip(centres, radii, strict=True))
             self.obstacles[i] = layout
             cars.place_obstacles(i, layout, self.pillars)
-            self.global_paths[i] = self._plan(world.index, centres, radii,
-                                              cars.state.goal[i])
+            self.global_paths[i] = self.plan(world.index)
             self.optimal[i] = self.protocol.optimal_time_s(world.path_length_m * scale)
             self.matchers[i] = ScanMatcher(centres, radii) if self.localize else None
 
-    def _plan(self, index: int, centres: np.ndarray, radii: np.ndarray,
-              goal: np.ndarray) -> np.ndarray:
-        """World ``index``'s global path (cached): Dijkstra on its grid, cylinders inflated by
-        half the simulated car's width, from the start to the goal."""
+    def plan(self, index: int) -> np.ndarray:
+        """World ``index``'s global path in the car's start frame (cached in
+        ``planned_paths``): Dijkstra on its grid, bounded by the arena, the cylinders inflated
+        by half the simulated car's width, from the start to the goal. BarnWorldError naming
+        the world and the file if there is no way."""
         if index not in self.planned_paths:
-            low = np.minimum(centres.min(axis=0), [0.0, 0.0]) - MAP_MARGIN_M
-            high = np.maximum(centres.max(axis=0), goal) + MAP_MARGIN_M
+            world, scale = self.worlds.world(index), self.protocol.scale
+            centres, radii = to_car_frame(world.centres, scale), world.radii * scale
+            goal = to_car_frame(np.array(GOAL_XY), scale)
+            arena = self.arena_half_size_m
+            low = np.maximum(np.minimum(centres.min(axis=0), [0.0, 0.0]) - MAP_MARGIN_M, -arena)
+            high = np.minimum(np.maximum(centres.max(axis=0), goal) + MAP_MARGIN_M, arena)
             grid = distance_grid(centres, radii, low, high, GRID_RESOLUTION_M)
-            self.planned_paths[index] = plan_path(grid, np.zeros(2), goal, self._half_width)
+            try:
+                path = plan_path(grid, np.zeros(2), goal, self._half_width)
+            except NoPathError as err:
+                raise BarnWorldError(f"BARN world {index} of {self.worlds.source} has no way "
+                                     f"for this car: {err}") from None
+            self.planned_paths[index] = path
         return self.planned_paths[index]
 
     def begin(self, cars: Cars, idx: np.ndarray) -> None:

@@ -167,3 +167,113 @@ def test_the_plot_draws_the_global_path_of_a_world_another_env_of_the_row_ran(tm
                        trajectory=np.zeros((2, 2)))
     with pytest.raises(ValueError, match=r"no global path for world\(s\) \[6\]"):
         plot_runs([record], load_worlds(), 0.42, tmp_path / "x.png", "t", {0: np.zeros((2, 2))})
+
+
+class _Constant:
+    """A driver that sends every car the same action (ahead: a run ends in a few steps)."""
+
+    def __init__(self, action: tuple[float, float]) -> None:
+        self.action = np.array(action, dtype=np.float32)
+
+    def reset(self, cars, indices=None) -> None:
+        pass
+
+    def act(self, cars, obs, indices=None) -> np.ndarray:
+        return np.tile(self.action, (len(obs), 1))
+
+
+@pytest.fixture
+def constant(monkeypatch):
+    """``--driver dwa`` replaced by a constant action (set ``.action``)."""
+    from smartcar_gym.bench import cli
+
+    driver = _Constant((1.0, 0.0))
+    monkeypatch.setattr(cli, "make_driver", lambda name: driver)
+    return driver
+
+
+def _world_file(tmp_path, indices, bad_start=False):
+    from smartcar_gym.worlds.barn import load_worlds
+
+    worlds = [load_worlds().world(i) for i in indices]
+    centres = [w.centres for w in worlds] + ([np.array([[-2.0, 3.0]])] if bad_start else [])
+    radii = [w.radii for w in worlds] + ([np.array([0.075])] if bad_start else [])
+    paths = [w.path_cells for w in worlds] + ([worlds[0].path_cells] if bad_start else [])
+    path = tmp_path / "worlds.npz"
+    split = {"train_worlds": np.array([0])} if bad_start else {}  # the first reset's: world 0
+    np.savez(path, centres=np.concatenate(centres), radii=np.concatenate(radii),
+             offsets=np.cumsum([0] + [len(c) for c in centres]),
+             paths=np.concatenate(paths), path_offsets=np.cumsum([0] + [len(p) for p in paths]),
+             **split)
+    return path
+
+
+@pytest.mark.parametrize(("argv", "line"), [
+    (["--worlds", "0", "0", "0"], "--worlds: world(s) 0 given more than once; each world is run "
+                                  "--runs times"),
+    (["--seed", "-1"], "argument --seed: "),
+    (["--plot", "{tmp}/x.txt"], "--plot {tmp}/x.txt: matplotlib writes "),
+    (["--plot", "{tmp}/x.png", "--plot-worlds", "6", "12"],
+     "--plot-worlds: world(s) 6, 12 are not run"),
+    (["--env-kwargs", "max_episode_steps=5"], "--env-kwargs: max_episode_steps is set by the "
+                                              "protocol"),
+])
+def test_bad_arguments_are_one_line_before_any_run(argv, line, tmp_path, constant, capsys):
+    argv = [a.replace("{tmp}", str(tmp_path)) for a in argv]
+    code, out, err = _run(["barn", "--engine", "planar", "--worlds", "0", *argv], capsys)
+    assert code == 2 and _error(err).startswith(line.replace("{tmp}", str(tmp_path)))
+    assert "run 0:" not in err and out == "" and not list(tmp_path.iterdir())
+
+
+def test_a_file_of_one_world_runs_its_own_test_world_on_one_car(tmp_path, constant,
+                                                                 monkeypatch, capsys):
+    from smartcar_gym.bench import cli
+
+    made = []
+    real = cli.make_batched_env
+    monkeypatch.setattr(cli, "make_batched_env",
+                        lambda env_id, n, kwargs: made.append(n) or real(env_id, n, kwargs))
+    out_json = tmp_path / "out.json"
+    code, out, err = _run(["barn", "--engine", "planar", "--world-file",
+                           str(_world_file(tmp_path, [6])), "--n-envs", "2000", "--json",
+                           str(out_json)], capsys)
+    assert code == 0 and made == [1]
+    assert out.startswith("smartcar-bench barn: dwa on planar, 1 worlds x 1 run(s), seed 0\n")
+    data = json.loads(out_json.read_text())
+    assert data["worlds"] == [0] and [r["world"] for r in data["records"]] == [0]
+    assert data["records"][0]["outcome"] in ("success", "collision", "timeout", "failure")
+
+
+def test_a_world_without_a_way_is_refused_before_the_first_run(tmp_path, constant, capsys):
+    worlds = _world_file(tmp_path, [0], bad_start=True)
+    code, _, err = _run(["barn", "--engine", "planar", "--world-file", str(worlds),
+                         "--worlds", "0", "1"], capsys)
+    assert code == 2 and "run 0:" not in err
+    assert _error(err).startswith(f"BARN world 1 of {worlds} has no way for this car: the start "
+                                  "[0.0, 0.0] is within ")
+
+
+def test_a_world_failing_mid_run_keeps_the_runs_before_it(tmp_path, constant, monkeypatch,
+                                                          capsys):
+    from smartcar_gym.bench import cli
+
+    monkeypatch.setattr(cli, "_plan_worlds", lambda cars, chosen: None)  # as if unchecked
+    worlds, out_json = _world_file(tmp_path, [0], bad_start=True), tmp_path / "out.json"
+    code, out, err = _run(["barn", "--engine", "planar", "--world-file", str(worlds),
+                           "--worlds", "0", "1", "--json", str(out_json)], capsys)
+    assert code == 2
+    line = _error(err)
+    assert line.startswith(f"BARN world 1 of {worlds} has no way for this car: the start ")
+    assert line.endswith(f"(the 1 run(s) before it are kept in {out_json})")
+    data = json.loads(out_json.read_text())
+    assert [r["world"] for r in data["records"]] == [0] and data["passed"] is False
+    assert data["error"].startswith("BARN world 1 of ")
+
+
+def test_every_run_ends_with_an_outcome_whatever_the_top_speed(tmp_path, constant, capsys):
+    constant.action = np.zeros(2, dtype=np.float32)  # stands: the run times out
+    out_json = tmp_path / "out.json"
+    code, _, err = _run(["barn", "--engine", "planar", "--worlds", "0", "--env-kwargs",
+                         "max_linear=0.25", "--json", str(out_json)], capsys)
+    assert code == 0 and "world   0 run 0: timeout after 3349 steps" in err
+    assert [r["outcome"] for r in json.loads(out_json.read_text())["records"]] == ["timeout"]

@@ -5,12 +5,13 @@
     smartcar-bench barn --driver dwa --engine pybullet --runs 1 --json dwa.json --plot dwa.png
     smartcar-bench barn --model runs/ppo_SmartCarBARN-v0_s0 --runs 10 --fail-under 80
 
-Every test world (0, 6, ..., 294; ``--worlds`` for others) K times (run k seeded
-``--seed + k``: the engines are deterministic, so the K runs repeat one another unless
-``--env-kwargs`` adds noise, such as ``laser='{noise_std_m: 0.01}'``); the table says the
-rates of success, collision and timeout, the mean time of the successful runs and the mean
-score on both scales (docs/barn.md). ``--fail-under`` and ``--max-final-distance`` are
-smartcar-eval's pass marks (exit status 1 when one is missed).
+Every test world of the world file (the shipped one's: 0, 6, ..., 294; ``--worlds`` for
+others) K times (run k seeded ``--seed + k``: the engines are deterministic, so the K runs
+repeat one another unless ``--env-kwargs`` adds noise, such as
+``laser='{noise_std_m: 0.01}'``); the table says the rates of success, collision and
+timeout, the mean time of the successful runs and the mean score on both scales
+(docs/barn.md). ``--fail-under`` and ``--max-final-distance`` are smartcar-eval's pass marks
+(exit status 1 when one is missed).
 The ``--n-envs`` cars are the id's vector env: one batched env where the engine batches
 (planar, MuJoCo: ``SmartCarBatchVectorEnv``), elsewhere a loop of single envs; the runs go
 through the episode runner (``bench.runs``).
@@ -38,11 +39,11 @@ from smartcar_gym.agents.env_factory import EnvSetupError, check_env
 from smartcar_gym.agents.vec_envs import make_batched_env
 from smartcar_gym.bench.drivers import DRIVERS, DriverError, PolicyDriver, make_driver
 from smartcar_gym.bench.report import plot_runs, summarize, table
-from smartcar_gym.bench.runs import RunRecord, barn_jobs, run_barn
+from smartcar_gym.bench.runs import BarnRunError, RunRecord, barn_jobs, run_barn
 from smartcar_gym.envs.vector import SmartCarBatchVectorEnv
 from smartcar_gym.envs.vector.view import CarView
 from smartcar_gym.sim.engines import DEFAULT_ENGINE, add_engine_argument, on_engine
-from smartcar_gym.worlds.barn import TEST_WORLDS, BarnWorldError, load_worlds
+from smartcar_gym.worlds.barn import BarnWorldError, load_worlds
 
 ENV_ID = "SmartCarBARN-v0"
 
@@ -63,13 +64,15 @@ def build_parser() -> argparse.ArgumentParser:
     barn.add_argument("--runs", type=positive_int_arg, default=1, metavar="K",
                       help="runs of each world (default 1; the challenge: 10)")
     barn.add_argument("--worlds", type=non_negative_int_arg, nargs="+", metavar="I",
-                      help="these worlds instead of the 50 test worlds")
+                      help="these worlds (each once) instead of the world file's test worlds "
+                           "(the shipped file's: the challenge's 50)")
     barn.add_argument("--world-file", type=Path, metavar="FILE.npz",
                       help="the worlds (default: the shipped barn_worlds.npz)")
     barn.add_argument("--n-envs", type=positive_int_arg, default=1,
                       help="cars stepped side by side (one driver call for all; one "
-                           "batched env where the engine batches)")
-    barn.add_argument("--seed", type=int, default=0)
+                           "batched env where the engine batches; at most one per run)")
+    barn.add_argument("--seed", type=non_negative_int_arg, default=0,
+                      help="run k of a world is reset with seed + k (default 0)")
     barn.add_argument("--env-kwargs", nargs="+", default=[], metavar="KEY=VALUE",
                       type=key_value_arg,
                       help="SmartCarBARN-v0 keyword arguments (YAML values) over a policy's "
@@ -93,7 +96,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """``smartcar-bench``: the exit code (2 for bad arguments, 1 for a missed pass mark)."""
+    """``smartcar-bench``: the exit code (2 for bad arguments or a world that cannot be run, 1
+    for a missed pass mark)."""
     args = build_parser().parse_args(argv)
     parser = args.command_parser
     for option in ("json", "plot"):
@@ -101,18 +105,23 @@ def main(argv: Sequence[str] | None = None) -> int:
         why = None if path is None else output_path_error(path)
         if why is not None:
             parser.error(f"--{option}: {why}")
+    if args.plot is not None and (why := _plot_error(args.plot)) is not None:
+        parser.error(f"--plot {args.plot}: {why}")
     try:
         worlds = load_worlds(args.world_file)
-        chosen = TEST_WORLDS if args.worlds is None else tuple(args.worlds)
+        chosen = worlds.test_worlds if args.worlds is None else tuple(args.worlds)
         for index in chosen:
             worlds.world(index)
+        _check_worlds_chosen(args, chosen)
         driver, name, trained_with = _driver(args)
         kwargs = _env_kwargs(args, trained_with)
         check_env(ENV_ID, kwargs)  # a bad --env-kwargs: one line naming it
-        envs = make_batched_env(ENV_ID, args.n_envs, kwargs)
+        jobs = barn_jobs(chosen, args.runs, args.seed)
+        envs = make_batched_env(ENV_ID, min(args.n_envs, len(jobs)), kwargs)  # no idle cars
     except (BarnWorldError, DriverError, EnvSetupError) as err:
         parser.error(str(err))
     batched = isinstance(envs.unwrapped, SmartCarBatchVectorEnv)
+    failed = None
     try:
         cars = CarView(envs)
         if isinstance(driver, PolicyDriver):
@@ -120,11 +129,17 @@ def main(argv: Sequence[str] | None = None) -> int:
                 driver.check(ENV_ID, envs.single_observation_space)
             except DriverError as err:
                 parser.error(str(err))
+        try:
+            _plan_worlds(cars, chosen)
+        except BarnWorldError as err:
+            parser.error(str(err))
         plotted = set() if args.plot is None else set(args.plot_worlds or chosen[:4])
-        jobs = barn_jobs(chosen, args.runs, args.seed)
-        records = run_barn(envs, driver, jobs,
-                           keep=lambda job: job.world in plotted and job.run == 0,
-                           report=None if args.quiet else _report)
+        try:
+            records = run_barn(envs, driver, jobs,
+                               keep=lambda job: job.world in plotted and job.run == 0,
+                               report=None if args.quiet else _report)
+        except BarnRunError as err:  # the runs so far are kept
+            records, failed = err.records, str(err)
         paths = {}  # the global paths every car's task planned, by world
         for task in cars.tasks():
             paths.update(task.planned_paths)
@@ -134,7 +149,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     summary = summarize(records)
     marks = check_marks(summary, args)
     engine = args.engine or DEFAULT_ENGINE
-    print(f"smartcar-bench barn: {name} on {engine}, {len(set(chosen))} worlds x {args.runs} "
+    print(f"smartcar-bench barn: {name} on {engine}, {len(chosen)} worlds x {args.runs} "
           f"run(s), seed {args.seed}")
     print(table(summary, name))
     if args.json is not None:
@@ -144,11 +159,15 @@ def main(argv: Sequence[str] | None = None) -> int:
                    "env_kwargs": {k: v for k, v in kwargs.items() if k != "world_file"},
                    "worlds": list(chosen),
                    "scale": scale, "marks": marks,
-                   "passed": all(m["held"] for m in marks), **summary,
+                   "passed": failed is None and all(m["held"] for m in marks), **summary,
+                   **({} if failed is None else {"error": failed}),
                    "records": [r.to_dict() for r in records]}
         args.json.parent.mkdir(parents=True, exist_ok=True)
         args.json.write_text(json.dumps(payload, indent=2) + "\n")
         print(f"wrote {args.json}")
+    if failed is not None:
+        parser.error(f"{failed} (the {len(records)} run(s) before it are kept"
+                     f"{'' if args.json is None else f' in {args.json}'})")
     if args.plot is not None:
         plot_runs(records, worlds, scale, args.plot,
                   f"{name} on {engine}: {summary['success_rate']:.0%} success (dashed: the "
@@ -157,6 +176,48 @@ def main(argv: Sequence[str] | None = None) -> int:
     for mark in marks:
         print(f"smartcar-bench: {mark['line']}", file=sys.stderr)
     return 0 if all(m["held"] for m in marks) else 1
+
+
+def _plot_error(path: Path) -> str | None:
+    """Why ``--plot`` cannot be written (an extension matplotlib does not write, or no
+    matplotlib), else None: said before the runs, not after them."""
+    try:
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+    except ImportError:
+        return "drawing needs matplotlib (pip install matplotlib)"
+    kinds = FigureCanvasAgg.get_supported_filetypes()
+    suffix = path.suffix.lower().lstrip(".")
+    if suffix not in kinds:
+        return (f"matplotlib writes {', '.join('.' + k for k in sorted(kinds))}, not "
+                f"{'no extension' if not suffix else '.' + suffix}")
+    return None
+
+
+def _check_worlds_chosen(args: argparse.Namespace, chosen: Sequence[int]) -> None:
+    """EnvSetupError (one line) for a world given twice in ``--worlds`` (its runs would repeat
+    one another: ``--runs`` runs a world K times) or a ``--plot-worlds`` world not run."""
+    repeated = sorted({i for i in chosen if list(chosen).count(i) > 1})
+    if repeated:
+        raise EnvSetupError(f"--worlds: world(s) {', '.join(map(str, repeated))} given more "
+                            "than once; each world is run --runs times")
+    if args.plot_worlds:
+        if args.plot is None:
+            raise EnvSetupError("--plot-worlds: needs --plot FILE.png")
+        missing = [i for i in args.plot_worlds if i not in chosen]
+        if missing:
+            raise EnvSetupError(f"--plot-worlds: world(s) {', '.join(map(str, missing))} are "
+                                "not run; draw worlds among --worlds (the default: the file's "
+                                "test worlds)")
+
+
+def _plan_worlds(cars: CarView, chosen: Sequence[int]) -> None:
+    """Every chosen world's global path, planned before the first run (BarnWorldError, one
+    line, for a world without a way for this car); every task of the cars shares them."""
+    tasks = cars.tasks()
+    for index in chosen:
+        tasks[0].plan(index)
+    for task in tasks[1:]:
+        task.planned_paths.update(tasks[0].planned_paths)
 
 
 def _driver(args: argparse.Namespace) -> tuple[Any, str, dict[str, Any]]:
@@ -195,6 +256,9 @@ def _env_kwargs(args: argparse.Namespace, trained_with: dict[str, Any]) -> dict[
     for key, option in (("engine", "--engine"), ("world_file", "--world-file")):
         if key in given:
             raise EnvSetupError(f"--env-kwargs: {key} is set by {option}, not here")
+    if "max_episode_steps" in given:
+        raise EnvSetupError("--env-kwargs: max_episode_steps is set by the protocol (each run "
+                            "ends at its timeout, which follows the car), not here")
     return {**on_engine(kept, args.engine or DEFAULT_ENGINE), **given,
             "world_file": args.world_file}
 

@@ -20,7 +20,8 @@ import numpy as np
 
 from smartcar_gym.agents.runner import Hooks, Job, run_jobs
 from smartcar_gym.envs.vector.view import CarView
-from smartcar_gym.worlds.barn import TEST_WORLDS
+from smartcar_gym.navigation.grid_planner import NoPathError
+from smartcar_gym.worlds.barn import TEST_WORLDS, BarnWorldError
 
 #: the ``info`` keys a run's record reads
 RECORD_KEYS = ("outcome", "run_time_s", "score", "score_025", "optimal_time_s", "distance")
@@ -56,6 +57,15 @@ class RunRecord:
         out = asdict(self)
         out.pop("trajectory")
         return out
+
+
+class BarnRunError(RuntimeError):
+    """A run that could not go on (a world without a way for this car): the message says
+    which; ``records`` holds the runs that had ended, in the order of the jobs."""
+
+    def __init__(self, message: str, records: list[RunRecord]) -> None:
+        super().__init__(message)
+        self.records = records
 
 
 def barn_jobs(worlds: Sequence[int] = TEST_WORLDS, runs: int = 1, seed: int = 0
@@ -103,7 +113,8 @@ def run_barn(envs: gym.vector.VectorEnv, driver: Any, jobs: Sequence[BarnJob],
              keep: Callable[[BarnJob], bool] = lambda job: False,
              report: Callable[[RunRecord], None] | None = None) -> list[RunRecord]:
     """Every job's record, in the order of ``jobs``; ``keep(job)``: keep its trajectory;
-    ``report``: called as each run ends."""
+    ``report``: called as each run ends. BarnRunError (with the records so far) if a world
+    cannot be run."""
     cars = CarView(envs)
     records = _Records(list(jobs), driver, cars, keep, report)
 
@@ -116,6 +127,9 @@ def run_barn(envs: gym.vector.VectorEnv, driver: Any, jobs: Sequence[BarnJob],
             actions[chunk] = driver.act(cars, obs[chunk], chunk)
         return actions
 
-    run_jobs(envs, [Job(k, job.seed, {"world": job.world}) for k, job in enumerate(jobs)],
-             act, [records])
+    try:
+        run_jobs(envs, [Job(k, job.seed, {"world": job.world}) for k, job in enumerate(jobs)],
+                 act, [records])
+    except (BarnWorldError, NoPathError) as err:
+        raise BarnRunError(str(err), [r for r in records.records if r is not None]) from None
     return [record for record in records.records if record is not None]

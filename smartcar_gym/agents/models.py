@@ -30,7 +30,7 @@ from typing import Any
 import yaml
 
 from smartcar_gym.agents.hyperparams import HyperparamsError, normalize_kwargs
-from smartcar_gym.agents.zoo_runs import read_zoo_run
+from smartcar_gym.agents.zoo_runs import ARGS_FILE, PARAMS_FILE, read_zoo_run
 
 PRETRAINED_MODEL = "policy.zip"
 #: the shipped policies: name -> folder under smartcar_gym/pretrained ("": the folder itself);
@@ -78,6 +78,7 @@ class ModelFiles:
     expected_normalizer: Path | None = None
     trained_with_normalizer: bool | None = None
     stray_normalizers: tuple[Path, ...] = ()
+    run_file: Path | None = None
 
     @property
     def normalizer(self) -> Path | None:
@@ -142,15 +143,18 @@ def locate_model(path: str | os.PathLike) -> ModelFiles:
         if config is not None:
             return ModelFiles(path, TRAIN_RUN, run_dir, _run_info(config),
                               vecnormalize_path_for(path),
-                              _uses_normalizer(config.get("hyperparams")))
+                              _uses_normalizer(config.get("hyperparams")),
+                              run_file=run_dir / "config.yaml")
     provenance = _provenance(folder) if model.name == PRETRAINED_MODEL else None
     if provenance is not None:
         return _exported(path, provenance, EXPORTED)
     zoo = read_zoo_run(folder, model.name.removesuffix(".zip"))
     if zoo is not None:
         run = {"algo": zoo.algo, "env": zoo.env, "env_kwargs": zoo.env_kwargs}
+        args = zoo.params / ARGS_FILE
         return ModelFiles(path, ZOO_RUN, zoo.folder, {k: v for k, v in run.items() if v},
-                          zoo.vecnormalize, zoo.normalize)
+                          zoo.vecnormalize, zoo.normalize,
+                          run_file=args if args.is_file() else zoo.params / PARAMS_FILE)
     strays = (vecnormalize_path_for(model), folder / "vecnormalize.pkl",
               folder.parent / "vecnormalize.pkl")
     return ModelFiles(path, stray_normalizers=tuple(dict.fromkeys(p for p in strays
@@ -160,7 +164,8 @@ def locate_model(path: str | os.PathLike) -> ModelFiles:
 def _exported(model: Path, provenance: dict[str, Any], place: str) -> ModelFiles:
     return ModelFiles(model, place, model.parent, _run_info(provenance),
                       model.parent / "vecnormalize.pkl",
-                      _uses_normalizer(provenance.get("hyperparams")))
+                      _uses_normalizer(provenance.get("hyperparams")),
+                      run_file=model.parent / "provenance.json")
 
 
 def _final_model(folder: Path) -> Path:

@@ -32,6 +32,7 @@ from smartcar_gym.agents.models import (
 )
 from smartcar_gym.agents.zoo_runs import ZooRunError
 from smartcar_gym.extras import TRAIN_EXTRA, missing_modules
+from smartcar_gym.registration import PolicyEnvError, check_policy_env
 from smartcar_gym.runtime.onnx_policy import is_onnx_path
 
 if TYPE_CHECKING:
@@ -123,8 +124,8 @@ class Policy:
             files = _model_files(source, stack)
             run = files.run
             algo = _algo(files.model, algo, run.get("algo"))
-            env_id = env_id or run.get("env") or DEFAULT_ENV_ID
-            env_kwargs = _run_env_kwargs(run.get("env_kwargs") or {}, dict(env_kwargs or {}))
+            env_id, run_kwargs = _run_env(files, env_id)
+            env_kwargs = _run_env_kwargs(run_kwargs, dict(env_kwargs or {}))
             if normalizer is not None and not Path(normalizer).is_file():
                 raise PolicyError(f"--vecnormalize: no such file: {normalizer}")
             named = None if normalizer is None else Path(normalizer)
@@ -177,9 +178,15 @@ class Policy:
         return policy_settings(self.env_id, self.env_kwargs)
 
     def make_env(self, **env_kwargs: Any) -> gym.Env:
-        """``gym.make(env_id, **self.env_kwargs, **env_kwargs)``: the env the policy acts in."""
+        """``gym.make(env_id, **self.env_kwargs, **env_kwargs)``: the env the policy acts in.
+        ``PolicyError`` for an ``env_id`` that is not a plain id smartcar-gym registered
+        (``registration.check_policy_env``): Gymnasium would import the module before a ``:``."""
         from smartcar_gym.agents.env_factory import make_env
 
+        try:
+            check_policy_env("env_id", self.env_id, {})
+        except PolicyEnvError as err:
+            raise PolicyError(str(err)) from None
         return make_env(self.env_id, {**self.env_kwargs, **env_kwargs})
 
 
@@ -224,6 +231,20 @@ def choose_normalizer(files: ModelFiles, named: Path | None) -> tuple[Path | Non
                                  "is a pickle)" if strays else ""))
 
 
+def _run_env(files: ModelFiles, env_id: str | None) -> tuple[str, dict[str, Any]]:
+    """The env id (``env_id``, else the run's) and the run's env kwargs, as
+    ``registration.check_policy_env`` lets them through: what a run's file says is data, checked
+    before anything is imported or built for it."""
+    where = str(files.run_file or files.model)
+    try:
+        if env_id is not None:
+            check_policy_env("--env", env_id, {})
+        return check_policy_env(where, env_id or files.run.get("env", DEFAULT_ENV_ID),
+                                files.run.get("env_kwargs") or {})
+    except PolicyEnvError as err:
+        raise PolicyError(str(err)) from None
+
+
 def _run_env_kwargs(run: dict[str, Any], overrides: dict[str, Any]) -> dict[str, Any]:
     """The run's env kwargs with ``overrides`` added; an overriding ``engine`` first leaves
     out what only another engine takes (a planar run's ``planar_params`` on pybullet)."""
@@ -250,6 +271,14 @@ def _load_onnx(path: Path, *, algo: str | None, env_id: str | None,
     except OnnxPolicyError as err:
         raise PolicyError(str(err)) from None
     meta = model.metadata
+    if meta["algo"] not in ALGOS:
+        raise PolicyError(f"{path}: metadata algo {meta['algo']!r}; expected one of "
+                          f"{', '.join(ALGOS)}")
+    if env_id is not None:
+        try:
+            check_policy_env("--env", env_id, {})
+        except PolicyEnvError as err:
+            raise PolicyError(str(err)) from None
     if algo is not None and algo != meta["algo"]:
         raise PolicyError(f"--algo {algo}: {path} was exported from a {meta['algo']} model")
     return Policy(model, None, algo=meta["algo"], env_id=env_id or meta["env_id"],

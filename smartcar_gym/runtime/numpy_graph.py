@@ -1,7 +1,9 @@
 """A numpy evaluator of ONNX graphs made of the operators an MLP policy uses.
 
 ``NumpyGraph(model)`` checks every node against ``OPERATORS`` (an unknown one raises
-``UnknownOperatorError`` naming it and the node) and compiles the graph into a list of numpy
+``UnknownOperatorError`` naming it and the node) and its wiring (``check_graph``: each node's
+input and output counts for its operator, every value defined before it is used, the graph's
+one output produced; ``ValueError`` naming the node), then compiles the graph into a list of numpy
 calls with the weights bound: ``Gemm`` keeps its weight matrix transposed once, so each call is
 one ``matmul`` and one ``add``. ``run(x)`` feeds the graph's one input and returns its first
 output. It needs numpy only, not the ``onnx`` package or onnxruntime.
@@ -16,7 +18,7 @@ import numpy as np
 
 from smartcar_gym.runtime.onnx_file import Model, Node
 
-__all__ = ["OPERATORS", "NumpyGraph", "UnknownOperatorError"]
+__all__ = ["ARITY", "OPERATORS", "NumpyGraph", "UnknownOperatorError", "check_graph"]
 
 Op = Callable[..., np.ndarray]
 #: a node's numpy call and the names of the values it takes at run time
@@ -113,6 +115,62 @@ OPERATORS: dict[str, Callable[[Node, dict[str, np.ndarray]], Compiled]] = {
 }
 
 
+#: operator -> (fewest inputs, most inputs, inputs that may be "" (left out)); one output each
+ARITY: dict[str, tuple[int, int, tuple[int, ...]]] = {
+    "Gemm": (2, 3, (2,)), "Clip": (1, 3, (1, 2)),
+    **{op: (2, 2, ()) for op in ("MatMul", "Add", "Sub", "Mul", "Div", "Max", "Min")},
+    **{op: (1, 1, ()) for op in ("Tanh", "Relu", "Sigmoid", "Neg", "Identity", "Flatten")},
+}
+
+
+def _label(node: Node, index: int) -> str:
+    return f"node {node.name or index!r} ({node.op_type})"
+
+
+def check_graph(model: Model) -> tuple[str, str]:
+    """The names of ``model``'s one fed input and one output, after checking how its nodes
+    are wired: each node has the inputs and one output its operator takes (``ARITY``; counts
+    of other operators are not checked), uses only values defined before it (the input, an
+    initializer or an earlier node's output) and defines each value once, and the output is
+    produced. ``ValueError`` with one line naming the node and its operator otherwise."""
+    graph = model.graph
+    consts = graph.initializers
+    feeds = [v.name for v in graph.inputs if v.name not in consts]
+    if len(feeds) != 1 or len(graph.outputs) != 1:
+        raise ValueError(f"the graph has {len(feeds)} inputs and {len(graph.outputs)} "
+                         "outputs; a policy graph has one of each (observations in, "
+                         "actions out)")
+    defined = {*consts, feeds[0]}
+    for index, node in enumerate(graph.nodes):
+        label = _label(node, index)
+        if node.op_type in ARITY:
+            low, high, optional = ARITY[node.op_type]
+            if not low <= len(node.inputs) <= high or len(node.outputs) != 1:
+                takes = f"{low}" if low == high else f"{low} to {high}"
+                raise ValueError(f"{label} has {len(node.inputs)} inputs and "
+                                 f"{len(node.outputs)} outputs; {node.op_type} takes {takes} "
+                                 "inputs and gives one output")
+            left_out = [i for i, name in enumerate(node.inputs) if not name and i not in optional]
+            if left_out:
+                raise ValueError(f"{label} leaves out its input {left_out[0]}, which "
+                                 f"{node.op_type} needs")
+        elif not node.outputs:
+            raise ValueError(f"{label} has no output")
+        undefined = [name for name in node.inputs if name and name not in defined]
+        if undefined:
+            raise ValueError(f"{label} takes {undefined[0]!r}, which no earlier node, input "
+                             "or initializer defines")
+        again = [name for name in node.outputs if not name or name in defined]
+        if again:
+            raise ValueError(f"{label} defines {again[0]!r}, which is empty or defined "
+                             "already (each value is defined once)")
+        defined.update(node.outputs)
+    output = graph.outputs[0].name
+    if output not in defined:
+        raise ValueError(f"the graph's output {output!r} is produced by no node")
+    return feeds[0], output
+
+
 class NumpyGraph:
     """``model``'s graph as numpy calls (see the module docstring)."""
 
@@ -123,21 +181,21 @@ class NumpyGraph:
         if unknown:
             node = unknown[0]
             op = node.op_type if not node.domain else f"{node.domain}.{node.op_type}"
+            name = node.name or (node.outputs or [graph.nodes.index(node)])[0]
             raise UnknownOperatorError(
-                f"operator {op} (node {node.name or node.outputs[0]!r}) is not one the numpy "
+                f"operator {op} (node {name!r}) is not one the numpy "
                 f"evaluator runs ({', '.join(OPERATORS)}); install onnxruntime "
                 "(pip install \"smartcar-gym[onnx]\") to run this graph")
+        self.input_name, self.output_name = check_graph(model)
         consts = dict(graph.initializers)
-        feeds = [v.name for v in graph.inputs if v.name not in consts]
-        if len(feeds) != 1 or not graph.outputs:
-            raise ValueError(f"the graph has {len(feeds)} inputs and {len(graph.outputs)} "
-                             "outputs; a policy graph has one of each (observations in, "
-                             "actions out)")
-        self.input_name, self.output_name = feeds[0], graph.outputs[0].name
         self.constants = consts
         self.steps: list[tuple[Op, tuple[str, ...], str]] = []
-        for node in graph.nodes:
-            call, inputs = OPERATORS[node.op_type](node, consts)
+        for index, node in enumerate(graph.nodes):
+            try:
+                call, inputs = OPERATORS[node.op_type](node, consts)
+            except (TypeError, ValueError, KeyError, IndexError) as err:
+                raise ValueError(f"{_label(node, index)}: its attributes cannot be read "
+                                 f"({type(err).__name__}: {err})") from None
             self.steps.append((call, tuple(inputs), node.outputs[0]))
 
     def run(self, x: np.ndarray) -> np.ndarray:

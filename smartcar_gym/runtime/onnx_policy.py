@@ -7,8 +7,10 @@ model's deterministic ``predict`` gives after its VecNormalize statistics: norma
 action clipping are inside it, so ``Policy`` applies no normaliser of its own.
 
 Bad input raises ``OnnxPolicyError`` with one line: a file that is not ONNX, no smartcar
-metadata, a graph whose input disagrees with its metadata, an operator the numpy evaluator
-does not know, or observations of another shape.
+metadata or metadata of the wrong types (``metadata.check_metadata``, which also checks the
+env it names), a graph wired wrong (``numpy_graph.check_graph``), whose input disagrees with
+its metadata or whose actions for one observation are not of the metadata's action shape, an
+operator the numpy evaluator does not know, or observations of another shape.
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ import numpy as np
 
 from smartcar_gym.extras import missing_modules
 from smartcar_gym.runtime.metadata import METADATA_KEY, check_metadata
-from smartcar_gym.runtime.numpy_graph import NumpyGraph
+from smartcar_gym.runtime.numpy_graph import NumpyGraph, check_graph
 from smartcar_gym.runtime.onnx_file import OnnxFormatError, read_model
 
 __all__ = ["RUNTIMES", "OnnxPolicy", "OnnxPolicyError", "is_onnx_path", "load_onnx"]
@@ -91,19 +93,48 @@ def load_onnx(path: str | os.PathLike, runtime: Runtime = "auto") -> OnnxPolicy:
         meta = check_metadata(model.metadata.get(METADATA_KEY), str(path))
     except ValueError as err:
         raise OnnxPolicyError(str(err)) from None
+    try:
+        check_graph(model)
+    except ValueError as err:
+        raise OnnxPolicyError(f"{path}: {err}") from None
     size = _input_size(model, meta, path)
+    action_shape = tuple(meta["action_shape"])
+    _check_output(model, action_shape, path)
     if runtime == "auto":
         runtime = "numpy" if missing_modules(("onnxruntime",)) else "onnxruntime"
     run = _onnxruntime(data, path) if runtime == "onnxruntime" else _numpy(model, path)
-    action_shape = tuple(meta["action_shape"])
-    low = np.asarray(meta.get("action_low", -np.inf), dtype=np.float32)
-    high = np.asarray(meta.get("action_high", np.inf), dtype=np.float32)
+    _check_actions(run, size, action_shape, path)
     return OnnxPolicy(
         path=path, metadata=meta, runtime=runtime,
         observation_space=gym.spaces.Box(-np.inf, np.inf, (size,), np.float32),
-        action_space=gym.spaces.Box(np.broadcast_to(low, action_shape),
-                                    np.broadcast_to(high, action_shape), dtype=np.float32),
+        action_space=gym.spaces.Box(np.asarray(meta["action_low"], dtype=np.float32),
+                                    np.asarray(meta["action_high"], dtype=np.float32),
+                                    dtype=np.float32),
         _run=run)
+
+
+def _check_output(model: Any, action_shape: tuple[int, ...], path: Path) -> None:
+    """The graph's output, as declared, is a batch of the metadata's actions ``(N, A)``."""
+    shape = model.graph.outputs[0].shape
+    if shape is not None and (len(shape) != 1 + len(action_shape) or any(
+            d is not None and d != a for d, a in zip(shape[1:], action_shape, strict=True))):
+        raise OnnxPolicyError(f"{path}: the graph's output has shape {shape} but its metadata "
+                              f"declares action_shape {list(action_shape)}; expected "
+                              f"(N, {', '.join(map(str, action_shape))})")
+
+
+def _check_actions(run: Any, size: int, action_shape: tuple[int, ...], path: Path) -> None:
+    """The graph, run on one observation of zeros, gives one action of ``action_shape``."""
+    try:
+        actions = np.asarray(run(np.zeros((1, size), dtype=np.float32)))
+    except Exception as err:  # numpy's or onnxruntime's errors: the file is the cause
+        first = (str(err).strip().splitlines() or [type(err).__name__])[0]
+        raise OnnxPolicyError(f"{path}: the graph fails on one observation: "
+                              f"{type(err).__name__}: {first}") from None
+    if actions.shape != (1, *action_shape):
+        raise OnnxPolicyError(f"{path}: the graph gives actions of shape {actions.shape} for "
+                              f"one observation; its metadata declares action_shape "
+                              f"{list(action_shape)}")
 
 
 def _input_size(model: Any, meta: dict[str, Any], path: Path) -> int:

@@ -91,9 +91,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.error(f"onnx not installed; {PROG} needs the onnx extra: {ONNX_EXTRA}")
     if args.output.suffix.lower() != ".onnx":
         parser.error(f"-o: the file must end in .onnx, got {str(args.output)!r}")
+    from smartcar_gym.agents.atomic_files import output_path_error
     from smartcar_gym.agents.policies import Policy, PolicyError
-    from smartcar_gym.export.checks import check_actions
     from smartcar_gym.export.onnx_graph import ExportError
+
+    for path in (args.output, _side(args.output)):
+        problem = output_path_error(path)
+        if problem:
+            parser.error(f"-o: {problem}")
 
     try:
         policy = Policy.load(args.model or args.pretrained, algo=args.algo, env_id=args.env_id,
@@ -104,14 +109,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"{PROG}: warning: {policy.warning}", file=sys.stderr)
     source = f"pretrained:{args.pretrained}" if args.pretrained else str(args.model)
     try:
-        meta = export_onnx(policy, args.output, source)
-        worst = check_actions(policy, args.output, args.check)
-    except (ExportError, OSError) as err:
+        meta, worst = export_onnx(policy, args.output, source, check=args.check)
+    except ExportError as err:
         parser.error(str(err))
-    if worst is not None and worst > TOLERANCE:
-        args.output.unlink()
-        parser.error(f"the export's actions differ from the SB3 model's by up to {worst:.2e} "
-                     f"(more than {TOLERANCE:g}); nothing written")
     checked = "" if worst is None else f"; max |action - SB3's| {worst:.1e} on {args.check} obs"
     print(f"{PROG}: wrote {args.output} and {_side(args.output)} ({meta['algo'].upper()} on "
           f"{meta['env_id']}, engine {meta['engine']}, normaliser: {meta['normalizer']}"
@@ -126,24 +126,51 @@ def _side(path: Path) -> Path:
 
 
 def export_metadata(policy: Any, source: str) -> dict[str, Any]:
-    """What the exported file says of ``policy`` (``runtime.metadata``)."""
+    """What the exported file says of ``policy`` (``runtime.metadata``). ``ExportError`` with
+    one line for an env that a policy file may not name (``registration.check_policy_env``),
+    one that cannot be made, or one whose observations are not the model's."""
+    from smartcar_gym.agents.env_factory import EnvSetupError, check_env_id
+    from smartcar_gym.registration import PolicyEnvError, check_policy_env
     from smartcar_gym.runtime.metadata import FORMAT
     from smartcar_gym.sim.engines import DEFAULT_ENGINE
 
-    from .onnx_graph import INPUT, OUTPUT
+    from .onnx_graph import INPUT, OUTPUT, ExportError
 
-    env = policy.make_env()
+    try:
+        env_id, env_kwargs = check_policy_env("--env-kwargs", policy.env_id,
+                                              policy.env_kwargs)
+        json.dumps(env_kwargs, allow_nan=False)
+    except PolicyEnvError as err:
+        raise ExportError(str(err)) from None
+    except (TypeError, ValueError) as err:
+        raise ExportError(f"--env-kwargs: {env_kwargs} cannot be written as JSON: "
+                          f"{err}") from None
+    given = ", ".join(f"{k}={v!r}" for k, v in env_kwargs.items()) or "no env kwargs"
+    try:
+        check_env_id(env_id)
+        env = policy.make_env()
+    except EnvSetupError as err:
+        raise ExportError(str(err)) from None
+    except Exception as err:  # the env's own refusal of a value: one line naming it
+        reason = " ".join(str(err).split()).split(" was raised from the environment")[0]
+        raise ExportError(f"cannot make {env_id} with {given}: {reason}") from None
     try:
         names = list(getattr(env.unwrapped, "observation_names", ()))
+        observed = tuple(getattr(env.observation_space, "shape", None) or ())
     finally:
         env.close()
+    expected = tuple(policy.model.observation_space.shape)
+    if observed != expected or len(names) != int(np.prod(expected)):
+        raise ExportError(f"the model takes observations of shape {expected} but {env_id} "
+                          f"with {given} gives {observed} ({len(names)} named); export it "
+                          "with the env it was trained on (--env, --env-kwargs)")
     space = policy.model.action_space
     return {
-        "format": FORMAT, "algo": policy.algo, "env_id": policy.env_id,
-        "env_kwargs": policy.env_kwargs,
-        "engine": policy.env_kwargs.get("engine") or DEFAULT_ENGINE,
+        "format": FORMAT, "algo": policy.algo, "env_id": env_id,
+        "env_kwargs": env_kwargs,
+        "engine": env_kwargs.get("engine") or DEFAULT_ENGINE,
         "observation_names": names,
-        "observation_shape": list(policy.model.observation_space.shape),
+        "observation_shape": list(expected),
         "action_shape": list(space.shape), "action_low": np.asarray(space.low).tolist(),
         "action_high": np.asarray(space.high).tolist(), "input": INPUT, "output": OUTPUT,
         "source": source, "normalizer": str(policy.normalizer_source),
@@ -159,24 +186,42 @@ def _version(name: str) -> str | None:
         return None
 
 
-def export_onnx(policy: Any, out: str | Path, source: str) -> dict[str, Any]:
+def export_onnx(policy: Any, out: str | Path, source: str,
+                check: int = 0) -> tuple[dict[str, Any], float | None]:
     """Write ``policy`` (a loaded ``Policy`` of an SB3 model) as ONNX to ``out`` and its
-    metadata beside it; returns the metadata. ``ExportError`` for a model it cannot take."""
+    metadata beside it; returns the metadata and the largest difference from the SB3 model's
+    actions on ``check`` observations (None for 0). Both files are written to temporary files
+    in ``out``'s folder, the ONNX one loaded back as ``Policy.load`` would load it and
+    compared, and only then moved over ``out`` and its ``.json``: on any failure what was at
+    those paths is left as it was. ``ExportError`` (one line) for a model or env it cannot
+    take, a file that would not load, actions that differ by more than ``TOLERANCE``, or a
+    file that cannot be written."""
+    from smartcar_gym.agents.atomic_files import atomic_path
+    from smartcar_gym.runtime.onnx_policy import OnnxPolicyError, load_onnx
+
+    from .checks import check_actions
     from .onnx_graph import ExportError, policy_graph
 
     out = Path(out)
     meta = export_metadata(policy, source)
-    try:
-        json.dumps(meta)
-    except TypeError as err:
-        raise ExportError(f"env kwargs {policy.env_kwargs} cannot be written as JSON: "
-                          f"{err}") from None
     stats = None if policy.normalizer is None else policy.normalizer.vec_normalize
-    model = policy_graph(policy.model, stats, meta)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_bytes(model.SerializeToString())
-    _side(out).write_text(json.dumps(meta, indent=2) + "\n")
-    return meta
+    data = policy_graph(policy.model, stats, meta).SerializeToString()
+    try:
+        with atomic_path(_side(out)) as side, atomic_path(out) as tmp:
+            tmp.write_bytes(data)
+            side.write_text(json.dumps(meta, indent=2) + "\n")
+            try:
+                load_onnx(tmp, runtime="numpy")
+            except OnnxPolicyError as err:
+                raise ExportError(str(err).replace(str(tmp), str(out)) + "; nothing "
+                                  "written") from None
+            worst = check_actions(policy, tmp, check)
+            if worst is not None and worst > TOLERANCE:
+                raise ExportError(f"the export's actions differ from the SB3 model's by up to "
+                                  f"{worst:.2e} (more than {TOLERANCE:g}); nothing written")
+    except OSError as err:
+        raise ExportError(f"-o: cannot write {out}: {err.strerror or err}") from None
+    return meta, worst
 
 
 if __name__ == "__main__":

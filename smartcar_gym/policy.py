@@ -22,7 +22,10 @@ VecNormalize statistics. ``act(obs)`` turns one observation (an array, or a dict
 Trust: model zips and VecNormalize files are pickles (loading one runs the code it holds). A
 normaliser is unpickled only when named (``normalizer=``) or assigned to the model by its
 place (``agents.models``: a smartcar-train run, an exported or shipped policy, a zoo run
-that says ``normalize``); otherwise none is loaded and ``warning`` says why that matters.
+that says ``normalize``); otherwise none is loaded and ``warning`` says why that matters. The
+env id, env kwargs and engine a run's or an exported policy's files name are data, checked by
+``registration.check_policy_env`` before anything is loaded (docs/export.md, "What a policy
+file can and cannot make the package do"); ``make_env`` refuses an id that names a module.
 
 Bad input raises ``PolicyError`` (a ``ValueError``) with one line naming the file and what was
 expected. The lines name the options of the commands built on this module: ``--model``,

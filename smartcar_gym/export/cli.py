@@ -9,9 +9,13 @@ The model and its normaliser are found as ``smartcar-eval`` finds them
 (``smartcar_gym.policy.Policy.load``: a pickle is loaded only when named or assigned by the
 model's place). The graph (``onnx_graph``) has the normalisation and the action clipping in
 it; the metadata (``runtime.metadata``) goes into the file and beside it as ``<name>.json``.
-Before writing, the exported actions are checked against the SB3 model's on ``CHECKED``
-observations drawn in the observation space (``--check`` more or fewer): a difference over
-``TOLERANCE`` is an error. Bad input: one line and exit code 2.
+Both are written to temporary files beside ``-o``; the ONNX one is loaded back as
+``Policy.load`` loads it and its actions checked against the SB3 model's on ``CHECKED``
+observations drawn in the observation space (``--check`` more or fewer; a difference over
+``TOLERANCE`` is an error), and only then moved over ``-o`` and its ``.json``. Bad input
+(an env the model cannot act in, an env id or kwargs a policy file may not name:
+``registration.check_policy_env``): one line, exit code 2, and the old files left as they
+were.
 """
 
 from __future__ import annotations

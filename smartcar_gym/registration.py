@@ -22,8 +22,9 @@ from smartcar_gym.envs.tasks.registry import (
 
 #: every id of the built-in tasks
 ENV_IDS: tuple[str, ...] = built_in_ids()
-#: what ``gym.make`` itself takes besides the env's keywords (a run may set its episode limit)
-MAKE_KEYWORDS = ("max_episode_steps",)
+#: what ``gym.make`` itself takes besides the env's keywords (a run may set its episode limit;
+#: in a spec they are its fields, not its kwargs)
+MAKE_KEYWORDS = ("max_episode_steps", "disable_env_checker")
 #: env keywords a policy's file may not set: they name a robot description, which is xacro
 #: (xacro evaluates the expressions in it), or what it reads; the user passes them, not the file
 FILE_KEYWORDS = ("model", "model_args", "package_path")
@@ -89,6 +90,10 @@ def check_policy_env(where: str, env_id: object, env_kwargs: object,
         if key not in allowed:
             raise PolicyEnvError(f"{where}: env_kwargs {key!r} is not a keyword {env_id} "
                                  f"takes; expected some of {', '.join(allowed)}")
+    checker = env_kwargs.get("disable_env_checker")
+    if checker is not None and not isinstance(checker, bool):
+        raise PolicyEnvError(f"{where}: env_kwargs disable_env_checker must be true or false, "
+                             f"got {checker!r}")
     steps = env_kwargs.get("max_episode_steps")
     if steps is not None and (type(steps) is not int or steps <= 0):
         raise PolicyEnvError(f"{where}: env_kwargs max_episode_steps must be a whole number "

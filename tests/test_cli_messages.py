@@ -219,3 +219,16 @@ def test_every_seed_flag_is_a_non_negative_integer(module, required, capsys):
     assert exit_.value.code == 2 and err.strip().splitlines()[-1].endswith(
         "error: argument --seed: expected a non-negative integer, got '-1'")
     assert parser.parse_args([*required, "--seed", "3"]).seed == 3
+
+
+def test_the_shipping_export_checks_its_counts(capsys):
+    from smartcar_gym.agents import export
+
+    for flag, value, expected in (("--seed", "-1", "a non-negative integer"),
+                                  ("--episodes", "0", "a positive integer"),
+                                  ("--n-envs", "-2", "a positive integer")):
+        with pytest.raises(SystemExit) as exit_:
+            export.main(["runs/x", flag, value])
+        assert exit_.value.code == 2
+        assert capsys.readouterr().err.strip().splitlines()[-1].endswith(
+            f"error: argument {flag}: expected {expected}, got '{value}'")

@@ -22,6 +22,7 @@ from typing import Any
 
 import yaml
 
+from smartcar_gym.agents.cli_args import non_negative_int_arg, positive_int_arg
 from smartcar_gym.agents.episodes import evaluate_policy_episodes
 from smartcar_gym.agents.models import (
     PRETRAINED_MODEL,
@@ -115,9 +116,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--model", default="model.zip", help="model file in the run folder "
                         "(e.g. best_model.zip)")
     parser.add_argument("--out", type=Path, default=DEFAULT_OUT)
-    parser.add_argument("--episodes", type=int, default=100)
-    parser.add_argument("--n-envs", type=int, default=1)
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--episodes", type=positive_int_arg, default=100)
+    parser.add_argument("--n-envs", type=positive_int_arg, default=1)
+    parser.add_argument("--seed", type=non_negative_int_arg, default=0)
     args = parser.parse_args(argv)
     if not (args.run_dir / "config.yaml").is_file():
         parser.error(f"{args.run_dir} is not a run folder (no config.yaml)")

@@ -32,6 +32,7 @@ from typing import Any
 import gymnasium as gym
 
 from smartcar_gym.datasets.steps import EpisodeSteps
+from smartcar_gym.registration import MAKE_KEYWORDS
 from smartcar_gym.sim.engines import DEFAULT_ENGINE, get_engine
 
 __all__ = ["DATASETS_VARIABLE", "MINARI_EXTRA", "REFERENCE_EPISODES", "DatasetError",
@@ -40,8 +41,6 @@ __all__ = ["DATASETS_VARIABLE", "MINARI_EXTRA", "REFERENCE_EPISODES", "DatasetEr
 
 #: the environment variable naming Minari's local root
 DATASETS_VARIABLE = "MINARI_DATASETS_PATH"
-#: gym.make's own keywords: in a spec they are its fields, not the env's kwargs
-MAKE_KEYWORDS = ("max_episode_steps", "disable_env_checker")
 
 MINARI_EXTRA = 'pip install "smartcar-gym[minari]"'
 #: episodes (the first seeds of the evaluation's) each reference score is averaged over

@@ -184,3 +184,10 @@ def test_the_step_limit_follows_the_protocol():
     finally:
         env.close()
     assert (steps, truncated, info["outcome"]) == (3349, True, "timeout")
+
+
+@pytest.mark.parametrize("value", [3, "", b"worlds.npz", ["worlds.npz"]])
+def test_a_world_file_that_is_no_path_is_one_line(value):
+    with pytest.raises(TypeError, match=r"world_file must be a file path \(or None for the "
+                                        f"shipped worlds\\), got {type(value).__name__}"):
+        load_worlds(value)

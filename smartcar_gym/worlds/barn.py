@@ -261,5 +261,8 @@ def _load(path: str) -> BarnWorlds:
 
 def load_worlds(path: str | os.PathLike | None = None) -> BarnWorlds:
     """The worlds of ``path`` (default: the shipped file, with the challenge's split), read and
-    checked once per path."""
+    checked once per path; one line for a ``path`` that is no path (``world_file``)."""
+    if path is not None and (not isinstance(path, str | os.PathLike) or not os.fspath(path)):
+        raise TypeError(f"world_file must be a file path (or None for the shipped worlds), got "
+                        f"{type(path).__name__}: {path!r}")
     return _load(str(default_path() if path is None else Path(path)))

@@ -12,6 +12,7 @@ from smartcar_gym import load_model
 from smartcar_gym.envs.robots import SmartCarRobot, drive
 from smartcar_gym.envs.sensors.laser import SimulatedLaser, mount_from_model, mount_from_pose
 from smartcar_gym.envs.sensors.scan import (
+    MAX_BEAMS,
     LaserConfig,
     scan_entry,
     scan_sectors,
@@ -53,6 +54,8 @@ def test_beam_count_follows_ros_rule():
     ({"range_min": -0.1}, "range_min"),
     ({"range_max": float("inf")}, "range_max"),
     ({"rate_hz": 0}, "rate_hz"),
+    ({"rate_hz": 1e6}, r"laser rate_hz must be at most 100 \(planar lidars scan at 5-40 Hz\)"),
+    ({"angle_increment": 1e-9}, r"gives 6.27e\+09 beams over its angles: at most 4096"),
     ({"noise_std_m": -0.01}, "noise_std_m"),
     ({"noise_std_m": float("inf")}, "noise_std_m"),
 ])
@@ -214,11 +217,11 @@ def test_noise_is_gaussian_seeded_and_only_on_returns(sim, robot, laser_model):
         SimulatedLaser(config, mount).attach(robot.body)
 
 
-def test_too_many_beams_for_one_batch_are_refused(sim, robot):
-    config = LaserConfig(angle_min=0.0, angle_max=1.0, angle_increment=1.0 / MAX_RAYS)
-    laser = SimulatedLaser(config, mount_from_pose((0, 0, 0.1, 0)))
-    with pytest.raises(ValueError, match=f"1 to {MAX_RAYS} rays"):
-        laser.attach(robot.body)
+def test_a_laser_has_at_most_max_beams_so_a_scan_is_one_batch_of_rays():
+    assert MAX_BEAMS < MAX_RAYS
+    assert LaserConfig(angle_min=0.0, angle_max=1.0, angle_increment=1.0 / 4095).beams == 4096
+    with pytest.raises(ValueError, match="gives 4.1e\\+03 beams over its angles: at most 4096"):
+        LaserConfig(angle_min=0.0, angle_max=1.0, angle_increment=1.0 / 4096)
 
 
 # -- mounts and the laser link -----------------------------------------------------------------

@@ -19,6 +19,13 @@ from smartcar_gym.envs.observation import Entry
 SCAN_KEY = "scan"  # the name of the scan's observation entry
 
 
+#: the most beams a scan may have (a 0.1-degree lidar's 3,600 fit): what a config declares
+#: cannot make every step cast and keep without bound
+MAX_BEAMS = 4096
+#: the fastest a laser may scan (Hz; real planar lidars scan at 5-40 Hz)
+MAX_RATE_HZ = 100.0
+
+
 @dataclass(frozen=True)
 class LaserConfig:
     """A planar scanner: beams at ``angle_min + i * angle_increment`` (rad, counter-clockwise
@@ -55,8 +62,13 @@ class LaserConfig:
         if not (checks.is_real(self.range_min) and 0 <= self.range_min < self.range_max):
             raise ValueError(f"laser range_min must be a number in [0, range_max="
                              f"{self.range_max:g}), got {self.range_min!r}")
-        checks.positive_number("laser rate_hz", self.rate_hz)
+        checks.positive_number("laser rate_hz", self.rate_hz, MAX_RATE_HZ,
+                               "planar lidars scan at 5-40 Hz")
         checks.non_negative_number("laser noise_std_m", self.noise_std_m)
+        if self.beams > MAX_BEAMS:
+            raise ValueError(f"laser angle_increment {self.angle_increment!r} gives "
+                             f"{self.beams:.3g} beams over its angles: at most {MAX_BEAMS} "
+                             "(raise angle_increment)")
 
     @property
     def beams(self) -> int:

@@ -51,6 +51,15 @@ def _with_metadata(source: Path, target: Path, **changes) -> Path:
     return target
 
 
+def _refused(exported: Path, tmp_path: Path, changes: dict, expected: str) -> None:
+    """The exported policy with its metadata changed is refused in one line: ``expected``."""
+    path = _with_metadata(exported, tmp_path / "policy.onnx", **changes)
+    with pytest.raises(PolicyError) as err:
+        Policy.load(path, runtime="numpy")
+    assert str(err.value).startswith(f"{path}: {expected}"), str(err.value)
+    assert "\n" not in str(err.value)
+
+
 def _payload(folder: Path) -> Path:
     """A ``payload.py`` in ``folder`` that leaves a mark when imported; the mark's path."""
     mark = folder / "payload-ran"
@@ -111,10 +120,7 @@ def test_make_env_refuses_an_id_that_names_a_module(tmp_path, monkeypatch):
 ])
 def test_the_env_kwargs_and_engine_a_policy_file_names_are_checked(exported, tmp_path, changes,
                                                                     expected):
-    path = _with_metadata(exported, tmp_path / "policy.onnx", **changes)
-    with pytest.raises(PolicyError) as err:
-        Policy.load(path, runtime="numpy")
-    assert str(err.value).startswith(f"{path}: {expected}") and "\n" not in str(err.value)
+    _refused(exported, tmp_path, changes, expected)
 
 
 def test_the_side_file_is_read_with_the_same_check(exported, tmp_path):
@@ -223,11 +229,7 @@ def test_the_shipped_policies_name_what_the_check_lets_through():
 ])
 def test_metadata_of_the_wrong_type_is_one_line_naming_the_key(exported, tmp_path, changes,
                                                                expected):
-    path = _with_metadata(exported, tmp_path / "policy.onnx", **changes)
-    with pytest.raises(PolicyError) as err:
-        Policy.load(path, runtime="numpy")
-    assert str(err.value).startswith(f"{path}: {expected}"), str(err.value)
-    assert "\n" not in str(err.value)
+    _refused(exported, tmp_path, changes, expected)
 
 
 def test_metadata_that_is_not_an_object_is_named():

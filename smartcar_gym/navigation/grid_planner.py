@@ -90,7 +90,22 @@ def plan_path(grid: DistanceGrid, start: np.ndarray, goal: np.ndarray, inflation
         if not free[iy, ix]:
             raise NoPathError(f"the {name} {np.round(point, 3).tolist()} is within "
                               f"{inflation_m:.3f} m of an obstacle (the inflated map)")
-    ny, nx = d.shape
+    cells = cheapest_cells(cost, free, (sx, sy), (gx, gy), grid.resolution)
+    if cells is None:
+        raise NoPathError(f"no way from {np.round(start, 3).tolist()} to "
+                          f"{np.round(goal, 3).tolist()} keeps {inflation_m:.3f} m from every "
+                          "obstacle")
+    nx = d.shape[1]
+    return grid.centre(cells % nx, cells // nx)
+
+
+def cheapest_cells(cost: np.ndarray, free: np.ndarray, start: tuple[int, int],
+                   goal: tuple[int, int], step: float = 1.0) -> np.ndarray | None:
+    """The cheapest 8-connected way between cells ``start`` and ``goal`` (ix, iy) through
+    ``free`` cells, as the flat indices (row by row) of its cells, or None if there is none.
+    A move between neighbours costs its length (``step`` a side) times the mean of the two
+    cells' ``cost``; Dijkstra (scipy's) on the grid's graph."""
+    ny, nx = cost.shape
     index = np.arange(nx * ny).reshape(ny, nx)
     rows, cols, weights = [], [], []
     for dx, dy in _NEIGHBOURS:
@@ -98,24 +113,20 @@ def plan_path(grid: DistanceGrid, start: np.ndarray, goal: np.ndarray, inflation
         ys2 = slice(max(0, dy), ny - max(0, -dy))
         xs, xs2 = slice(0, nx - dx), slice(dx, nx)
         both = free[ys, xs] & free[ys2, xs2]
-        step = grid.resolution * math.hypot(dx, dy)
-        w = step * 0.5 * (cost[ys, xs] + cost[ys2, xs2])
+        w = step * math.hypot(dx, dy) * 0.5 * (cost[ys, xs] + cost[ys2, xs2])
         rows.append(index[ys, xs][both])
         cols.append(index[ys2, xs2][both])
         weights.append(w[both])
     rows_a, cols_a = np.concatenate(rows), np.concatenate(cols)
     graph = coo_matrix((np.concatenate(weights), (rows_a, cols_a)), shape=(nx * ny,) * 2).tocsr()
-    source, target = index[sy, sx], index[gy, gx]
+    source, target = index[start[1], start[0]], index[goal[1], goal[0]]
     dist, previous = dijkstra(graph, directed=False, indices=source, return_predecessors=True)
     if not np.isfinite(dist[target]):
-        raise NoPathError(f"no way from {np.round(start, 3).tolist()} to "
-                          f"{np.round(goal, 3).tolist()} keeps {inflation_m:.3f} m from every "
-                          "obstacle")
+        return None
     cells = [target]
     while cells[-1] != source:
         cells.append(previous[cells[-1]])
-    cells_a = np.array(cells[::-1])
-    return grid.centre(cells_a % nx, cells_a // nx)
+    return np.array(cells[::-1])
 
 
 def path_length(path: np.ndarray) -> float:

@@ -1,0 +1,221 @@
+"""The laser costmap's cell work (``navigation/costmap.py``): an update's beams as cells, in
+numpy's floats, and the grids' clearing, marking and inflation from them, in numpy
+(``trace_cells``, ``inflate_numpy``) and in numba's loops (``update_loops``, compiled as
+``compiled_update`` where numba is installed), which do integer work only and give the same
+arrays.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+from scipy.ndimage import distance_transform_edt
+
+try:
+    import numba
+except ImportError:  # the fast extra is not installed
+    numba = None
+
+if TYPE_CHECKING:
+    from smartcar_gym.navigation.costmap import CostmapConfig
+
+#: whether the loops run compiled (numba installed, ``SMARTCAR_GYM_NUMBA`` not ``0``)
+COMPILED = numba is not None and os.environ.get("SMARTCAR_GYM_NUMBA", "1") != "0"
+FREE, INSCRIBED, LETHAL = 0, 253, 254  # costmap_2d's cost_values.h
+
+
+@dataclass(frozen=True)
+class Beams:
+    """One update's beams as cells (numpy's float work, the loops' input): per car the laser's
+    cell (``x0``, ``y0``, on the grid where ``ok``) and per beam its trace (to ``x1, y1``,
+    ``end`` + 1 cells where ``trace``) and its marked cell (``mx``, ``my`` where ``mark``),
+    and the box of cells to inflate again (``box``: x_lo, y_lo, x_hi, y_hi, exclusive)."""
+
+    x0: np.ndarray
+    y0: np.ndarray
+    ok: np.ndarray
+    x1: np.ndarray
+    y1: np.ndarray
+    end: np.ndarray
+    trace: np.ndarray
+    mx: np.ndarray
+    my: np.ndarray
+    mark: np.ndarray
+    box: np.ndarray
+
+
+def beams_to_cells(config: CostmapConfig, poses: np.ndarray, ranges: np.ndarray,
+           angles: np.ndarray) -> Beams:
+    """The beams of scans ``ranges`` (K, B) from laser ``poses`` (K, 3) as cells, by
+    ``raytraceFreespace``'s and ``updateBounds``' arithmetic (module docstring)."""
+    n, res = config.cells, config.resolution
+    ox0, oy0 = config.corner
+    end_x, end_y = ox0 + n * res, oy0 + n * res
+    r = np.asarray(ranges, dtype=np.float64)
+    ox, oy = poses[:, 0:1], poses[:, 1:2]
+    heading = poses[:, 2:3] + np.asarray(angles, dtype=np.float64)[None, :]
+    used = (r > 0) & ~np.isnan(r) & (r != -np.inf)  # +inf stays: it clears
+    reach = np.where(np.isinf(r), config.raytrace_range, np.where(used, r, 0.0))
+    wx = ox + reach * np.cos(heading)
+    wy = oy + reach * np.sin(heading)
+    ok = (ox[:, 0] >= ox0) & (oy[:, 0] >= oy0)
+    x0 = np.where(ok, (ox[:, 0] - ox0) / res, 0).astype(np.int64)
+    y0 = np.where(ok, (oy[:, 0] - oy0) / res, 0).astype(np.int64)
+    ok &= (x0 < n) & (y0 < n)
+    # marking: returns within obstacle_range whose cell is on the grid
+    mark = used & np.isfinite(r) & (r < config.obstacle_range) & (wx >= ox0) & (wy >= oy0)
+    mx = np.where(mark, (wx - ox0) / res, 0).astype(np.int64)
+    my = np.where(mark, (wy - oy0) / res, 0).astype(np.int64)
+    mark &= (mx < n) & (my < n)
+    # clearing: the end point pulled onto the grid, in raytraceFreespace's order
+    a, b = wx - ox, wy - oy
+    with np.errstate(divide="ignore", invalid="ignore"):
+        low = wx < ox0
+        wy = np.where(low, oy + b * ((ox0 - ox) / a), wy)
+        wx = np.where(low, ox0, wx)
+        low = wy < oy0
+        wx = np.where(low, ox + a * ((oy0 - oy) / b), wx)
+        wy = np.where(low, oy0, wy)
+        high = wx > end_x
+        wy = np.where(high, oy + b * ((end_x - ox) / a), wy)
+        wx = np.where(high, end_x - 0.001, wx)
+        high = wy > end_y
+        wx = np.where(high, ox + a * ((end_y - oy) / b), wx)
+        wy = np.where(high, end_y - 0.001, wy)
+    trace = used & ok[:, None] & (wx >= ox0) & (wy >= oy0)
+    x1 = np.where(trace, (wx - ox0) / res, 0).astype(np.int64)
+    y1 = np.where(trace, (wy - oy0) / res, 0).astype(np.int64)
+    trace &= (x1 < n) & (y1 < n)
+    x1, y1 = np.where(trace, x1, x0[:, None]), np.where(trace, y1, y0[:, None])
+    # raytraceLine's cut: (unsigned)(scale * major), scale = min(1, max_length / hypot)
+    dx, dy = x1 - x0[:, None], y1 - y0[:, None]
+    major = np.maximum(np.abs(dx), np.abs(dy))
+    dist = np.hypot(dx, dy)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        scale = np.where(dist == 0.0, 1.0, np.minimum(1.0, config.raytrace_cells / dist))
+    end = np.minimum((scale * major).astype(np.int64), major)
+    # the box of touched cells: each trace's last cell (Bresenham's, closed form), the marks
+    sx, sy = np.where(dx > 0, 1, -1), np.where(dy > 0, 1, -1)
+    minor = np.minimum(np.abs(dx), np.abs(dy))
+    steps = np.where(major > 0, (major // 2 + end * minor) // np.maximum(major, 1), 0)
+    x_dom = np.abs(dx) >= np.abs(dy)
+    lx = x0[:, None] + sx * np.where(x_dom, end, steps)
+    ly = y0[:, None] + sy * np.where(x_dom, steps, end)
+    big = np.iinfo(np.int64).max
+    box = np.empty((len(poses), 4), dtype=np.int64)
+    grow = config.inflation_cells
+    for i, (last, marked, origin) in enumerate(((lx, mx, x0), (ly, my, y0))):
+        lo = np.minimum(np.where(trace, last, big).min(axis=1, initial=big),
+                        np.where(mark, marked, big).min(axis=1, initial=big))
+        hi = np.maximum(np.where(trace, last, -1).max(axis=1, initial=-1),
+                        np.where(mark, marked, -1).max(axis=1, initial=-1))
+        lo = np.where(ok, np.minimum(lo, origin), lo)
+        hi = np.where(ok, np.maximum(hi, origin), hi)
+        box[:, i] = np.clip(lo - grow, 0, n)
+        box[:, i + 2] = np.where(hi >= 0, np.clip(hi + grow + 1, 0, n), 0)
+    return Beams(x0, y0, ok, x1, y1, end, trace, mx, my, mark, box)
+
+
+def trace_cells(beams: Beams) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Every traced cell of every beam, as (car row k, x, y) arrays: Bresenham's cells in
+    closed form (the minor axis after i steps: ``(major // 2 + i * minor) // major``)."""
+    k, b = np.nonzero(beams.trace)
+    x0, y0 = beams.x0[k], beams.y0[k]
+    dx, dy = beams.x1[k, b] - x0, beams.y1[k, b] - y0
+    end = beams.end[k, b]
+    major = np.maximum(np.abs(dx), np.abs(dy))
+    minor = np.minimum(np.abs(dx), np.abs(dy))
+    i = np.arange(int(end.max(initial=0)) + 1)[None, :]
+    keep = i <= end[:, None]
+    steps = (major[:, None] // 2 + i * minor[:, None]) // np.maximum(major, 1)[:, None]
+    x_dom = (np.abs(dx) >= np.abs(dy))[:, None]
+    sx, sy = np.where(dx > 0, 1, -1)[:, None], np.where(dy > 0, 1, -1)[:, None]
+    xs = x0[:, None] + sx * np.where(x_dom, i, steps)
+    ys = y0[:, None] + sy * np.where(x_dom, steps, i)
+    rows = np.broadcast_to(k[:, None], keep.shape)
+    return rows[keep], xs[keep], ys[keep]
+
+
+def inflate_numpy(marks: np.ndarray, costs: np.ndarray, box: np.ndarray, r: int,
+                   table: np.ndarray) -> None:
+    """One grid's costs in ``box`` (x_lo, y_lo, x_hi, y_hi) from its lethal ``marks``: per
+    cell ``table`` at its squared distance to the nearest lethal cell (scipy's exact
+    Euclidean distance transform over the box grown by ``r``), 0 beyond ``r``."""
+    x_lo, y_lo, x_hi, y_hi = (int(v) for v in box)
+    if x_lo >= x_hi or y_lo >= y_hi:
+        return
+    ny, nx = marks.shape
+    h, w = y_hi - y_lo, x_hi - x_lo
+    lethal = np.zeros((h + 2 * r, w + 2 * r), dtype=bool)
+    sy0, sy1, sx0, sx1 = max(y_lo - r, 0), min(y_hi + r, ny), max(x_lo - r, 0), min(x_hi + r, nx)
+    lethal[sy0 - y_lo + r:sy1 - y_lo + r, sx0 - x_lo + r:sx1 - x_lo + r] = (
+        marks[sy0:sy1, sx0:sx1] == LETHAL)
+    if not lethal.any():
+        costs[y_lo:y_hi, x_lo:x_hi] = FREE
+        return
+    d = distance_transform_edt(~lethal)[r:r + h, r:r + w]
+    d2 = np.rint(d * d).astype(np.int64)  # whole: squares of whole cell offsets
+    near = d2 <= r * r
+    costs[y_lo:y_hi, x_lo:x_hi] = np.where(near, table[np.where(near, d2, 0)], FREE)
+
+
+def update_loops(cars, x0, y0, ok, x1, y1, end, trace, mx, my, mark, box, r, kdx, kdy,
+                  kcost, marks, costs):
+    """The compiled update of grids ``cars`` (numpy's, cell for cell): per car its beams'
+    Bresenham lines cleared (``Costmap2D::bresenham2D``, step by step), then its returns
+    marked, then its box inflated by stamping the kernel of each lethal cell near it."""
+    ny, nx = marks.shape[1], marks.shape[2]
+    for k in range(cars.shape[0]):
+        g = cars[k]
+        if ok[k]:
+            for b in range(x1.shape[1]):
+                if not trace[k, b]:
+                    continue
+                dx, dy = x1[k, b] - x0[k], y1[k, b] - y0[k]
+                sx = 1 if dx > 0 else -1
+                sy = 1 if dy > 0 else -1
+                adx, ady = abs(dx), abs(dy)
+                x, y = x0[k], y0[k]
+                if adx >= ady:
+                    error = adx // 2
+                    for _ in range(end[k, b]):
+                        marks[g, y, x] = 0
+                        x += sx
+                        error += ady
+                        if error >= adx:
+                            y += sy
+                            error -= adx
+                else:
+                    error = ady // 2
+                    for _ in range(end[k, b]):
+                        marks[g, y, x] = 0
+                        y += sy
+                        error += adx
+                        if error >= ady:
+                            x += sx
+                            error -= ady
+                marks[g, y, x] = 0
+        for b in range(mx.shape[1]):
+            if mark[k, b]:
+                marks[g, my[k, b], mx[k, b]] = 254
+        x_lo, y_lo, x_hi, y_hi = box[k, 0], box[k, 1], box[k, 2], box[k, 3]
+        for y in range(y_lo, y_hi):
+            for x in range(x_lo, x_hi):
+                costs[g, y, x] = 0
+        for sy_ in range(max(y_lo - r, 0), min(y_hi + r, ny)):
+            for sx_ in range(max(x_lo - r, 0), min(x_hi + r, nx)):
+                if marks[g, sy_, sx_] != 254:
+                    continue
+                for m in range(kdx.shape[0]):
+                    x = sx_ + kdx[m]
+                    y = sy_ + kdy[m]
+                    if x_lo <= x < x_hi and y_lo <= y < y_hi and kcost[m] > costs[g, y, x]:
+                        costs[g, y, x] = kcost[m]
+
+
+compiled_update = None
+if COMPILED:
+    compiled_update = numba.njit(cache=True, nogil=True)(update_loops)

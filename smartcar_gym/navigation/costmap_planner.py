@@ -1,0 +1,125 @@
+"""navfn's role on a laser costmap (``navigation/costmap.py``): the global path, replanned.
+
+``plan_on_costmap`` is the challenge's global planner (``navfn/NavfnROS``) on one car's
+costmap: the cells LETHAL or INSCRIBED are obstacles (navfn's ``COST_OBS``), except the start's
+(navfn's ``clearRobotCell``); every other cell costs navfn's ``COST_NEUTRAL + COST_FACTOR *
+cost`` (50 + 0.8 cost, truncated, as ``NavFn::setCostmap``); an unseen cell is free (the
+challenge tracks no unknown space; navfn's ``allow_unknown`` would pass it anyway). The path is
+the cheapest 8-connected way (``grid_planner.cheapest_cells``: a move costs its length in
+cells times the mean of its two cells' costs), where navfn propagates a potential and descends
+its gradient. Only the cells that can matter enter the graph: those within the box of the
+start, the goal and every cell that costs, grown by a cell (outside it every cell is neutral,
+so a way out of the box is never cheaper than along its edge).
+
+``Replanner`` is move_base's planning loop per car: a new plan every ``period_s`` (move_base's
+``planner_frequency``, 20 Hz in the challenge, times scaled with the world and the speed), and
+at once when a cell of the current path has become an obstacle.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from smartcar_gym import checks
+from smartcar_gym.navigation.costmap import FREE, INSCRIBED, LaserCostmaps
+from smartcar_gym.navigation.grid_planner import NoPathError, cheapest_cells
+
+NEUTRAL_COST = 50  # navfn.h: COST_NEUTRAL, the cost of a free cell
+COST_FACTOR = 0.8  # navfn.h: COST_FACTOR, per unit of the costmap's cost
+PLANNER_FREQUENCY_HZ = 20.0  # the challenge's move_base_params.yaml: planner_frequency
+
+
+def navfn_costs(costs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """navfn's view of costmap ``costs``: ``(cost, free)``, ``50 + int(0.8 cost)`` per cell
+    and whether it may be crossed (below INSCRIBED)."""
+    c = np.asarray(costs)
+    free = c < INSCRIBED
+    cost = NEUTRAL_COST + np.trunc(COST_FACTOR * c.astype(float))
+    return np.where(free, cost, np.inf), free
+
+
+def plan_on_costmap(costmaps: LaserCostmaps, car: int, start: np.ndarray, goal: np.ndarray
+                    ) -> np.ndarray:
+    """The cheapest way (cell centres, (M, 2) m, odom frame) from ``start``'s cell to
+    ``goal``'s on car ``car``'s costmap (module docstring). NoPathError if either is off the
+    grid, the goal's cell is an obstacle, or no way avoids them."""
+    ends = np.asarray([start, goal], dtype=float).reshape(2, 2)
+    ix, iy, inside = costmaps.world_to_cell(ends)
+    for k, name in enumerate(("start", "goal")):
+        if not inside[k]:
+            raise NoPathError(f"the {name} {np.round(ends[k], 3).tolist()} is off the costmap")
+    costs = costmaps.costs(car)
+    if costs[iy[1], ix[1]] >= INSCRIBED:
+        raise NoPathError(f"the goal {np.round(ends[1], 3).tolist()} is in an obstacle's cell "
+                          f"(cost {costs[iy[1], ix[1]]})")
+    rows = np.flatnonzero((costs != FREE).any(axis=1))
+    cols = np.flatnonzero((costs != FREE).any(axis=0))
+    n = costs.shape[0]
+    y_lo = max(min(iy.min(), rows.min(initial=n)) - 1, 0)
+    y_hi = min(max(iy.max(), rows.max(initial=-1)) + 2, n)
+    x_lo = max(min(ix.min(), cols.min(initial=n)) - 1, 0)
+    x_hi = min(max(ix.max(), cols.max(initial=-1)) + 2, n)
+    cost, free = navfn_costs(costs[y_lo:y_hi, x_lo:x_hi])
+    sx, sy, gx, gy = ix[0] - x_lo, iy[0] - y_lo, ix[1] - x_lo, iy[1] - y_lo
+    free[sy, sx] = True  # navfn's clearRobotCell
+    cost[sy, sx] = NEUTRAL_COST
+    cells = cheapest_cells(cost, free, (int(sx), int(sy)), (int(gx), int(gy)))
+    if cells is None:
+        raise NoPathError(f"no way on the costmap from {np.round(ends[0], 3).tolist()} to "
+                          f"{np.round(ends[1], 3).tolist()} avoids its obstacles")
+    w = x_hi - x_lo
+    return costmaps.cell_to_world(cells % w + x_lo, cells // w + y_lo)
+
+
+class Replanner:
+    """Each car's current global path on its costmap, and when to plan it again:
+    ``needs_plan`` is true with no path, ``period_s`` after the last plan, or at once when a
+    cell of the path past its first has become LETHAL or INSCRIBED (``blocked``)."""
+
+    def __init__(self, costmaps: LaserCostmaps, period_s: float) -> None:
+        self.costmaps = costmaps
+        self.period_s = checks.positive_number("replanner period_s", period_s)
+        self._paths: list[np.ndarray | None] = [None] * costmaps.n
+        self._cells: list[tuple[np.ndarray, np.ndarray]] = [(np.zeros(0, int),) * 2] * costmaps.n
+        self._last = np.full(costmaps.n, -np.inf)
+
+    @classmethod
+    def challenge(cls, costmaps: LaserCostmaps, scale: float = 1.0, speed_scale: float = 1.0
+                  ) -> Replanner:
+        """The challenge's ``planner_frequency`` (20 Hz) for a world ``scale`` times as big
+        driven ``speed_scale`` times as fast: its period times ``scale / speed_scale``."""
+        checks.positive_number("replanner scale", scale)
+        checks.positive_number("replanner speed_scale", speed_scale)
+        return cls(costmaps, scale / speed_scale / PLANNER_FREQUENCY_HZ)
+
+    def reset(self, cars: Sequence[int]) -> None:
+        """Forgets the paths of ``cars``."""
+        for car in cars:
+            self._paths[car] = None
+            self._cells[car] = (np.zeros(0, int),) * 2
+            self._last[car] = -np.inf
+
+    def path(self, car: int) -> np.ndarray | None:
+        """Car ``car``'s current path ((M, 2) m, odom frame), None before its first."""
+        return self._paths[car]
+
+    def blocked(self, car: int) -> bool:
+        """Whether a cell of car ``car``'s path past its first is now an obstacle."""
+        ix, iy = self._cells[car]
+        return bool(np.any(self.costmaps.costs(car)[iy[1:], ix[1:]] >= INSCRIBED))
+
+    def needs_plan(self, car: int, now_s: float) -> bool:
+        """Whether car ``car`` should plan at time ``now_s`` (s)."""
+        return (self._paths[car] is None or now_s - self._last[car] >= self.period_s - 1e-9
+                or self.blocked(car))
+
+    def plan(self, car: int, start: np.ndarray, goal: np.ndarray, now_s: float) -> np.ndarray:
+        """Plans car ``car``'s path at ``now_s`` (``plan_on_costmap``) and keeps it; on
+        NoPathError the last path stays and the attempt counts as the plan for the period."""
+        self._last[car] = now_s
+        path = plan_on_costmap(self.costmaps, car, start, goal)
+        ix, iy, _ = self.costmaps.world_to_cell(path)
+        self._paths[car], self._cells[car] = path, (ix, iy)
+        return path

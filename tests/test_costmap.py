@@ -1,0 +1,209 @@
+"""The laser-built costmap (navigation/costmap.py) and its planner (costmap_planner.py), with
+numbers derived by hand from costmap_2d's rules (docs/barn.md, "The laser-built costmap").
+
+The test grid: 0.05 m cells, 8 m square centred on the odom origin (cell (80, 80) holds
+[0, 0.05) x [0, 0.05)), obstacle_range 2.5 m, raytrace_range 3.0 m (60 cells), inflation
+radius 0.30 m (6 cells), cost_scaling_factor 10 / m, inscribed radius 0.12 m.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from smartcar_gym.navigation.costmap import (
+    COMPILED,
+    INSCRIBED,
+    LETHAL,
+    CostmapConfig,
+    LaserCostmaps,
+)
+from smartcar_gym.navigation.costmap_loops import inflate_numpy
+from smartcar_gym.navigation.costmap_planner import Replanner, plan_on_costmap
+from smartcar_gym.navigation.grid_planner import NoPathError
+
+CONFIG = CostmapConfig(size=8.0, inscribed_radius=0.12)
+ONE = np.array([0.0])  # a one-beam laser looking along its x axis
+ROUND = np.radians(np.arange(-180.0, 180.0, 1.0))  # the LDS-01's 360 beams
+WAYS = [False, True] if COMPILED else [False]
+
+
+def _beam(maps: LaserCostmaps, car: int, x: float, y: float, theta: float, r: float) -> None:
+    maps.update([car], np.array([[x, y, theta]]), np.array([[r]], dtype=np.float32), ONE)
+
+
+def _mark(maps: LaserCostmaps, x: float, y: float, car: int = 0) -> None:
+    """Marks the cell of (x, y) with a 0.5 m beam from below it."""
+    _beam(maps, car, x, y - 0.5, math.pi / 2, 0.5)
+
+
+def _wall_scan(x: float, half: float) -> np.ndarray:
+    """A 360-beam scan from the origin of a wall across x = ``x`` from -half to half."""
+    r = np.full(len(ROUND), np.inf)
+    front = (np.abs(ROUND) < math.pi / 2) & (np.abs(np.tan(ROUND)) * x <= half)
+    r[front] = x / np.cos(ROUND[front])
+    return r.astype(np.float32)[None]
+
+
+@pytest.mark.parametrize("compiled", WAYS)
+def test_a_beam_marks_its_return_and_clears_the_cells_before_it(compiled):
+    maps = LaserCostmaps(CONFIG, 1, compiled=compiled)
+    _mark(maps, 0.51, 0.01)  # cell (90, 80), on the beam's way
+    assert maps.lethal(0)[80, 90]
+    _beam(maps, 0, 0.01, 0.01, 0.0, 1.0)  # from cell (80, 80) to 1.01 m: cell (100, 80)
+    assert np.argwhere(maps.lethal(0)).tolist() == [[80, 100]]
+    costs = maps.costs(0)
+    # 253 within 0.12 m (2 cells), then int(252 exp(-10 (d - 0.12))), 0 beyond 6 cells
+    assert costs[80, 92:109].tolist() == [0, 0, 41, 68, 113, 186, 253, 253, 254, 253, 253, 186,
+                                          113, 68, 41, 0, 0]
+    assert costs[80, 80:94].max() == 0  # cleared, and more than 6 cells from the wall
+
+
+@pytest.mark.parametrize("compiled", WAYS)
+def test_inflation_is_costmap_2ds_compute_cost(compiled):
+    maps = LaserCostmaps(CONFIG, 1, compiled=compiled)
+    _mark(maps, 0.025, 0.025)  # cell (80, 80)
+    costs = maps.costs(0).astype(int)
+    expected = {(0, 0): 254, (1, 0): 253, (2, 0): 253, (1, 1): 253, (2, 1): 253,
+                (2, 2): 203, (3, 0): 186, (4, 0): 113, (3, 4): 68, (5, 0): 68,
+                (4, 4): 49, (6, 0): 41, (5, 4): 0, (7, 0): 0, (0, -6): 41}
+    for (dx, dy), cost in expected.items():
+        assert costs[80 + dy, 80 + dx] == cost, (dx, dy)
+        d = math.hypot(dx, dy) * 0.05
+        if 0.12 < d <= 0.3:  # the formula, by hand above
+            assert cost == int(252 * math.exp(-10.0 * (d - 0.12)))
+    # computeCost itself goes on past the radius; the inflation stops at it (enqueue's test)
+    assert CONFIG.cost_of([0, 2, 2.4, 3, 6, 7]).tolist() == [254, 253, 253, 186, 41, 25]
+    assert costs[80, 87:].max() == 0 and (costs > 0).sum() == len(CONFIG.kernel()[0])
+
+
+@pytest.mark.parametrize("compiled", WAYS)
+def test_a_beam_with_no_return_clears_to_raytrace_range_and_marks_nothing(compiled):
+    maps = LaserCostmaps(CONFIG, 1, compiled=compiled)
+    for x in (1.01, 3.01, 3.06):  # cells 100, 140 (3.0 m out) and 141
+        _mark(maps, x, 0.01)
+    _beam(maps, 0, 0.01, 0.01, 0.0, np.inf)
+    assert np.argwhere(maps.lethal(0)).tolist() == [[80, 141]]
+
+
+@pytest.mark.parametrize("compiled", WAYS)
+def test_a_return_beyond_obstacle_range_clears_but_does_not_mark(compiled):
+    maps = LaserCostmaps(CONFIG, 1, compiled=compiled)
+    for x in (1.01, 2.71):  # cells 100 and 134, where the return lies
+        _mark(maps, x, 0.01)
+    _beam(maps, 0, 0.01, 0.01, 0.0, 2.7)
+    assert not maps.lethal(0).any() and not maps.costs(0).any()
+    _beam(maps, 0, 0.01, 0.01, 0.0, 2.4)  # within 2.5 m: marked
+    assert np.argwhere(maps.lethal(0)).tolist() == [[80, 128]]
+    _beam(maps, 0, 0.01, 0.01, 0.0, -np.inf)  # closer than range_min: nothing happens
+    assert np.argwhere(maps.lethal(0)).tolist() == [[80, 128]]
+
+
+@pytest.mark.skipif(not COMPILED, reason="numba (the fast extra) is not installed")
+def test_numba_and_numpy_give_the_same_grids_bit_for_bit():
+    config = CostmapConfig.challenge(0.4186, inscribed_radius=0.105)
+    ways = [LaserCostmaps(config, 6, compiled=c, threads=t) for c, t in ((False, 1), (True, 2))]
+    rng = np.random.default_rng(5)
+    for _ in range(12):
+        cars = rng.permutation(6)[:4]
+        poses = np.c_[rng.uniform(-8.5, 8.5, (4, 2)), rng.uniform(-4, 4, 4)]  # some off it
+        r = rng.uniform(0.05, 2.0, (4, 360)).astype(np.float32)
+        for value, share in ((np.inf, 0.2), (-np.inf, 0.05), (np.nan, 0.02)):
+            r[rng.random(r.shape) < share] = value
+        for maps in ways:
+            maps.update(cars, poses, r, ROUND)
+    for car in range(6):
+        assert np.array_equal(ways[0].costs(car), ways[1].costs(car))
+        assert np.array_equal(ways[0].lethal(car), ways[1].lethal(car))
+    assert sum(ways[0].lethal(car).sum() for car in range(6)) > 1000
+    # the update re-inflates only near what changed: the same as inflating it all at once
+    whole = np.zeros((config.cells,) * 2, dtype=np.uint8)
+    marks = np.where(ways[0].lethal(5), LETHAL, 0).astype(np.uint8)
+    inflate_numpy(marks, whole, np.array([0, 0, config.cells, config.cells]),
+                  config.inflation_cells, config.cost_table())
+    assert np.array_equal(whole, ways[0].costs(5))
+
+
+@pytest.mark.parametrize("compiled", WAYS)
+def test_three_cars_keep_their_own_grids(compiled):
+    maps = LaserCostmaps(CONFIG, 3, compiled=compiled)
+    alone = [LaserCostmaps(CONFIG, 1, compiled=compiled) for _ in range(3)]
+    scans = [_wall_scan(x, 0.5) for x in (0.6, 1.0, 1.4)]
+    poses = np.array([[0.0, 0.0, 0.0], [0.3, -0.2, 0.5], [-0.4, 0.1, -1.0]])
+    maps.update([2, 0, 1], poses[[2, 0, 1]], np.concatenate([scans[i] for i in (2, 0, 1)]),
+                ROUND)
+    for car in range(3):
+        alone[car].update([0], poses[car:car + 1], scans[car], ROUND)
+        assert np.array_equal(maps.costs(car), alone[car].costs(0))
+    before = [maps.costs(car).copy() for car in range(3)]
+    maps.reset([1])
+    assert not maps.costs(1).any() and not maps.lethal(1).any()
+    assert np.array_equal(maps.costs(0), before[0]) and np.array_equal(maps.costs(2), before[2])
+
+
+def test_the_planner_goes_around_a_wall_it_has_seen_and_straight_through_unseen_space():
+    maps = LaserCostmaps(CONFIG, 2)
+    straight = plan_on_costmap(maps, 0, np.zeros(2), np.array([2.0, 0.0]))
+    assert np.allclose(straight[:, 1], 0.025) and np.allclose(straight[[0, -1], 0],
+                                                              [0.025, 2.025])
+    maps.update([1], np.zeros((1, 3)), _wall_scan(1.01, 0.6), ROUND)
+    assert maps.lethal(1)[80, 100] and maps.lethal(1)[89:92, 100].any()  # (1.01, 0.55)
+    around = plan_on_costmap(maps, 1, np.zeros(2), np.array([2.0, 0.0]))
+    ix, iy, inside = maps.world_to_cell(around)
+    assert inside.all() and (maps.costs(1)[iy, ix] < INSCRIBED).all()
+    assert np.abs(around[:, 1]).max() > 0.6 + 0.12  # past the wall's end, clear of it
+    assert np.allclose(around[-1], [2.025, 0.025])
+    with pytest.raises(NoPathError, match="the goal .* is in an obstacle's cell"):
+        plan_on_costmap(maps, 1, np.zeros(2), np.array([1.0, 0.0]))
+    with pytest.raises(NoPathError, match="off the costmap"):
+        plan_on_costmap(maps, 1, np.zeros(2), np.array([5.0, 0.0]))
+
+
+def test_the_replanner_plans_at_its_rate_and_at_once_when_its_path_is_blocked():
+    maps = LaserCostmaps(CONFIG, 1)
+    replanner = Replanner(maps, period_s=0.1)
+    assert replanner.needs_plan(0, 0.0) and replanner.path(0) is None
+    replanner.plan(0, np.zeros(2), np.array([2.0, 0.0]), 0.0)
+    assert not replanner.needs_plan(0, 0.05)
+    assert replanner.needs_plan(0, 0.1)
+    replanner.plan(0, np.zeros(2), np.array([2.0, 0.0]), 0.1)
+    assert not replanner.needs_plan(0, 0.15) and not replanner.blocked(0)
+    maps.update([0], np.zeros((1, 3)), _wall_scan(1.01, 0.3), ROUND)  # across the path
+    assert replanner.blocked(0) and replanner.needs_plan(0, 0.15)
+    path = replanner.plan(0, np.zeros(2), np.array([2.0, 0.0]), 0.15)
+    assert np.abs(path[:, 1]).max() > 0.3 and not replanner.needs_plan(0, 0.2)
+    assert Replanner.challenge(maps, 0.4186, 0.25).period_s == pytest.approx(
+        0.4186 / 0.25 / 20.0)  # 20 Hz, times scaled by 1.674
+
+
+def test_the_challenges_values_scale_to_the_same_cell_counts():
+    config = CostmapConfig.challenge(0.4186)
+    assert (config.cells, config.raytrace_cells, config.inflation_cells) == (800, 60, 6)
+    assert config.resolution == pytest.approx(0.02093)
+    assert config.obstacle_range == pytest.approx(1.0465)
+    assert config.inflation_radius == pytest.approx(0.12558)
+    assert config.inscribed_radius == pytest.approx(0.265 * 0.4186)
+    assert config.cost_scaling_factor == pytest.approx(10 / 0.4186)
+    assert config.corner == pytest.approx((-8.372, -8.372))
+    assert np.array_equal(config.kernel()[2], CostmapConfig(inscribed_radius=0.265).kernel()[2])
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    (dict(resolution=0.001), r"costmap size 40.0 m at resolution 0.001 m is 1.6e\+09 cells, "
+                             r"more than 4,000,000"),
+    (dict(obstacle_range=-1.0), "costmap obstacle_range must be a positive number, got -1.0"),
+    (dict(raytrace_range=float("nan")), "costmap raytrace_range must be a positive number"),
+    (dict(inscribed_radius=0.4), "costmap inscribed_radius 0.4 m must not exceed "
+                                 "inflation_radius 0.3 m"),
+])
+def test_a_bad_config_is_one_line_naming_its_field(kwargs, message):
+    with pytest.raises(ValueError, match=message) as error:
+        CostmapConfig(**kwargs)
+    assert "\n" not in str(error.value)
+
+
+def test_too_many_cars_grids_are_refused_before_allocating():
+    with pytest.raises(ValueError, match="costmap cars: 1000 grids of 800 x 800 cells are more"):
+        LaserCostmaps(CostmapConfig(), 1000)

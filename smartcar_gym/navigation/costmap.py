@@ -22,8 +22,8 @@ its lengths. ``LaserCostmaps`` holds N such grids, one per car, as costmap_2d's 
   inflation radius of them: the costs are always the whole grid's inflation, exactly.
 
 Two ways, the same arrays bit for bit (``tests/test_costmap.py``): numpy, and numba's loops
-(the ``fast`` extra) where installed. The float work (each beam's end cell, its cut, the boxes)
-is numpy's for both; the loops do integer work only.
+(the ``fast`` extra) where installed, both in ``costmap_loops.py``. The float work (each beam's
+end cell, its cut, the boxes) is numpy's for both; the loops do integer work only.
 """
 
 from __future__ import annotations

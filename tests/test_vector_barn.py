@@ -39,20 +39,22 @@ def _at_end(info: dict, key: str) -> np.ndarray:
 
 
 @pytest.mark.parametrize("engine", ENGINES)
-@pytest.mark.parametrize(("mode", "timeout", "progress"), [
-    ("NextStep", 25, "goal"), ("SameStep", None, "goal"), ("SameStep", None, "path")])
-def test_barn_batch_equals_n_single_envs_bit_for_bit(engine, mode, timeout, progress,
+@pytest.mark.parametrize(("mode", "timeout", "progress", "map_mode"), [
+    ("NextStep", 25, "goal", "known"), ("SameStep", None, "goal", "known"),
+    ("SameStep", None, "path", "known"), ("SameStep", None, "goal", "laser")])
+def test_barn_batch_equals_n_single_envs_bit_for_bit(engine, mode, timeout, progress, map_mode,
                                                      monkeypatch):
     """Each car's observations (waypoint row included), rewards (with either progress
     reward), ends and infos (world, outcome, AT, OT, scores) are its single env's over 60
     steps, across autoresets that draw new worlds: ended by the time limit (SameStep) or the
-    protocol's timeout, made short (NextStep), and by collisions."""
+    protocol's timeout, made short (NextStep), and by collisions; with the known map or each
+    car's laser costmap (its global path replanned as it fills)."""
     if timeout is not None:
         monkeypatch.setattr(BarnProtocol, "timeout_steps", lambda self, period_s: timeout)
     batched = make(engine, mode, "batch", max_episode_steps=24 if timeout is None else 60,
-                   progress=progress)
+                   progress=progress, map_mode=map_mode)
     single = make(engine, mode, "sync", max_episode_steps=24 if timeout is None else 60,
-                  progress=progress)
+                  progress=progress, map_mode=map_mode)
     assert isinstance(batched, SmartCarBatchVectorEnv)
     try:
         got, want = rollout(batched, 60, 3), rollout(single, 60, 3)
@@ -85,6 +87,9 @@ def test_barn_batch_equals_n_single_envs_bit_for_bit(engine, mode, timeout, prog
         u = batched.unwrapped
         for i, env in enumerate(single.envs):
             assert np.array_equal(u.global_paths[i], env.unwrapped.global_path)
+            if map_mode == "laser":  # the costmaps too, and the path came from them
+                assert np.array_equal(u.costmaps.costs(i), env.unwrapped.costmaps.costs(0))
+                assert env.unwrapped.costmaps.lethal(0).any()
     finally:
         batched.close()
         single.close()

@@ -25,6 +25,8 @@ from smartcar_gym.envs.tasks.base import Cars, CarSettings, Score
 from smartcar_gym.envs.tasks.nav import NAV_OBSERVATION_ORDER, NavTask
 from smartcar_gym.envs.tasks.obstacles import Obstacle
 from smartcar_gym.model.footprint import car_width, footprint_half_extents
+from smartcar_gym.navigation.costmap import CostmapConfig, LaserCostmaps
+from smartcar_gym.navigation.costmap_planner import Replanner
 from smartcar_gym.navigation.grid_planner import NoPathError, distance_grid, plan_path
 from smartcar_gym.navigation.localization import (
     IDENTITY,
@@ -38,6 +40,7 @@ from smartcar_gym.parallel import run_chunks
 from smartcar_gym.sim.clock import NS_PER_S
 from smartcar_gym.worlds.barn import (
     GOAL_XY,
+    JACKAL_TOP_SPEED_M_S,
     JACKAL_WIDTH_M,
     BarnWorld,
     BarnWorldError,
@@ -46,6 +49,8 @@ from smartcar_gym.worlds.barn import (
 )
 
 PROGRESS = ("goal", "path")  # what the progress reward measures
+#: where the global path comes from: the world's known cylinders, or the car's own scans
+MAP_MODES = ("known", "laser")
 BARN_OBSERVATION_ORDER = (*NAV_OBSERVATION_ORDER, "waypoint_base")
 GRID_RESOLUTION_M = 0.02  # the global planner's map
 MAP_MARGIN_M = 0.3  # free map around the cylinders, the start and the goal
@@ -95,6 +100,16 @@ class BarnTask(NavTask):
     ``env.unwrapped.map_pose``), which starts as the identity (the known start). The
     odometry entries and the goal stay odometry's. DWA follows the path from the same pose.
 
+    With ``map_mode="laser"`` nothing of the world is known but the start, the goal and the
+    car, as in the challenge's move_base: each car builds the challenge's global costmap from
+    its own scans (``navigation.costmap``: marking and clearing, inflation, the challenge's
+    values scaled; in the odom frame, centred on the start), and its global path is planned on
+    what it has seen (unseen cells are free; navfn's costs) at the challenge's planner rate
+    (20 Hz, scaled with the world and the speed) and at once when a new mark blocks it
+    (``navigation.costmap_planner.Replanner``); the waypoint comes from that path, through
+    odometry (``env.unwrapped.costmaps``, ``global_path``). Until a plan succeeds the path is
+    the straight line to the goal.
+
     ## Episodes
 
     ``reset(options={"world": i})`` picks world i (an integer, 0-299); without it a world is
@@ -120,7 +135,17 @@ class BarnTask(NavTask):
     ground-truth distance to go: its distance to the path's nearest point plus the path
     beyond it), which does not pull the car at the cylinders between it and the goal.
     ``localize`` (False) takes the waypoint from the scan-matched pose on the map (above); it
-    needs the laser at the controller's rate (the shipped 10 Hz).
+    needs the laser at the controller's rate (the shipped 10 Hz). ``map_mode``: ``"known"``
+    (the default: the world's cylinders) or ``"laser"`` (the car's own costmap, above), which
+    takes neither ``localize`` (there is no map to match) nor ``progress="path"`` (its path
+    changes as the costmap fills).
+
+    ## Version History
+
+    * v0 (0.5.0): ``map_mode="laser"``; no step limit but the protocol's timeout (was 1676
+      steps); the world file's own split; the task written once for the single and the
+      batched envs (``BarnTask``).
+    * v0 (0.4.0): initial version (the known map, ``localize``, ``progress``).
     """
 
     option_keys = ("world",)
@@ -129,7 +154,7 @@ class BarnTask(NavTask):
                "worlds", "protocol", "timeout_steps", "global_paths", "global_path",
                "planned_paths", "waypoints", "localize", "corrections", "correction",
                "map_poses", "map_pose", "world", "world_index", "outcome", "lookahead_m",
-               "progress", "path_progress_weight")
+               "progress", "path_progress_weight", "map_mode", "costmaps", "costmap_config")
     refused_keywords = {name: PROTOCOL for name in PROTOCOL_KWARGS}
     bytes_per_car = 64 * 1024  # its obstacles, latest scan, global path and tracker
     pillars = True  # 0.3 m cylinders: on pybullet capsules, their scans 2.6x faster
@@ -140,7 +165,7 @@ class BarnTask(NavTask):
                  laser: Mapping[str, Any] | LaserConfig | None = None,
                  laser_mount: Sequence[float] | None = None, scan_sectors: int = 36,
                  progress: str = "goal", localize: bool = False,
-                 stop_speed: float | None = None) -> None:
+                 stop_speed: float | None = None, map_mode: str = "known") -> None:
         if not (checks.is_finite(lookahead) and lookahead > 0):
             raise ValueError(f"lookahead must be a distance > 0 m, got {lookahead!r}")
         self.worlds = load_worlds(world_file)
@@ -150,6 +175,18 @@ class BarnTask(NavTask):
         self.progress = progress
         #: whether the waypoint follows the pose on the map (scan matching), else odometry
         self.localize = checks.flag("localize", localize)
+        if map_mode not in MAP_MODES:
+            raise ValueError(f"map_mode must be one of {', '.join(map(repr, MAP_MODES))}, got "
+                             f"{map_mode!r}")
+        #: where the global path comes from: "known" (the world's cylinders) or "laser"
+        self.map_mode = map_mode
+        if map_mode == "laser" and self.localize:
+            raise ValueError("localize=True matches each scan to the known map's cylinders: "
+                             "map_mode='laser' has no map (leave localize False)")
+        if map_mode == "laser" and progress == "path":
+            raise ValueError("progress='path' measures the progress along the known map's path: "
+                             "with map_mode='laser' the path changes as the costmap fills (use "
+                             "progress='goal')")
         #: the global paths planned so far, by world
         self.planned_paths: dict[int, np.ndarray] = {}
         # the reaching task's goal and arena come from the protocol, once the car is known
@@ -182,6 +219,10 @@ class BarnTask(NavTask):
             self.path_progress_weight, self.progress_weight = self.progress_weight, 0.0
         self._half_width = footprint_half_extents(car.robot_model, car.wheel_contact)[1]
         self._beams = beam_geometry(self.laser_config.angles, self.mount)
+        #: the laser costmap's settings (``map_mode="laser"``): the challenge's, scaled, with
+        #: the car's half width as its inscribed radius
+        self.costmap_config = (CostmapConfig.challenge(self.protocol.scale, self._half_width)
+                               if self.map_mode == "laser" else None)
 
     def declare(self) -> Observation:
         return self.compose(BARN_OBSERVATION_ORDER,
@@ -209,6 +250,15 @@ class BarnTask(NavTask):
         #: each car's AT and scores, (3, N)
         self._timing = np.zeros((3, num))
         self._timeout = np.zeros(num, dtype=bool)
+        #: ``map_mode="laser"``: each car's costmap and replanner, and the time of the scan
+        #: last marked in it
+        self.costmaps: LaserCostmaps | None = None
+        self._replanner: Replanner | None = None
+        if self.costmap_config is not None:
+            self.costmaps = LaserCostmaps(self.costmap_config, num)
+            self._replanner = Replanner.challenge(
+                self.costmaps, self.protocol.scale, self.car.max_linear / JACKAL_TOP_SPEED_M_S)
+        self._mapped = np.full(num, -1, dtype=np.int64)
 
     # -- what a single env shows of its car ----------------------------------------------------
     @property
@@ -271,7 +321,9 @@ class BarnTask(NavTask):
                            for (x, y), r in zip(centres, radii, strict=True))
             self.obstacles[i] = layout
             cars.place_obstacles(i, layout, self.pillars)
-            self.global_paths[i] = self.plan(world.index)
+            # laser: planned on the car's costmap once it has scanned (begin)
+            self.global_paths[i] = (self.plan(world.index) if self.map_mode == "known"
+                                    else np.array([[0.0, 0.0], cars.state.goal[i]]))
             self.optimal[i] = self.protocol.optimal_time_s(world.path_length_m * scale)
             self.matchers[i] = ScanMatcher(centres, radii) if self.localize else None
 
@@ -297,8 +349,14 @@ class BarnTask(NavTask):
         return self.planned_paths[index]
 
     def begin(self, cars: Cars, idx: np.ndarray) -> None:
-        """A fresh run: its clock, no outcome, the path followed from its start."""
+        """A fresh run: its clock, no outcome, the path followed from its start (laser: its
+        costmap cleared, marked with its first scan and planned on)."""
         super().begin(cars, idx)
+        if self.costmaps is not None and len(idx):
+            self.costmaps.reset(idx)
+            self._replanner.reset(idx.tolist())
+            self._mapped[idx] = -1
+            self._map(cars, idx)
         for i in idx.tolist():
             self._clocks[i] = RunClock(np.zeros(2), self.protocol.moved_m)
             self._trackers.start(i, self.global_paths[i])
@@ -311,10 +369,36 @@ class BarnTask(NavTask):
         self.outcome[idx] = None
         self._timeout[idx] = False
 
+    def _map(self, cars: Cars, idx: np.ndarray) -> list[int]:
+        """``map_mode="laser"``: cars ``idx``' new scans marked in their costmaps (at the
+        odometry pose: the laser scans at the controller's rate), and their paths planned
+        again where the replanner says; the cars whose path changed."""
+        state = cars.state
+        fresh = idx[state.readings[SCAN_TIME][idx] != self._mapped[idx]]
+        if len(fresh):
+            self.costmaps.update(fresh, state.odometry[fresh, :3], state.readings[SCAN][fresh],
+                                 self.laser_config.angles, self.mount)
+            self._mapped[fresh] = state.readings[SCAN_TIME][fresh]
+        changed = []
+        for i in idx.tolist():
+            now_s = int(state.now_ns[i]) / NS_PER_S
+            if not self._replanner.needs_plan(i, now_s):
+                continue
+            try:
+                path = self._replanner.plan(i, state.odometry[i, :2], state.goal[i], now_s)
+            except NoPathError:  # the last path stays
+                continue
+            self.global_paths[i] = path
+            changed.append(i)
+        return changed
+
     def _follow(self, cars: Cars, idx: np.ndarray) -> None:
         """Cars ``idx``' next waypoints from their odometry, or their pose on the map after
-        matching a new scan."""
+        matching a new scan (laser: on the path planned on their costmap)."""
         state = cars.state
+        if self.costmaps is not None and len(idx):
+            for i in self._map(cars, idx):
+                self._trackers.start(i, self.global_paths[i])
         poses = state.odometry[idx, :3].astype(float)
         if self.localize:
             odoms = [tuple(row) for row in poses.tolist()]

@@ -1,0 +1,80 @@
+"""SmartCarBARN-v0 with ``map_mode="laser"``: no map, the global path planned on each car's
+own laser costmap and planned again as it fills (the batch against its single envs is in
+tests/test_vector_barn.py)."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import smartcar_gym  # noqa: F401
+from smartcar_gym.navigation.costmap import INSCRIBED
+
+
+@pytest.fixture(scope="module")
+def laser_env():
+    env = gym.make("SmartCarBARN-v0", engine="planar", map_mode="laser")
+    yield env
+    env.close()
+
+
+def _cells(u, points):
+    ix, iy, inside = u.costmaps.world_to_cell(np.asarray(points, dtype=float))
+    assert inside.all()
+    return ix, iy
+
+
+def test_the_first_scan_marks_only_what_the_laser_reaches(laser_env):
+    laser_env.reset(seed=0, options={"world": 0})
+    u = laser_env.unwrapped
+    lethal = u.costmaps.lethal(0)
+    assert lethal.any()
+    iy, ix = np.nonzero(lethal)
+    marks = u.costmaps.cell_to_world(ix, iy)
+    laser_xy = u.mount[:2, 3]  # base_link at the origin, heading +x
+    reach = u.costmap_config.obstacle_range + u.costmap_config.resolution
+    assert np.hypot(*(marks - laser_xy).T).max() <= reach
+    # the cylinders beyond the laser's reach are not on the costmap: nothing of them is known
+    centres = np.array([o.position for o in u.obstacles])
+    far = centres[np.hypot(*(centres - laser_xy).T) > reach + 0.2]
+    assert len(far) > 100
+    fx, fy = _cells(u, far)
+    assert not lethal[fy, fx].any()
+
+
+def test_the_path_avoids_what_was_seen_and_is_planned_again_as_the_car_drives(laser_env):
+    laser_env.reset(seed=0, options={"world": 0})
+    u = laser_env.unwrapped
+    first = u.global_path.copy()
+    assert np.allclose(first[-1], u.goal, atol=u.costmap_config.resolution)
+    marked = int(u.costmaps.lethal(0).sum())
+    for _ in range(5):
+        laser_env.step(np.array([0.3, 0.0], dtype=np.float32))
+    px, py = _cells(u, u.global_path)
+    assert (u.costmaps.costs(0)[py[1:], px[1:]] < INSCRIBED).all()
+    assert int(u.costmaps.lethal(0).sum()) > marked  # the costmap filled as the car moved
+    assert not np.array_equal(u.global_path, first)  # and the path was planned again
+
+
+def test_the_known_map_stays_the_default():
+    env = gym.make("SmartCarBARN-v0", engine="planar")
+    try:
+        env.reset(seed=0, options={"world": 0})
+        assert env.unwrapped.map_mode == "known" and env.unwrapped.costmaps is None
+    finally:
+        env.close()
+
+
+@pytest.mark.parametrize(("kwargs", "message"), [
+    ({"map_mode": "slam"}, "map_mode must be one of 'known', 'laser', got 'slam'"),
+    ({"map_mode": "laser", "localize": True},
+     "localize=True matches each scan to the known map's cylinders: map_mode='laser' has no "
+     "map (leave localize False)"),
+    ({"map_mode": "laser", "progress": "path"},
+     "progress='path' measures the progress along the known map's path"),
+])
+def test_a_map_mode_it_cannot_run_is_one_line(kwargs, message):
+    with pytest.raises(ValueError) as err:
+        gym.make("SmartCarBARN-v0", engine="planar", **kwargs)
+    assert str(err.value).startswith(message) and "\n" not in str(err.value)

@@ -78,3 +78,23 @@ def test_a_map_mode_it_cannot_run_is_one_line(kwargs, message):
     with pytest.raises(ValueError) as err:
         gym.make("SmartCarBARN-v0", engine="planar", **kwargs)
     assert str(err.value).startswith(message) and "\n" not in str(err.value)
+
+
+def test_dwa_follows_each_new_plan_of_the_laser_costmap(laser_env):
+    """Mapless DWA: the driver restarts its path tracker on each path the task plans again,
+    as move_base hands navfn's plans to its local planner."""
+    from smartcar_gym.bench.dwa import DWADriver
+    from smartcar_gym.envs.vector.view import CarView
+
+    laser_env.reset(seed=0, options={"world": 6})
+    u = laser_env.unwrapped
+    driver, cars = DWADriver(), CarView([laser_env])
+    driver.reset(cars)
+    plans = set()
+    for _ in range(25):
+        action = driver.act(cars)[0]
+        assert driver.following[0] is u.global_path  # the newest plan
+        plans.add(id(u.global_path))
+        _, _, terminated, truncated, info = laser_env.step(action)
+        assert not (terminated or truncated)
+    assert len(plans) > 1 and info["pose"][0] > 0.1  # planned again as it drove on

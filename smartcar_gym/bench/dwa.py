@@ -4,7 +4,9 @@
 SmartCarNav-v0 with paths given) at once: it reads what a ROS robot's move_base reads, from
 the cars' public state and their task (``envs.vector.view.CarView``): the odometry, the
 latest ``/scan``, the global path; with SmartCarBARN-v0's ``localize=True`` the path is
-followed from the pose on the map, as amcl's transform gives it to move_base. It plans with
+followed from the pose on the map, as amcl's transform gives it to move_base, and with its
+``map_mode="laser"`` the path the task plans again on each car's laser costmap is followed
+from each new plan, as move_base hands navfn's plans to its local planner. It plans with
 ``navigation.dwa.DWAPlanner`` and returns the cars' actions, the cmd_vel (v, w) over
 ``max_linear`` and ``max_angular``, which go through the same emulated ArbotiX controller as
 a policy's.
@@ -75,6 +77,7 @@ class DWADriver:
         self.planner: DWAPlanner | None = None
         self.trackers: PathTrackers | None = None  # the global paths' local goals, windows
         self.layers: ObstacleLayers | None = None  # the local costmaps' obstacle layers
+        self.following: list[np.ndarray | None] = []  #: the global path each car follows
 
     @staticmethod
     def config_for(cars: CarView) -> DWAConfig:
@@ -100,9 +103,11 @@ class DWADriver:
                                          2.0 * config.local_goal_m, compiled=self.compiled)
             self.layers = ObstacleLayers(cars.num, compiled=self.compiled,
                                          clearing=self.clearing, threads=self.threads)
+            self.following = [None] * cars.num
         given = cars.per_car("global_paths") if paths is None else paths
         for i in range(cars.num) if indices is None else indices:
             self.trackers.start(i, given[i])
+            self.following[i] = given[i]
             self.layers.clear(i)
 
     def act(self, cars: CarView, obs: Any = None,
@@ -115,6 +120,12 @@ class DWADriver:
         odometry = state.odometry[slots]
         poses, velocity = odometry[:, :3].astype(float), odometry[:, 3:5].astype(float)
         config_laser, mount = cars.task.laser
+        if getattr(cars.task, "map_mode", "known") == "laser":  # each new plan, as it comes
+            paths = cars.per_car("global_paths")
+            for i in slots:
+                if paths[i] is not self.following[i]:
+                    self.trackers.start(i, paths[i])
+                    self.following[i] = paths[i]
         obstacles, counts = self.layers.update(
             slots, np.array(state.readings[SCAN][slots], dtype=float), config_laser.angles,
             mount, poses, config.reach_m)

@@ -125,7 +125,7 @@ class Policy:
             run = files.run
             algo = _algo(files.model, algo, run.get("algo"))
             env_id, run_kwargs = _run_env(files, env_id)
-            env_kwargs = _run_env_kwargs(run_kwargs, dict(env_kwargs or {}))
+            env_kwargs = _run_env_kwargs(run_kwargs, dict(env_kwargs or {}), env_id)
             if normalizer is not None and not Path(normalizer).is_file():
                 raise PolicyError(f"--vecnormalize: no such file: {normalizer}")
             named = None if normalizer is None else Path(normalizer)
@@ -245,13 +245,25 @@ def _run_env(files: ModelFiles, env_id: str | None) -> tuple[str, dict[str, Any]
         raise PolicyError(str(err)) from None
 
 
-def _run_env_kwargs(run: dict[str, Any], overrides: dict[str, Any]) -> dict[str, Any]:
+def _run_env_kwargs(run: dict[str, Any], overrides: dict[str, Any],
+                    env_id: str) -> dict[str, Any]:
     """The run's env kwargs with ``overrides`` added; an overriding ``engine`` first leaves
-    out what only another engine takes (a planar run's ``planar_params`` on pybullet)."""
+    out what only another engine takes (a planar run's ``planar_params`` on pybullet). A
+    ``map_mode`` other than the one the policy was trained in (SmartCarBARN-v0's: the known
+    map or the laser's) is one line naming both."""
+    from smartcar_gym.envs.settings import own_keywords
+    from smartcar_gym.envs.tasks.registry import task_of
     from smartcar_gym.sim.engines import engine_names, on_engine
 
     if overrides.get("engine") in engine_names():  # an unknown engine: gym.make names it
         run = on_engine(run, overrides["engine"])
+    entry = task_of(env_id) if "map_mode" in overrides else None
+    if entry is not None and "map_mode" in (modes := own_keywords(entry.load().__init__)):
+        trained = run.get("map_mode", modes["map_mode"])
+        if overrides["map_mode"] != trained:
+            raise PolicyError(f"the policy was trained with map_mode={trained!r} (its waypoint "
+                              f"from that map's path) and cannot run with map_mode="
+                              f"{overrides['map_mode']!r}: pass a policy trained for it")
     return {**run, **overrides}
 
 
@@ -282,7 +294,8 @@ def _load_onnx(path: Path, *, algo: str | None, env_id: str | None,
     if algo is not None and algo != meta["algo"]:
         raise PolicyError(f"--algo {algo}: {path} was exported from a {meta['algo']} model")
     return Policy(model, None, algo=meta["algo"], env_id=env_id or meta["env_id"],
-                  env_kwargs=_run_env_kwargs(dict(meta["env_kwargs"]), dict(env_kwargs or {})),
+                  env_kwargs=_run_env_kwargs(dict(meta["env_kwargs"]), dict(env_kwargs or {}),
+                                             env_id or meta["env_id"]),
                   model_path=path, normalizer_source=f"folded into {path.name} ({model.runtime})")
 
 

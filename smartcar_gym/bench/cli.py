@@ -233,8 +233,10 @@ def _driver(args: argparse.Namespace) -> tuple[Any, str, dict[str, Any]]:
         raise DriverError(f"--pretrained: no shipped policy {args.pretrained!r}; the shipped "
                           f"ones are {', '.join(PRETRAINED_POLICIES)}")
     source = args.model if args.model is not None else args.pretrained
+    # a map mode the policy was not trained in is refused by the policy's own check
+    mode = {k: v for k, v in dict(args.env_kwargs).items() if k == "map_mode"}
     try:
-        policy = Policy.load(source, device=args.device)
+        policy = Policy.load(source, device=args.device, env_kwargs=mode or None)
     except PolicyError as err:
         raise DriverError(str(err)) from None
     name = f"pretrained:{args.pretrained}" if args.model is None else str(args.model)

@@ -263,6 +263,28 @@ class LaserCostmaps:
 
         run_chunks(work, len(idx), self.threads)
 
+    def clear_outside(self, cars: Sequence[int] | np.ndarray, centres: np.ndarray,
+                      side: float) -> None:
+        """clear_costmap_recovery's reset of the grids of ``cars`` (K,): the obstacle layer's
+        marks outside the square of ``side`` m about ``centres`` (K, 2, m, odom frame) set FREE
+        (``ClearCostmapRecovery::clearMap``: the corners' cells by ``worldToMapNoBounds``,
+        truncated; ``CostmapLayer::clearArea`` keeps only the cells strictly between them),
+        then the whole grid inflated again. The same for numpy and numba (the marks and costs
+        are shared; the inflation is ``inflate_numpy``'s, which the compiled update equals)."""
+        idx = self._cars(cars)
+        centres = np.asarray(centres, dtype=float).reshape(len(idx), 2)
+        x0, y0 = self.config.corner
+        res, n = self.config.resolution, self.config.cells
+        cells = np.arange(n)
+        for car, (cx, cy) in zip(idx.tolist(), centres.tolist(), strict=True):
+            start = (int((cx - side / 2 - x0) / res), int((cy - side / 2 - y0) / res))
+            end = (int((cx - side / 2 + side - x0) / res), int((cy - side / 2 + side - y0) / res))
+            keep_x = (cells > start[0]) & (cells < end[0])
+            keep_y = (cells > start[1]) & (cells < end[1])
+            self._marks[car][~(keep_y[:, None] & keep_x[None, :])] = FREE
+            inflate_numpy(self._marks[car], self._costs[car], np.array([0, 0, n, n]),
+                          self.config.inflation_cells, self._table)
+
     def costs(self, car: int) -> np.ndarray:
         """Car ``car``'s costs ``[iy, ix]`` (uint8; a read-only view)."""
         view = self._costs[self._cars([car])[0]]

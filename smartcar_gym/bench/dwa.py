@@ -9,7 +9,9 @@ followed from the pose on the map, as amcl's transform gives it to move_base, an
 from each new plan, as move_base hands navfn's plans to its local planner. It plans with
 ``navigation.dwa.DWAPlanner`` and returns the cars' actions, the cmd_vel (v, w) over
 ``max_linear`` and ``max_angular``, which go through the same emulated ArbotiX controller as
-a policy's.
+a policy's. With ``map_mode="laser"`` it also runs move_base's recovery behaviours
+(``navigation.recovery``: a conservative costmap reset, a rotation in place, an aggressive
+reset, a rotation, then it stops commanding); on the known map never.
 """
 
 from __future__ import annotations
@@ -25,9 +27,22 @@ from smartcar_gym.envs.vector.view import CarView
 from smartcar_gym.model.footprint import car_width, footprint_half_extents
 from smartcar_gym.navigation.dwa import DWAConfig, DWAPlanner
 from smartcar_gym.navigation.footprint import COMPILED as FOOTPRINT_COMPILED
-from smartcar_gym.navigation.footprint import FAR_M
+from smartcar_gym.navigation.footprint import FAR_M, footprint_check
 from smartcar_gym.navigation.obstacles import ObstacleLayers
 from smartcar_gym.navigation.path_trackers import PathTrackers
+from smartcar_gym.navigation.recovery import (
+    AGGRESSIVE,
+    CONSERVATIVE,
+    CONTROL,
+    ROTATE,
+    ROTATE_SIM_GRANULARITY,
+    ROTATING,
+    YAW_GOAL_TOLERANCE,
+    Recoveries,
+    RecoveryConfig,
+    Rotations,
+    rotation_speed,
+)
 from smartcar_gym.worlds.barn import JACKAL_TOP_SPEED_M_S, JACKAL_WIDTH_M
 
 PATH_BEHIND_M = 0.2  # the path's window starts this far behind the nearest point
@@ -57,7 +72,9 @@ class DWADriver:
     car's measured response (``turn_command``), else pass DWA's angular.z as it is;
     ``clearing``: each scan clears the obstacle layer's cells its beams pass through
     (costmap_2d's ``clearing: true``, as the challenge's Jackal; ``obstacles.ObstacleLayers``),
-    else cells stay marked until they age out."""
+    else cells stay marked until they age out; ``recoveries``: with the task's
+    ``map_mode="laser"``, move_base's recovery behaviours (``navigation.recovery``; None:
+    ``RecoveryConfig.challenge`` for the cars' car, False: none); on the known map never."""
 
     name = "dwa"
     #: cars per ``act`` call in a batched benchmark (None: all at once): numpy's footprint
@@ -66,8 +83,10 @@ class DWADriver:
 
     def __init__(self, config: DWAConfig | None = None, compensate_turns: bool = True,
                  compiled: bool | None = None, threads: int | None = None,
-                 clearing: bool = True) -> None:
+                 clearing: bool = True, recoveries: RecoveryConfig | bool | None = None
+                 ) -> None:
         self.config = config
+        self.recovery_config = recoveries
         self.compensate_turns = compensate_turns
         self.clearing = clearing
         self.compiled = compiled  # the obstacle layers and the planner: None, numba if there
@@ -78,6 +97,9 @@ class DWADriver:
         self.trackers: PathTrackers | None = None  # the global paths' local goals, windows
         self.layers: ObstacleLayers | None = None  # the local costmaps' obstacle layers
         self.following: list[np.ndarray | None] = []  #: the global path each car follows
+        #: move_base's state machine and the rotations in place (``map_mode="laser"``)
+        self.recoveries: Recoveries | None = None
+        self.rotations: Rotations | None = None
 
     @staticmethod
     def config_for(cars: CarView) -> DWAConfig:
@@ -104,11 +126,33 @@ class DWADriver:
             self.layers = ObstacleLayers(cars.num, compiled=self.compiled,
                                          clearing=self.clearing, threads=self.threads)
             self.following = [None] * cars.num
+            self.recoveries = None
+        laser = getattr(cars.task, "map_mode", "known") == "laser"
+        if laser and self.recovery_config is not False and self.recoveries is None:
+            self.recoveries = Recoveries(cars.num, self.recovery_config_for(cars))
+            self.rotations = Rotations(cars.num, YAW_GOAL_TOLERANCE)
         given = cars.per_car("global_paths") if paths is None else paths
         for i in range(cars.num) if indices is None else indices:
             self.trackers.start(i, given[i])
             self.following[i] = given[i]
             self.layers.clear(i)
+        if self.recoveries is not None:
+            state = cars.state
+            for i in range(cars.num) if indices is None else indices:
+                self.recoveries.reset(i, int(state.now_ns[i]) / 1e9, state.odometry[i, :2])
+
+    def recovery_config_for(self, cars: CarView) -> RecoveryConfig:
+        """move_base's recovery set for the cars' car: the given one, or the challenge's
+        scaled as ``config_for`` scales DWA's, the aggressive reset 4 x the circumscribed
+        radius of the planner's padded footprint."""
+        if isinstance(self.recovery_config, RecoveryConfig):
+            return self.recovery_config
+        car, c = cars.task.car, self.planner.config
+        return RecoveryConfig.challenge(
+            scale=car_width(car.robot_model) / JACKAL_WIDTH_M,
+            speed_scale=car.max_linear / JACKAL_TOP_SPEED_M_S,
+            circumscribed_m=float(np.hypot(c.half_length + c.footprint_padding,
+                                           c.half_width + c.footprint_padding)))
 
     def act(self, cars: CarView, obs: Any = None,
             indices: Sequence[int] | None = None) -> np.ndarray:
@@ -120,10 +164,12 @@ class DWADriver:
         odometry = state.odometry[slots]
         poses, velocity = odometry[:, :3].astype(float), odometry[:, 3:5].astype(float)
         config_laser, mount = cars.task.laser
+        new_plan = np.zeros(len(slots), dtype=bool)
         if getattr(cars.task, "map_mode", "known") == "laser":  # each new plan, as it comes
             paths = cars.per_car("global_paths")
-            for i in slots:
+            for k, i in enumerate(slots):
                 if paths[i] is not self.following[i]:
+                    new_plan[k] = True
                     self.trackers.start(i, paths[i])
                     self.following[i] = paths[i]
         obstacles, counts = self.layers.update(
@@ -138,8 +184,62 @@ class DWADriver:
         windows = self.trackers.windows(slots, poses, cos, sin, PATH_BEHIND_M,
                                         2.0 * config.local_goal_m, FAR_M)
         cmd = self.planner.plan(velocity, obstacles, windows, goals, counts=counts)
+        if self.recoveries is not None:
+            cmd = self._recover(cars, slots, odometry[:, :3].astype(float), new_plan, cmd,
+                                obstacles, counts)
         if self.compensate_turns:
             cmd[:, 1] = turn_command(cmd[:, 0], cmd[:, 1])
         car = cars.task.car
         scale = np.array([car.max_linear, car.max_angular])
         return np.clip(cmd / scale, -1.0, 1.0).astype(np.float32)
+
+    def _recover(self, cars: CarView, slots: list[int], odom: np.ndarray, new_plan: np.ndarray,
+                 cmd: np.ndarray, obstacles: np.ndarray, counts: np.ndarray) -> np.ndarray:
+        """move_base's cycle around DWA's commands ``cmd`` (K, 2; (0, 0): none valid) of cars
+        ``slots`` at odometry poses ``odom`` (K, 3): the commands to send."""
+        c = self.planner.config
+        now = cars.state.now_ns[slots].astype(float) / 1e9
+        valid = np.any(cmd != 0.0, axis=1)
+        todo = self.recoveries.step(slots, now, odom[:, :2], new_plan, valid)
+        out = np.where((todo == CONTROL)[:, None], cmd, 0.0)
+        for k, i in enumerate(slots):
+            if todo[k] in (CONSERVATIVE, AGGRESSIVE):
+                costmaps, car = self._costmap_of(cars, i)
+                if costmaps is not None:
+                    costmaps.clear_outside([car], odom[k, :2],
+                                           self.recoveries.reset_distance(todo[k]))
+                self.layers.clear(i)  # no partial clear there: all of it (docs/barn.md)
+            elif todo[k] == ROTATE:
+                self.rotations.start(i, odom[k, 2])
+            if todo[k] not in (ROTATE, ROTATING):
+                continue
+            left = self.rotations.left(i, odom[k, 2])
+            if left <= 0.0 or not self._can_rotate(obstacles[k], counts[k], left):
+                self.recoveries.rotated(i, float(now[k]))
+                continue
+            out[k] = (0.0, rotation_speed(left, c.acc_lim_theta, c.min_in_place_vel_theta,
+                                          c.max_vel_theta))
+        return out
+
+    def _can_rotate(self, obstacles: np.ndarray, count: int, left: float) -> bool:
+        """rotate_recovery's check: the padded footprint, turned in place every
+        ``sim_granularity`` up to ``left`` rad, touches no obstacle point (base frame)."""
+        c = self.planner.config
+        theta = np.arange(0.0, left, ROTATE_SIM_GRANULARITY)
+        poses = np.zeros((1, 1, len(theta), 3))
+        poses[..., 2] = theta
+        valid, _ = footprint_check(poses, np.cos(theta)[None, None], np.sin(theta)[None, None],
+                                   obstacles[None], np.array([count]),
+                                   c.half_length + c.footprint_padding,
+                                   c.half_width + c.footprint_padding, self.planner.cutoff_m,
+                                   compiled=self.compiled)
+        return bool(valid[0, 0])
+
+    @staticmethod
+    def _costmap_of(cars: CarView, i: int) -> tuple[Any, int]:
+        """Car ``i``'s global costmap: its task's ``LaserCostmaps`` and its row there (a
+        batch: one task, row i; a loop of single envs: env i's task, row 0)."""
+        tasks = cars.tasks()
+        if len(tasks) == cars.num:
+            return getattr(tasks[i], "costmaps", None), 0
+        return getattr(tasks[0], "costmaps", None), i

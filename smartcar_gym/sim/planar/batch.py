@@ -4,10 +4,10 @@ Each car is a column: its state ``(S, N)``, its parameters ``(P, N)`` and contac
 ``(K, NC, N)`` in ``dynamics``' layout (every car has the template's wheel groups and contacts;
 the values may differ per car), its motors' drive ``(2G, N)``. ``step`` gives every listed car
 its own number of substeps of its own length, as its single env's clock would: numba's
-loop (``dynamics.run_cars``, which reads the parameters laid out by car: ``rows``) when
-installed, else ``dynamics.substep_arrays`` over the cars still stepping (their columns
-taken out and put back). A car of the batch is the same car as ``PlanarBody`` steps alone,
-bit for bit.
+loop (``dynamics.run_cars``, which reads the parameters laid out by car: ``rows``; the cars
+split over ``threads`` threads) when installed, else ``dynamics.substep_arrays`` over the
+cars still stepping (their columns taken out and put back). A car of the batch is the same
+car as ``PlanarBody`` steps alone, bit for bit.
 """
 
 from __future__ import annotations
@@ -17,6 +17,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from smartcar_gym.parallel import run_chunks
 from smartcar_gym.sim.planar import dynamics
 from smartcar_gym.sim.planar.dynamics import new_scratch, substep_arrays
 from smartcar_gym.sim.planar.layout import (
@@ -40,9 +41,12 @@ from smartcar_gym.sim.planar.simulator import PlanarBody
 class PlanarBatch:
     """``n`` copies of a compiled ``PlanarBody`` (the template's robot at its spawn pose)."""
 
-    def __init__(self, body: PlanarBody, n: int) -> None:
+    def __init__(self, body: PlanarBody, n: int, threads: int = 1) -> None:
         model = body.compiled()
         self.n = int(n)
+        #: threads numba's loop splits the cars over (``parallel.run_chunks``; each car is
+        #: stepped alone, so any split gives the same bits)
+        self.threads = int(threads)
         self.groups = model.groups
         self.ng = len(model.groups.members)
         self.contact_groups = np.array(model.contact_groups, dtype=np.int64)
@@ -97,8 +101,13 @@ class PlanarBatch:
             dt_all = np.zeros(self.n)
             n_all[cars], dt_all[cars] = nstep, dt
             car_rows, contact_rows = self.rows()
-            dynamics.run_cars(self.state, car_rows, contact_rows, self.contact_groups, self.drive,
-                         dt_all, n_all)
+            state, drive, groups = self.state, self.drive, self.contact_groups
+
+            def work(a: int, b: int) -> None:  # a slice of the cars (the loop frees the GIL)
+                dynamics.run_cars(state[:, a:b], car_rows[a:b], contact_rows[a:b], groups,
+                                  drive[:, a:b], dt_all[a:b], n_all[a:b])
+
+            run_chunks(work, self.n, self.threads)
             return
         cars, nstep = np.asarray(cars), np.asarray(nstep)
         dt = np.asarray(dt, dtype=np.float64)

@@ -34,7 +34,7 @@ class PlanarCars:
         robot = env.robot
         body = robot.body
         #: the cars' columns
-        self.batch = PlanarBatch(body, num_cars)
+        self.batch = PlanarBatch(body, num_cars, threads)
         of = body.groups.of
         self._wheel_joints = [of[j] for j in robot.wheel_joint_indices]
         self._encoder_joints = [of[j] for j in robot._encoder_idx]
@@ -49,7 +49,7 @@ class PlanarCars:
                                for j in body._damping if j in of]
         self._upright = np.ones(self.batch.n)  # a planar car never tips over
         self._body = body
-        #: threads the laser's compiled ray cast splits the cars over
+        #: threads the dynamics' and the laser's compiled loops split the cars over
         self.threads = threads
         #: per car, its obstacles' outlines (SmartCarNav-v0; ``load``)
         self._shapes: list[Any] = [None] * self.batch.n

@@ -410,7 +410,7 @@ if COMPILED:
         for _ in range(n):
             _compiled_substep(state, car, contacts, groups, drive, dt, scratch)
 
-    @numba.njit(cache=True)
+    @numba.njit(cache=True, nogil=True)
     def run_cars(state: np.ndarray, cars: np.ndarray, contacts: np.ndarray,
                  groups: np.ndarray, drive: np.ndarray, dt: np.ndarray, n: np.ndarray) -> None:
         """Car i: ``n[i]`` substeps of ``dt[i]`` s, in place. ``state`` ``(S, N)`` and ``drive``

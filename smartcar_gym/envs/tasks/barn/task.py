@@ -12,6 +12,7 @@ from smartcar_gym import checks
 from smartcar_gym.envs.observation import Entry, Observation
 from smartcar_gym.envs.sensors.scan import LaserConfig, scan_entry
 from smartcar_gym.envs.state import SCAN, SCAN_TIME
+from smartcar_gym.envs.tasks.barn.laser_map import LaserMap
 from smartcar_gym.envs.tasks.barn.protocol import (
     COLLISION,
     FAILURE,
@@ -26,7 +27,6 @@ from smartcar_gym.envs.tasks.nav import NAV_OBSERVATION_ORDER, NavTask
 from smartcar_gym.envs.tasks.obstacles import Obstacle
 from smartcar_gym.model.footprint import car_width, footprint_half_extents
 from smartcar_gym.navigation.costmap import CostmapConfig, LaserCostmaps
-from smartcar_gym.navigation.costmap_planner import Replanner
 from smartcar_gym.navigation.grid_planner import NoPathError, distance_grid, plan_path
 from smartcar_gym.navigation.localization import (
     IDENTITY,
@@ -250,17 +250,17 @@ class BarnTask(NavTask):
         #: each car's AT and scores, (3, N)
         self._timing = np.zeros((3, num))
         self._timeout = np.zeros(num, dtype=bool)
-        #: ``map_mode="laser"``: each car's costmap and replanner, and the time of the scan
-        #: last marked in it
-        self.costmaps: LaserCostmaps | None = None
-        self._replanner: Replanner | None = None
-        if self.costmap_config is not None:
-            self.costmaps = LaserCostmaps(self.costmap_config, num)
-            self._replanner = Replanner.challenge(
-                self.costmaps, self.protocol.scale, self.car.max_linear / JACKAL_TOP_SPEED_M_S)
-        self._mapped = np.full(num, -1, dtype=np.int64)
+        #: ``map_mode="laser"``: each car's costmap and the planning on it
+        self._laser_map = None if self.costmap_config is None else LaserMap(
+            self.costmap_config, num, self.protocol.scale,
+            self.car.max_linear / JACKAL_TOP_SPEED_M_S, self.laser_config.angles, self.mount)
 
     # -- what a single env shows of its car ----------------------------------------------------
+    @property
+    def costmaps(self) -> LaserCostmaps | None:
+        """Each car's laser costmap (``map_mode="laser"``; None on the known map)."""
+        return None if self._laser_map is None else self._laser_map.costmaps
+
     @property
     def world(self) -> BarnWorld:
         """The first car's world (a single env's)."""
@@ -352,11 +352,8 @@ class BarnTask(NavTask):
         """A fresh run: its clock, no outcome, the path followed from its start (laser: its
         costmap cleared, marked with its first scan and planned on)."""
         super().begin(cars, idx)
-        if self.costmaps is not None and len(idx):
-            self.costmaps.reset(idx)
-            self._replanner.reset(idx.tolist())
-            self._mapped[idx] = -1
-            self._map(cars, idx)
+        if self._laser_map is not None and len(idx):
+            self._laser_map.start(cars.state, idx, self.global_paths)
         for i in idx.tolist():
             self._clocks[i] = RunClock(np.zeros(2), self.protocol.moved_m)
             self._trackers.start(i, self.global_paths[i])
@@ -369,35 +366,12 @@ class BarnTask(NavTask):
         self.outcome[idx] = None
         self._timeout[idx] = False
 
-    def _map(self, cars: Cars, idx: np.ndarray) -> list[int]:
-        """``map_mode="laser"``: cars ``idx``' new scans marked in their costmaps (at the
-        odometry pose: the laser scans at the controller's rate), and their paths planned
-        again where the replanner says; the cars whose path changed."""
-        state = cars.state
-        fresh = idx[state.readings[SCAN_TIME][idx] != self._mapped[idx]]
-        if len(fresh):
-            self.costmaps.update(fresh, state.odometry[fresh, :3], state.readings[SCAN][fresh],
-                                 self.laser_config.angles, self.mount)
-            self._mapped[fresh] = state.readings[SCAN_TIME][fresh]
-        changed = []
-        for i in idx.tolist():
-            now_s = int(state.now_ns[i]) / NS_PER_S
-            if not self._replanner.needs_plan(i, now_s):
-                continue
-            try:
-                path = self._replanner.plan(i, state.odometry[i, :2], state.goal[i], now_s)
-            except NoPathError:  # the last path stays
-                continue
-            self.global_paths[i] = path
-            changed.append(i)
-        return changed
-
     def _follow(self, cars: Cars, idx: np.ndarray) -> None:
         """Cars ``idx``' next waypoints from their odometry, or their pose on the map after
         matching a new scan (laser: on the path planned on their costmap)."""
         state = cars.state
-        if self.costmaps is not None and len(idx):
-            for i in self._map(cars, idx):
+        if self._laser_map is not None and len(idx):
+            for i in self._laser_map.update(state, idx, self.global_paths):
                 self._trackers.start(i, self.global_paths[i])
         poses = state.odometry[idx, :3].astype(float)
         if self.localize:

@@ -1,0 +1,63 @@
+"""SmartCarBARN-v0's ``map_mode="laser"``: each car's global costmap built from its own scans
+and its global path planned on it, as the challenge's move_base builds and plans them.
+
+``LaserMap`` holds N cars' costmaps (``navigation.costmap.LaserCostmaps``, the challenge's
+values scaled) and their replanner (``navigation.costmap_planner.Replanner``, the challenge's
+planner rate scaled); ``start`` clears the listed cars' costmaps and marks their first scans,
+``update`` marks each new scan at the odometry pose (the laser scans at the controller's rate)
+and plans again where the replanner says (its rate, or a new mark on the path), returning
+the cars whose path changed. Until a plan succeeds a car keeps the path it had.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from smartcar_gym.envs.state import SCAN, SCAN_TIME, CarState
+from smartcar_gym.navigation.costmap import CostmapConfig, LaserCostmaps
+from smartcar_gym.navigation.costmap_planner import Replanner
+from smartcar_gym.navigation.grid_planner import NoPathError
+from smartcar_gym.sim.clock import NS_PER_S
+
+
+class LaserMap:
+    """N cars' laser costmaps and replanner (module docstring): ``config``, the costmaps'
+    settings; ``scale`` and ``speed_scale``, the world's and the speed's against the
+    challenge's (the planner's rate follows them); ``angles`` and ``mount``, the laser's beams
+    (rad) and its 4 x 4 pose in base_link."""
+
+    def __init__(self, config: CostmapConfig, num: int, scale: float, speed_scale: float,
+                 angles: np.ndarray, mount: np.ndarray) -> None:
+        #: each car's costmap (``costs(car)``, ``lethal(car)``)
+        self.costmaps = LaserCostmaps(config, num)
+        self.replanner = Replanner.challenge(self.costmaps, scale, speed_scale)
+        self.angles, self.mount = angles, mount
+        self._marked = np.full(num, -1, dtype=np.int64)  # the time of the scan last marked
+
+    def start(self, state: CarState, idx: np.ndarray, paths: list[np.ndarray]) -> None:
+        """Cars ``idx`` start a run: nothing seen, then their first scans marked and their
+        paths planned (into ``paths``)."""
+        self.costmaps.reset(idx)
+        self.replanner.reset(idx.tolist())
+        self._marked[idx] = -1
+        self.update(state, idx, paths)
+
+    def update(self, state: CarState, idx: np.ndarray, paths: list[np.ndarray]) -> list[int]:
+        """Cars ``idx``' new scans marked, and their paths planned again where due (written
+        into ``paths``); the cars whose path changed."""
+        fresh = idx[state.readings[SCAN_TIME][idx] != self._marked[idx]]
+        if len(fresh):
+            self.costmaps.update(fresh, state.odometry[fresh, :3], state.readings[SCAN][fresh],
+                                 self.angles, self.mount)
+            self._marked[fresh] = state.readings[SCAN_TIME][fresh]
+        changed = []
+        for i in idx.tolist():
+            now_s = int(state.now_ns[i]) / NS_PER_S
+            if not self.replanner.needs_plan(i, now_s):
+                continue
+            try:
+                paths[i] = self.replanner.plan(i, state.odometry[i, :2], state.goal[i], now_s)
+            except NoPathError:  # the last path stays
+                continue
+            changed.append(i)
+        return changed

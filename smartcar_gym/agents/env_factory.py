@@ -28,6 +28,19 @@ class EnvSetupError(ValueError):
 GYM_CREATOR_SUFFIX = " was raised from the environment creator for "
 
 
+def given_kwargs(env_kwargs: dict[str, Any] | None) -> str:
+    """``env_kwargs`` as a message names them: ``key=value, ...`` or "no env kwargs"."""
+    return ", ".join(f"{k}={v!r}" for k, v in (env_kwargs or {}).items()) or "no env kwargs"
+
+
+def cannot_make(what: str, env_kwargs: dict[str, Any] | None, err: BaseException) -> str:
+    """One line: ``what`` (an env id, or a batch of them) cannot be made with ``env_kwargs``,
+    and the env's own reason (without what gym.make appends, on one line)."""
+    given = given_kwargs(env_kwargs)
+    reason = " ".join(str(err).split(GYM_CREATOR_SUFFIX)[0].split())
+    return f"cannot make {what} with {given}: {reason}"
+
+
 def check_env_id(env_id: str) -> None:
     """``EnvSetupError`` if Gymnasium knows no ``env_id``: gym.make's reason, the closest
     registered id and the smartcar ids, in one line (before any file is read for it)."""
@@ -59,9 +72,7 @@ def check_env(env_id: str, env_kwargs: dict[str, Any] | None = None,
     try:
         env = gym.make(env_id, **(env_kwargs or {}))
     except (gym.error.Error, TypeError, ValueError) as err:
-        given = ", ".join(f"{k}={v!r}" for k, v in (env_kwargs or {}).items()) or "no env kwargs"
-        reason = str(err).split(GYM_CREATOR_SUFFIX)[0]
-        raise EnvSetupError(f"cannot make {env_id} with {given}: {reason}") from err
+        raise EnvSetupError(cannot_make(env_id, env_kwargs, err)) from err
     if env_wrapper is None and monitor_kwargs is None:
         env.close()
         return

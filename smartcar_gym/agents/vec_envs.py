@@ -26,7 +26,7 @@ from typing import Any
 import gymnasium as gym
 from gymnasium.vector import AutoresetMode
 
-from smartcar_gym.agents.env_factory import INFO_KEYWORDS, EnvSetupError, make_env
+from smartcar_gym.agents.env_factory import INFO_KEYWORDS, EnvSetupError, cannot_make, make_env
 
 __all__ = ["FORKSERVER_PRELOAD", "close_vec_env", "env_fns", "make_batched_env",
            "make_batched_vec_env", "make_single_env_vector", "make_vec_env", "wrap_normalize"]
@@ -149,9 +149,7 @@ def _vector_entry_point(env_id: str, num_envs: int, env_kwargs: dict[str, Any] |
         return gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point",
                             **mode, **kwargs)
     except (gym.error.Error, TypeError, ValueError, MemoryError) as err:
-        given = ", ".join(f"{k}={v!r}" for k, v in kwargs.items()) or "no env kwargs"
-        raise EnvSetupError(f"cannot make {num_envs} batched {env_id} with {given}: "
-                            f"{err}") from err
+        raise EnvSetupError(cannot_make(f"{num_envs} batched {env_id}", kwargs, err)) from err
 
 
 def make_batched_env(env_id: str, num_envs: int,

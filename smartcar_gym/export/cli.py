@@ -133,7 +133,12 @@ def export_metadata(policy: Any, source: str) -> dict[str, Any]:
     """What the exported file says of ``policy`` (``runtime.metadata``). ``ExportError`` with
     one line for an env that a policy file may not name (``registration.check_policy_env``),
     one that cannot be made, or one whose observations are not the model's."""
-    from smartcar_gym.agents.env_factory import EnvSetupError, check_env_id
+    from smartcar_gym.agents.env_factory import (
+        EnvSetupError,
+        cannot_make,
+        check_env_id,
+        given_kwargs,
+    )
     from smartcar_gym.registration import PolicyEnvError, check_policy_env
     from smartcar_gym.runtime.metadata import FORMAT
     from smartcar_gym.sim.engines import DEFAULT_ENGINE
@@ -149,15 +154,13 @@ def export_metadata(policy: Any, source: str) -> dict[str, Any]:
     except (TypeError, ValueError) as err:
         raise ExportError(f"--env-kwargs: {env_kwargs} cannot be written as JSON: "
                           f"{err}") from None
-    given = ", ".join(f"{k}={v!r}" for k, v in env_kwargs.items()) or "no env kwargs"
     try:
         check_env_id(env_id)
         env = policy.make_env()
     except EnvSetupError as err:
         raise ExportError(str(err)) from None
     except Exception as err:  # the env's own refusal of a value: one line naming it
-        reason = " ".join(str(err).split()).split(" was raised from the environment")[0]
-        raise ExportError(f"cannot make {env_id} with {given}: {reason}") from None
+        raise ExportError(cannot_make(env_id, env_kwargs, err)) from None
     try:
         names = list(getattr(env.unwrapped, "observation_names", ()))
         observed = tuple(getattr(env.observation_space, "shape", None) or ())
@@ -166,8 +169,9 @@ def export_metadata(policy: Any, source: str) -> dict[str, Any]:
     expected = tuple(policy.model.observation_space.shape)
     if observed != expected or len(names) != int(np.prod(expected)):
         raise ExportError(f"the model takes observations of shape {expected} but {env_id} "
-                          f"with {given} gives {observed} ({len(names)} named); export it "
-                          "with the env it was trained on (--env, --env-kwargs)")
+                          f"with {given_kwargs(env_kwargs)} gives {observed} ({len(names)} "
+                          "named); export it with the env it was trained on (--env, "
+                          "--env-kwargs)")
     space = policy.model.action_space
     return {
         "format": FORMAT, "algo": policy.algo, "env_id": env_id,

@@ -214,11 +214,11 @@ def check_engine_keywords(engine: str | Engine, given: dict[str, Any]) -> None:
     spec = resolve(engine)
     for key, value in given.items():
         if value is not None and key not in spec.kwargs:
-            owner = next((e.name for e in _REGISTRY.values() if key in e.kwargs), None)
-            if owner is None:
+            owners = engine_owners(key)
+            if not owners:
                 raise ValueError(f"{key} is no engine's keyword; the engines' keywords are "
                                  f"{sorted(engine_kwargs())}")
-            raise ValueError(f"{key} is the {owner} engine's; pass engine={owner!r} "
+            raise ValueError(f"{key} is the {owners[0]} engine's; pass engine={owners[0]!r} "
                              f"(engine is {spec.name!r})")
 
 

@@ -213,6 +213,9 @@ class LaserCostmaps:
         self._costs = np.zeros((n, cells, cells), dtype=np.uint8)
         self._kernel = config.kernel()
         self._table = config.cost_table()
+        # per car, a box (x_lo, y_lo, x_hi, y_hi, exclusive) holding every cell that has had a
+        # cost since its reset: the union of its updates' boxes
+        self._bounds = np.tile(np.array([cells, cells, 0, 0], dtype=np.int64), (n, 1))
 
     def _cars(self, cars: Sequence[int] | np.ndarray) -> np.ndarray:
         idx = np.asarray(cars, dtype=np.int64).reshape(-1)
@@ -227,6 +230,7 @@ class LaserCostmaps:
         idx = self._cars(cars)
         self._marks[idx] = FREE
         self._costs[idx] = FREE
+        self._bounds[idx] = (self.config.cells, self.config.cells, 0, 0)
 
     def update(self, cars: Sequence[int] | np.ndarray, poses: np.ndarray, ranges: np.ndarray,
                angles: np.ndarray, mount: np.ndarray | None = None) -> None:
@@ -243,6 +247,11 @@ class LaserCostmaps:
         if len(idx) == 0:
             return
         beams = beams_to_cells(self.config, poses, ranges, angles)
+        touched = (beams.box[:, 0] < beams.box[:, 2]) & (beams.box[:, 1] < beams.box[:, 3])
+        old = self._bounds[idx[touched]]
+        new = beams.box[touched]
+        self._bounds[idx[touched]] = np.concatenate(
+            [np.minimum(old[:, :2], new[:, :2]), np.maximum(old[:, 2:], new[:, 2:])], axis=1)
         r = self.config.inflation_cells
         kdx, kdy, kcost = self._kernel
         if not self.compiled:
@@ -290,6 +299,13 @@ class LaserCostmaps:
         view = self._costs[self._cars([car])[0]]
         view.flags.writeable = False
         return view
+
+    def bounds(self, car: int) -> tuple[int, int, int, int]:
+        """A box ``(x_lo, y_lo, x_hi, y_hi)`` (cells, exclusive; empty when ``x_lo >= x_hi``)
+        holding every cell of car ``car``'s grid that has had a cost since its reset: the union
+        of its updates' boxes. Outside it every cell is FREE."""
+        x_lo, y_lo, x_hi, y_hi = self._bounds[self._cars([car])[0]].tolist()
+        return x_lo, y_lo, x_hi, y_hi
 
     def lethal(self, car: int) -> np.ndarray:
         """Car ``car``'s lethal cells ``[iy, ix]``: the obstacle layer's marks (bool)."""

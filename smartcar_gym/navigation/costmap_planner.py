@@ -5,11 +5,12 @@ costmap: the cells LETHAL or INSCRIBED are obstacles (navfn's ``COST_OBS``), exc
 (navfn's ``clearRobotCell``); every other cell costs navfn's ``COST_NEUTRAL + COST_FACTOR *
 cost`` (50 + 0.8 cost, truncated, as ``NavFn::setCostmap``); an unseen cell is free (the
 challenge tracks no unknown space; navfn's ``allow_unknown`` would pass it anyway). The path is
-the cheapest 8-connected way (``grid_planner.cheapest_cells``: a move costs its length in
-cells times the mean of its two cells' costs), where navfn propagates a potential and descends
-its gradient. Only the cells that can matter enter the graph: those within the box of the
-start, the goal and every cell that costs, grown by a cell (outside it every cell is neutral,
-so a way out of the box is never cheaper than along its edge).
+the cheapest 8-connected way (``astar.search``, A*, compiled where the ``fast`` extra is
+installed: a move costs its length in cells times the sum of its two cells' costs), where navfn
+propagates a potential and descends its gradient. Only the cells that can matter are searched:
+the box of the start, the goal and every cell that has had a cost since the reset
+(``LaserCostmaps.bounds``), grown by a cell (outside it every cell is neutral, so a way out of
+the box is never cheaper than along its edge).
 
 ``Replanner`` is move_base's planning loop per car: a new plan every ``period_s`` (move_base's
 ``planner_frequency``, 20 Hz in the challenge, times scaled with the world and the speed), and
@@ -23,8 +24,10 @@ from collections.abc import Sequence
 import numpy as np
 
 from smartcar_gym import checks
-from smartcar_gym.navigation.costmap import FREE, INSCRIBED, LaserCostmaps
-from smartcar_gym.navigation.grid_planner import NoPathError, cheapest_cells
+from smartcar_gym.navigation import astar
+from smartcar_gym.navigation.astar import compiled_search
+from smartcar_gym.navigation.costmap import INSCRIBED, LaserCostmaps
+from smartcar_gym.navigation.grid_planner import NoPathError
 
 NEUTRAL_COST = 50  # navfn.h: COST_NEUTRAL, the cost of a free cell
 COST_FACTOR = 0.8  # navfn.h: COST_FACTOR, per unit of the costmap's cost
@@ -54,22 +57,24 @@ def plan_on_costmap(costmaps: LaserCostmaps, car: int, start: np.ndarray, goal: 
     if costs[iy[1], ix[1]] >= INSCRIBED:
         raise NoPathError(f"the goal {np.round(ends[1], 3).tolist()} is in an obstacle's cell "
                           f"(cost {costs[iy[1], ix[1]]})")
-    rows = np.flatnonzero((costs != FREE).any(axis=1))
-    cols = np.flatnonzero((costs != FREE).any(axis=0))
     n = costs.shape[0]
-    y_lo = max(min(iy.min(), rows.min(initial=n)) - 1, 0)
-    y_hi = min(max(iy.max(), rows.max(initial=-1)) + 2, n)
-    x_lo = max(min(ix.min(), cols.min(initial=n)) - 1, 0)
-    x_hi = min(max(ix.max(), cols.max(initial=-1)) + 2, n)
+    bx_lo, by_lo, bx_hi, by_hi = costmaps.bounds(car)
+    x_lo = max(min(int(ix.min()), bx_lo) - 1, 0)
+    y_lo = max(min(int(iy.min()), by_lo) - 1, 0)
+    x_hi = min(max(int(ix.max()) + 1, bx_hi) + 1, n)
+    y_hi = min(max(int(iy.max()) + 1, by_hi) + 1, n)
     cost, free = navfn_costs(costs[y_lo:y_hi, x_lo:x_hi])
-    sx, sy, gx, gy = ix[0] - x_lo, iy[0] - y_lo, ix[1] - x_lo, iy[1] - y_lo
-    free[sy, sx] = True  # navfn's clearRobotCell
-    cost[sy, sx] = NEUTRAL_COST
-    cells = cheapest_cells(cost, free, (int(sx), int(sy)), (int(gx), int(gy)))
-    if cells is None:
+    w = x_hi - x_lo
+    start_cell = (int(iy[0]) - y_lo) * w + int(ix[0]) - x_lo
+    goal_cell = (int(iy[1]) - y_lo) * w + int(ix[1]) - x_lo
+    cost, free = cost.ravel(), free.ravel()
+    free[start_cell] = True  # navfn's clearRobotCell
+    cost[start_cell] = NEUTRAL_COST
+    search = compiled_search if costmaps.compiled else astar.search
+    cells = search(cost, free, start_cell, goal_cell, w, float(NEUTRAL_COST))
+    if len(cells) == 0:
         raise NoPathError(f"no way on the costmap from {np.round(ends[0], 3).tolist()} to "
                           f"{np.round(ends[1], 3).tolist()} avoids its obstacles")
-    w = x_hi - x_lo
     return costmaps.cell_to_world(cells % w + x_lo, cells // w + y_lo)
 
 

@@ -1,6 +1,6 @@
 """Wall time of ``smartcar-bench barn`` on the planar batch: the issue's 500 runs in 60 s.
 
-    python benchmarks/barn_speed.py [--driver dwa | --pretrained barn] [--localize]
+    python benchmarks/barn_speed.py [--driver dwa | --pretrained barn] [--localize | --laser]
         [--cars 100 500] [--rounds 2] [--runs 10] [--out FILE.json] [--base REV]
 
 Each round runs, one after the other, the command a user types for each number of cars:
@@ -12,8 +12,11 @@ command's wall time (start-up included) and CPU time (its process and threads, f
 cars (each run's seed and world make it): the script says where they differ. Prints a
 Markdown table; ``--out FILE.json`` keeps the numbers. ``--base REV`` measures that commit
 too (a temporary git worktree), interleaved with this checkout in each round, and compares
-their records run by run. Run it once first if numba's cache is
-cold (the first run after an install compiles, about 20 s more).
+their records run by run. ``--laser`` runs this checkout on the mapless protocol
+(``map_mode=laser``, the LDS-01's 1 cm noise: issue 55's 500 distinct runs) and the base, if
+any, on the known map localized (issue 55's yardstick: at most 1.5 times its time); the records
+then differ by design and the success rates are printed instead. Run it once first if numba's
+cache is cold (the first run after an install compiles, about 20 s more).
 """
 
 from __future__ import annotations
@@ -29,6 +32,14 @@ from timed import timed_run, worktree_at  # benchmarks/timed.py, beside this scr
 
 TARGET_S = 60.0  # the issue's: the 500-run benchmark, batched on planar
 RECORD_KEYS = ("world", "run", "outcome", "time_s", "steps", "final_distance_m")
+LASER = ["map_mode=laser", "laser={noise_std_m: 0.01}"]  # issue 55's headline protocol
+
+
+def env_kwargs(args: argparse.Namespace, base: bool) -> list[str]:
+    """The ``--env-kwargs`` of this checkout's command or of the base's."""
+    if args.laser:
+        return ["localize=true"] if base else LASER
+    return ["localize=true"] if args.localize else []
 
 
 def run(cars: int, args: argparse.Namespace, folder: Path, checkout: Path | None = None
@@ -40,14 +51,15 @@ def run(cars: int, args: argparse.Namespace, folder: Path, checkout: Path | None
     argv = [sys.executable, "-m", "smartcar_gym.bench.cli", "barn", *driver, "--engine",
             "planar", "--runs", str(args.runs), "--n-envs", str(cars), "--quiet", "--json",
             str(out)]
-    if args.localize:
-        argv += ["--env-kwargs", "localize=true"]
+    kwargs = env_kwargs(args, checkout is not None)
+    if kwargs:
+        argv += ["--env-kwargs", *kwargs]
     env = None if checkout is None else {**os.environ, "PYTHONPATH": str(checkout)}
     timing = timed_run(argv, env, None if checkout is None else str(checkout))
     data = json.loads(out.read_text())
     records = [{k: r[k] for k in RECORD_KEYS} for r in data["records"]]
     return {"cars": cars, **timing, "car_steps": sum(r["steps"] for r in records),
-            "records": records,
+            "records": records, "success_rate": data["success_rate"],
             "command": "smartcar-bench " + " ".join(argv[3:]).replace(str(out), "OUT.json")}
 
 
@@ -60,7 +72,10 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--driver", default="dwa")
     parser.add_argument("--pretrained", default=None, help="a shipped policy instead of DWA")
-    parser.add_argument("--localize", action="store_true")
+    mode = parser.add_mutually_exclusive_group()
+    mode.add_argument("--localize", action="store_true")
+    mode.add_argument("--laser", action="store_true",
+                      help="this checkout mapless with 1 cm noise, the base known-map localized")
     parser.add_argument("--cars", type=int, nargs="+", default=[100, 500])
     parser.add_argument("--rounds", type=int, default=2)
     parser.add_argument("--runs", type=int, default=10, help="runs per test world")
@@ -116,10 +131,14 @@ def versus(args: argparse.Namespace) -> int:
     same = True
     for round_, cars, got in rows:
         diff = differing(got["this"]["records"], got["base"]["records"])
-        same &= not diff
         this, then = got["this"]["wall_s"], got["base"]["wall_s"]
-        print(f"| {round_} | {cars} | {this:.1f} | {then:.1f} | {this / then:.3f} | "
-              f"{'the same' if not diff else f'{len(diff)} differ'} |")
+        if args.laser:  # different protocols: their successes, not their records
+            records = (f"success {got['this']['success_rate']:.3f} (laser) and "
+                       f"{got['base']['success_rate']:.3f} (known, localized)")
+        else:
+            same &= not diff
+            records = "the same" if not diff else f"{len(diff)} differ"
+        print(f"| {round_} | {cars} | {this:.1f} | {then:.1f} | {this / then:.3f} | {records} |")
     if args.out is not None:
         args.out.write_text(json.dumps([
             {"round": round_, "cars": cars, "base": args.base,

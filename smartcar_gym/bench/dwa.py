@@ -29,6 +29,7 @@ from smartcar_gym.navigation.dwa import DWAConfig, DWAPlanner
 from smartcar_gym.navigation.footprint import COMPILED as FOOTPRINT_COMPILED
 from smartcar_gym.navigation.footprint import FAR_M, footprint_check
 from smartcar_gym.navigation.obstacles import ObstacleLayers
+from smartcar_gym.navigation.oscillation import Oscillation, OscillationConfig
 from smartcar_gym.navigation.path_trackers import PathTrackers
 from smartcar_gym.navigation.recovery import (
     AGGRESSIVE,
@@ -54,6 +55,10 @@ PATH_BEHIND_M = 0.2  # the path's window starts this far behind the nearest poin
 TURN_COMMAND = np.array([0.0, 0.2, 0.3, 0.4, 0.5, 0.6, 0.8, 1.0, 1.3, 1.6, 2.0])
 TURN_DRIVING = np.array([0.0, 0.0, 0.08, 0.2, 0.29, 0.38, 0.53, 0.69, 0.98, 1.24, 1.6])
 TURN_IN_PLACE = np.array([0.0, 0.0, 0.0, 0.0, 0.02, 0.3, 0.53, 0.69, 1.0, 1.25, 1.6])
+#: The shipped car's speed (m/s, steady, the three engines' mean) for a commanded linear.x:
+#: nothing below about 0.03 m/s (the board's PID rounds it away), then a rising share of it.
+SPEED_COMMAND = np.array([0.0, 0.03, 0.04, 0.05, 0.06, 0.075, 0.1, 0.125, 0.15, 0.2])
+SPEED_DRIVEN = np.array([0.0, 0.0, 0.0187, 0.029, 0.046, 0.065, 0.089, 0.122, 0.146, 0.2])
 
 
 def turn_command(v: np.ndarray, w: np.ndarray) -> np.ndarray:
@@ -65,6 +70,13 @@ def turn_command(v: np.ndarray, w: np.ndarray) -> np.ndarray:
     return np.sign(w) * np.where(np.asarray(v) != 0.0, driving, in_place)
 
 
+def speed_command(v: np.ndarray) -> np.ndarray:
+    """The linear.x to command for a speed ``v`` (m/s), from the car's measured response
+    (``SPEED_COMMAND`` -> ``SPEED_DRIVEN``); 0 stays 0."""
+    v = np.asarray(v, dtype=float)
+    return np.sign(v) * np.interp(np.abs(v), SPEED_DRIVEN[1:], SPEED_COMMAND[1:])
+
+
 class DWADriver:
     """DWA on N cars: ``reset(cars, indices)`` once their episodes start, then ``act(cars,
     obs, indices)`` per step (``cars``: a ``CarView``). ``config``: None, the challenge's set
@@ -74,7 +86,14 @@ class DWADriver:
     (costmap_2d's ``clearing: true``, as the challenge's Jackal; ``obstacles.ObstacleLayers``),
     else cells stay marked until they age out; ``recoveries``: with the task's
     ``map_mode="laser"``, move_base's recovery behaviours (``navigation.recovery``; None:
-    ``RecoveryConfig.challenge`` for the cars' car, False: none); on the known map never."""
+    ``RecoveryConfig.challenge`` for the cars' car, False: none); on the known map never.
+
+    With ``map_mode="laser"`` the driver is the challenge's move_base in full: besides the
+    recoveries, TrajectoryPlanner's choice of in-place turns, its oscillation flags and its
+    escape (``navigation.oscillation``), and the speeds as well as the turns commanded
+    through the car's measured response (``speed_command``: base_local_planner's slowest
+    speeds are below what the car drives). On the known map the driver stays as it was, its
+    records unchanged."""
 
     name = "dwa"
     #: cars per ``act`` call in a batched benchmark (None: all at once): numpy's footprint
@@ -100,6 +119,8 @@ class DWADriver:
         #: move_base's state machine and the rotations in place (``map_mode="laser"``)
         self.recoveries: Recoveries | None = None
         self.rotations: Rotations | None = None
+        #: TrajectoryPlanner's flags and escape (``map_mode="laser"``)
+        self.oscillation: Oscillation | None = None
 
     @staticmethod
     def config_for(cars: CarView) -> DWAConfig:
@@ -126,20 +147,25 @@ class DWADriver:
             self.layers = ObstacleLayers(cars.num, compiled=self.compiled,
                                          clearing=self.clearing, threads=self.threads)
             self.following = [None] * cars.num
-            self.recoveries = None
+            self.recoveries = self.oscillation = None
         laser = getattr(cars.task, "map_mode", "known") == "laser"
         if laser and self.recovery_config is not False and self.recoveries is None:
             self.recoveries = Recoveries(cars.num, self.recovery_config_for(cars))
             self.rotations = Rotations(cars.num, YAW_GOAL_TOLERANCE)
+        if laser and self.oscillation is None:
+            self.oscillation = Oscillation(cars.num, OscillationConfig.challenge(
+                car_width(cars.task.car.robot_model) / JACKAL_WIDTH_M))
         given = cars.per_car("global_paths") if paths is None else paths
         for i in range(cars.num) if indices is None else indices:
             self.trackers.start(i, given[i])
             self.following[i] = given[i]
             self.layers.clear(i)
-        if self.recoveries is not None:
-            state = cars.state
-            for i in range(cars.num) if indices is None else indices:
+        state = cars.state
+        for i in range(cars.num) if indices is None else indices:
+            if self.recoveries is not None:
                 self.recoveries.reset(i, int(state.now_ns[i]) / 1e9, state.odometry[i, :2])
+            if self.oscillation is not None:
+                self.oscillation.reset(i, state.odometry[i, :3].astype(float))
 
     def recovery_config_for(self, cars: CarView) -> RecoveryConfig:
         """move_base's recovery set for the cars' car: the given one, or the challenge's
@@ -183,12 +209,20 @@ class DWADriver:
         goals = np.stack([cos * d[:, 0] + sin * d[:, 1], -sin * d[:, 0] + cos * d[:, 1]], -1)
         windows = self.trackers.windows(slots, poses, cos, sin, PATH_BEHIND_M,
                                         2.0 * config.local_goal_m, FAR_M)
-        cmd = self.planner.plan(velocity, obstacles, windows, goals, counts=counts)
+        if self.oscillation is not None:  # TrajectoryPlanner's choice, as move_base runs it
+            samples, valid, cost = self.planner.score(velocity, obstacles, windows, goals,
+                                                      counts=counts)
+            cmd = self.oscillation.choose(slots, odometry[:, :3].astype(float), samples, valid,
+                                          cost, goals, self.planner.forward, config.sim_time)
+        else:
+            cmd = self.planner.plan(velocity, obstacles, windows, goals, counts=counts)
         if self.recoveries is not None:
             cmd = self._recover(cars, slots, odometry[:, :3].astype(float), new_plan, cmd,
                                 obstacles, counts)
         if self.compensate_turns:
             cmd[:, 1] = turn_command(cmd[:, 0], cmd[:, 1])
+            if self.oscillation is not None:
+                cmd[:, 0] = speed_command(cmd[:, 0])
         car = cars.task.car
         scale = np.array([car.max_linear, car.max_angular])
         return np.clip(cmd / scale, -1.0, 1.0).astype(np.float32)

@@ -220,11 +220,29 @@ class DWAPlanner:
         """cmd_vel (N, 2) for N robots with ``velocity`` (N, 2) (v, w), scan ``obstacles``
         (N, P, 2) of which the first ``counts[n]`` are robot n's (None: all; padding may lie
         anywhere), a window of the global ``path`` (N, Q, 2) (pad with far points) and the
-        local ``goal`` (N, 2), all in each robot's base frame. (0, 0) where nothing is free."""
+        local ``goal`` (N, 2), all in each robot's base frame: the cheapest valid sample, the
+        escape only when nothing else is valid, (0, 0) where nothing is."""
+        cand, valid, cost = self.score(velocity, obstacles, path, goal, counts)
+        n, count = cand.shape[:2]
+        best = np.full(n, -1)
+        free = np.any(valid[:, :-1], axis=1)  # the escape, last, only when nothing else is
+        best[free] = np.nanargmin(cost[free][:, :-1], axis=1)
+        best[~free & valid[:, -1]] = count - 1
+        out = np.zeros((n, 2))
+        chosen = best >= 0
+        out[chosen] = cand[chosen, best[chosen]]
+        return out
+
+    def score(self, velocity: np.ndarray, obstacles: np.ndarray, path: np.ndarray,
+              goal: np.ndarray, counts: np.ndarray | None = None
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``plan``'s samples (N, C, 2: the window's, ``forward`` of them, the in-place turns,
+        the escape last), whether each is valid (its footprint touches no point) and its cost
+        (N, C; NaN where not valid), for ``plan``'s arguments."""
         c = self.config
         vs, ws = self.window(np.asarray(velocity, dtype=float))
         cand = self._candidates(vs, ws)  # (N, C, 2)
-        n, count = cand.shape[:2]
+        n = cand.shape[0]
         obstacles = np.asarray(obstacles, dtype=float).reshape(n, -1, 2)
         if counts is None:
             counts = np.full(n, obstacles.shape[1])
@@ -238,15 +256,12 @@ class DWAPlanner:
         unit = 1.0 if c.meter_scoring else c.resolution
         cost = (c.pdist_scale * path_dist / unit + c.gdist_scale * goal_dist / unit
                 + c.occdist_scale * occ)
-        cost = np.where(valid, cost, np.nan)
-        best = np.full(n, -1)
-        free = np.any(valid[:, :-1], axis=1)  # the escape, last, only when nothing else is
-        best[free] = np.nanargmin(cost[free][:, :-1], axis=1)
-        best[~free & valid[:, -1]] = count - 1
-        out = np.zeros((n, 2))
-        chosen = best >= 0
-        out[chosen] = cand[chosen, best[chosen]]
-        return out
+        return cand, valid, np.where(valid, cost, np.nan)
+
+    @property
+    def forward(self) -> int:
+        """How many of ``score``'s samples are the dynamic window's (driving forward)."""
+        return self.config.vx_samples * self.config.vtheta_samples
 
     def inflation_cost(self, distance: np.ndarray) -> np.ndarray:
         """The costmap's inflation cost (0-252) at ``distance`` (m) from the nearest obstacle:

@@ -74,12 +74,19 @@ def test_a_bad_max_episode_steps_is_refused_as_gym_make_refuses_it(kind, value):
         make(kind, max_episode_steps=value)
 
 
-@pytest.mark.parametrize("kind", ["mujoco", "goal-mujoco", "loop-mujoco"])
+@pytest.mark.parametrize("kind", ["numpy", "mujoco", "goal-mujoco", "loop-mujoco"])
 @pytest.mark.parametrize("value", [2.5, "x", 0, True])
 def test_a_bad_num_threads_is_one_line(kind, value):
     with pytest.raises(ValueError, match=r"^num_threads must be an integer >= 1 \(worker threads "
                                          r"stepping the physics\) or None \(one per CPU\), got "):
         make(kind, num_threads=value)
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_every_kind_takes_num_threads(kind):
+    """The numpy batch has no worker threads, but takes the argument every kind takes (a
+    batched training passes its thread count whatever the id)."""
+    make(kind, num_threads=2).close()
 
 
 @pytest.fixture(scope="module", params=list(KINDS))
@@ -109,3 +116,20 @@ def test_complex_actions_are_refused_not_truncated(envs):
                                          r"car\), got complex values"):
         envs.step(np.array([[0.5 + 0.5j, 0.0], [0.0, 0.0]]))
     assert envs.reset(seed=np.int64(3))[0] is not None  # numpy integers are integers
+
+
+@pytest.mark.parametrize(("env_id", "kwargs"), [
+    *((env_id, extra) for env_id, extra, _ in KINDS.values()),
+    ("SmartCar-v0", {"engine": "planar"}), ("SmartCar-v0", {}),
+    ("SmartCarNav-v0", {"engine": "planar"})])
+def test_loop_reason_says_which_ids_the_entry_point_runs_as_a_loop(env_id, kwargs):
+    from smartcar_gym.envs.vector.make import loop_reason
+
+    envs = gym.make_vec(env_id, num_envs=1, vectorization_mode="vector_entry_point", **kwargs)
+    try:
+        why = loop_reason(env_id, kwargs)
+        assert (why is not None) == isinstance(envs, SmartCarLoopVectorEnv), why
+    finally:
+        envs.close()
+    if (env_id, kwargs) == ("SmartCar-v0", {}):  # the default engine, pybullet
+        assert why == "engine='pybullet': it has no car batch (Engine.car_batch)"

@@ -48,6 +48,7 @@ from smartcar_gym.agents.policies import DEFAULT_ENV_ID, Policy, PolicyError
 from smartcar_gym.agents.random_policy import RandomPolicy
 from smartcar_gym.agents.records import summarize
 from smartcar_gym.agents.references import reference_scores
+from smartcar_gym.agents.vec_envs import VECTORIZATIONS
 from smartcar_gym.agents.video import record_video
 from smartcar_gym.checks import distinct_figure
 from smartcar_gym.datasets.eval_options import (
@@ -110,7 +111,7 @@ def build_parser() -> argparse.ArgumentParser:
                         help="envs run in parallel: worker processes when > 1 (default 1), or "
                              "with --vectorization batched the cars of the batch (default "
                              f"{DEFAULT_BATCH})")
-    parser.add_argument("--vectorization", choices=("subproc", "batched"), default="subproc",
+    parser.add_argument("--vectorization", choices=VECTORIZATIONS, default="subproc",
                         help="subproc (default): single envs, in worker processes when "
                              "--n-envs > 1; batched: --n-envs cars of the id's "
                              "vector_entry_point in this process (the MuJoCo batches in C, the "

@@ -26,6 +26,7 @@ from smartcar_gym.agents.cli_args import key_value_arg, non_negative_int_arg, po
 from smartcar_gym.agents.hyperparams import ALGOS, HyperparamsError
 from smartcar_gym.agents.runs import DEFAULT_ENV_ID, new_run, resume_config
 from smartcar_gym.agents.training import RunSetupError, TrainResult, train
+from smartcar_gym.agents.vec_envs import VECTORIZATIONS
 from smartcar_gym.sim.engines import add_engine_argument, engine_names
 
 FAILED_EXIT_CODE = 1  # the run stopped on an error (a full disk...)
@@ -52,7 +53,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--n-envs", type=positive_int_arg, default=None,
                         help="parallel envs (SubprocVecEnv); default: the file's n_envs, else "
                              "the number of CPUs")
-    parser.add_argument("--vectorization", choices=("subproc", "batched"), default=None,
+    parser.add_argument("--vectorization", choices=VECTORIZATIONS, default=None,
                         help="subproc (default): one process per env (SubprocVecEnv); batched: "
                              "all n-envs cars in this process through the env's "
                              "vector_entry_point (SmartCarSim-v0: numpy arrays; --engine "

@@ -106,6 +106,15 @@ def load_hyperparams(algo: str, env_id: str, path: str | Path | None = None,
     return copy.deepcopy(entry)
 
 
+def hyperparams_variant(vectorization: str, engine: str | None) -> tuple[str, ...] | None:
+    """The ``variant`` of ``load_hyperparams`` for a run of ``vectorization`` on ``engine``
+    (None: the default engine): a batched run's ``batched-<engine>``, then ``batched``
+    entry; None (the env's own entry) for a subproc run."""
+    if vectorization != "batched":
+        return None
+    return ("batched",) if engine is None else (f"batched-{engine}", "batched")
+
+
 def parse_value(text: str) -> Any:
     """A command-line value as YAML (``3e-4`` is a float, ``[1, 2]`` a list, ``true`` a bool)."""
     try:

@@ -30,6 +30,7 @@ from smartcar_gym.agents.hyperparams import (
     HyperparamsError,
     build_algo_kwargs,
     discount,
+    hyperparams_variant,
     load_hyperparams,
     normalize_kwargs,
     policy_class,
@@ -77,8 +78,7 @@ def new_config(args: argparse.Namespace, command: str) -> dict[str, Any]:
     env_id = args.env_id or DEFAULT_ENV_ID
     vectorization = getattr(args, "vectorization", None) or "subproc"
     engine = dict(args.env_kwargs or []).get("engine")
-    variant = None if vectorization != "batched" else (
-        ("batched", ) if engine is None else (f"batched-{engine}", "batched"))
+    variant = hyperparams_variant(vectorization, engine)
     check_env_id(env_id)  # an unknown id is the id's fault, not the hyperparameter file's
     hyperparams = load_hyperparams(algo, env_id, args.hyperparams_file, variant=variant)
     hyperparams.update(dict(args.hyperparams or []))

@@ -28,9 +28,11 @@ from gymnasium.vector import AutoresetMode
 
 from smartcar_gym.agents.env_factory import INFO_KEYWORDS, EnvSetupError, cannot_make, make_env
 
-__all__ = ["FORKSERVER_PRELOAD", "close_vec_env", "env_fns", "make_batched_env",
+__all__ = ["FORKSERVER_PRELOAD", "VECTORIZATIONS", "close_vec_env", "env_fns", "make_batched_env",
            "make_batched_vec_env", "make_single_env_vector", "make_vec_env", "wrap_normalize"]
 
+#: the ways ``make_vec_env`` runs a run's envs (``--vectorization``)
+VECTORIZATIONS = ("subproc", "batched")
 # modules the SubprocVecEnv workers need, imported once by the forkserver they are forked from
 FORKSERVER_PRELOAD = ("stable_baselines3.common.vec_env.subproc_vec_env",
                       "smartcar_gym.envs.smartcar_env")
@@ -91,7 +93,8 @@ def make_vec_env(
         venv = _subproc_vec_env(env_id, n_envs, env_kwargs, monitor_dir, monitor_prefix,
                                 env_wrapper, monitor_kwargs)
     else:
-        raise ValueError(f"vectorization: expected subproc or batched, got {vectorization!r}")
+        raise ValueError(f"vectorization: expected {' or '.join(VECTORIZATIONS)}, got "
+                         f"{vectorization!r}")
     if seed is not None:
         venv.seed(seed)
     return venv

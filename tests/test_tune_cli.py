@@ -159,3 +159,74 @@ def test_a_quick_sweep_of_the_shipped_space_runs(timesteps, grace, note, tmp_pat
         assert err == ""
     else:
         assert err.count("\n") == 1 and err.startswith(note), err
+
+
+@needs_tune
+@pytest.mark.parametrize("engine", [[], ["--engine", "pybullet"]], ids=["default", "pybullet"])
+def test_batched_trials_need_an_engine_that_batches(engine, tmp_path, capsys):
+    code, err = run(["--vectorization", "batched", *engine, "--out", tmp_path / "s"], capsys)
+    assert code == 2 and err.count("\n") == 1, err
+    assert err.startswith(
+        "smartcar-tune: error: --vectorization batched: SmartCar-v0 with engine='pybullet' "
+        if engine else "smartcar-tune: error: --vectorization batched: SmartCar-v0 with no env "
+        "kwargs ")
+    assert ("runs as a loop of single envs in one process, not a batch (engine='pybullet': it "
+            "has no car batch (Engine.car_batch)); give an engine with a car batch (") in err
+    assert "planar" in err and err.endswith("), or --vectorization subproc\n")
+    assert not (tmp_path / "s").exists()
+
+
+@needs_tune
+def test_a_batched_space_on_an_engine_that_does_not_batch_names_the_file(tmp_path, capsys):
+    space = tmp_path / "space.yaml"
+    space.write_text(yaml.safe_dump({"vectorization": "batched",
+                                     "env_kwargs": {"engine": {"grid": ["planar", "pybullet"]}}}))
+    code, err = run(["--space", space, "--out", tmp_path / "s"], capsys)
+    assert code == 2 and err.count("\n") == 1
+    assert err.startswith(f"smartcar-tune: error: {space}: vectorization: batched: SmartCar-v0 "
+                          "with engine='pybullet' runs as a loop"), err
+
+
+def test_an_unknown_vectorization_is_refused_by_name(tmp_path, capsys):
+    with pytest.raises(SystemExit) as exit_:
+        tune_cli.main(["--vectorization", "ray", "--out", str(tmp_path / "s")])
+    assert exit_.value.code == 2
+    assert "argument --vectorization: invalid choice: 'ray' (choose from subproc, batched)" in (
+        capsys.readouterr().err.replace("'subproc', 'batched'", "subproc, batched"))
+
+
+@needs_tune
+def test_resume_keeps_the_vectorization(tmp_path, capsys):
+    out = tmp_path / "s"
+    out.mkdir()
+    (out / "sweep.yaml").write_text("algo: ppo\n")
+    code, err = run(["--resume", out, "--vectorization", "batched"], capsys)
+    assert code == 2 and "--vectorization cannot be changed" in err
+
+
+def test_ray_address_names_the_cluster_num_cpus_a_local_one(tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("RAY_ADDRESS", "127.0.0.1:6379")
+    with pytest.raises(SystemExit) as exit_:
+        tune_cli.main(["--num-cpus", "2", "--out", str(tmp_path / "s")])
+    assert exit_.value.code == 2
+    assert ("--num-cpus sets the CPUs of a new local Ray instance; a running cluster "
+            "(RAY_ADDRESS) has its own: give one or the other") in capsys.readouterr().err
+
+
+@needs_tune
+def test_a_ray_address_nothing_listens_on_says_where_it_came_from(tmp_path, capsys, monkeypatch):
+    import socket
+
+    from smartcar_gym.scale import ray_session
+
+    monkeypatch.setattr(tune_cli, "ray_session", ray_session.ray_session)  # the real one
+    with socket.socket() as free:  # a port nothing listens on
+        free.bind(("127.0.0.1", 0))
+        port = free.getsockname()[1]
+    monkeypatch.setenv("RAY_ADDRESS", f"127.0.0.1:{port}")
+    code, err = run(["--out", tmp_path / "s"], capsys)
+    assert code == 2 and err.count("\n") == 1
+    assert err.startswith(f"smartcar-tune: error: cannot connect to the Ray cluster at "
+                          f"127.0.0.1:{port}: ")
+    assert err.endswith("(RAY_ADDRESS; unset it for a new local instance)\n")
+    assert not (tmp_path / "s").exists()

@@ -1,16 +1,21 @@
 """smartcar-tune on Ray: a local 2-CPU head, a two-node cluster on this machine
-(``ray.cluster_utils.Cluster``), and a sweep killed mid-run then resumed. Tiny budgets
-(a few hundred steps) and hard timeouts; nothing here says anything about speed.
+(``ray.cluster_utils.Cluster``), a batched sweep on a head started by ``ray start --head``
+(through ``RAY_ADDRESS``), and a sweep killed mid-run then resumed. Tiny budgets (a few hundred
+steps) and hard timeouts; nothing here says anything about speed.
 """
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import json
 import os
+import shutil
 import signal
+import socket
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -166,3 +171,80 @@ def test_a_killed_sweep_resumes_from_its_checkpoints(tmp_path, hard_timeout):
         "seg0_0.monitor.csv", "seg1_0.monitor.csv"]
     [row] = results(out)
     assert (row["status"], row["timesteps"]) == ("completed", "384")
+
+
+def free_port() -> int:
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return sock.getsockname()[1]
+
+
+@pytest.fixture
+def ray_head():
+    """``ray start --head`` on 2 CPUs in a temporary folder; its address. Stopped by its own
+    process group (``ray stop`` would stop every Ray instance of the machine)."""
+    ray_cli = shutil.which("ray", path=os.path.dirname(sys.executable)) or shutil.which("ray")
+    if ray_cli is None:
+        pytest.skip("the ray command is not installed")
+    port, folder = free_port(), tempfile.mkdtemp(prefix="ray")  # short: Ray's socket paths
+    env = {**os.environ, "RAY_AUTH_MODE": "disabled", "RAY_worker_niceness": "0"}
+    env.pop("RAY_ADDRESS", None)
+    head = subprocess.Popen(
+        [ray_cli, "start", "--head", "--port", str(port), "--num-cpus", "2", "--temp-dir",
+         folder, "--block", "--include-dashboard", "false", "--disable-usage-stats",
+         "--ray-client-server-port", str(free_port())],
+        env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 60
+        while True:
+            try:
+                socket.create_connection(("127.0.0.1", port), timeout=1).close()
+                break
+            except OSError:
+                assert head.poll() is None, "ray start --head exited"
+                assert time.monotonic() < deadline, "ray start --head: no head within 60 s"
+                time.sleep(0.2)
+        yield f"127.0.0.1:{port}"
+    finally:
+        head.terminate()  # `ray start --block` stops its processes (in about 2 s)
+        try:
+            head.wait(timeout=30)
+        finally:
+            with contextlib.suppress(ProcessLookupError):  # whatever is left of them
+                os.killpg(head.pid, signal.SIGKILL)
+            head.wait()
+            shutil.rmtree(folder, ignore_errors=True)
+
+
+def test_a_batched_sweep_on_a_ray_start_head_through_ray_address(ray_head, tmp_path,
+                                                                 monkeypatch, hard_timeout):
+    """The planar batched preset (4 cars here, evaluated on pybullet in a second process) on a
+    running head named by RAY_ADDRESS: ASHA stops the weaker trial at its first evaluation."""
+    hard_timeout(150)
+    space = tmp_path / "space.yaml"
+    space.write_text(yaml.safe_dump({
+        "vectorization": "batched", "timesteps": 256, "eval_freq": 128, "eval_episodes": 1,
+        "hyperparams": {"n_envs": 4, "n_steps": 32, "batch_size": 64, "n_epochs": 1},
+        "env_kwargs": {"goal_range": [0.5, 0.6], "goal_tolerance": {"grid": [EASY, HARD]}},
+        "early_stopping": {"grace_period": 128, "reduction_factor": 2}}))
+    monkeypatch.setenv("RAY_ADDRESS", ray_head)
+    out = tmp_path / "sweep"
+    # the preset's 2 CPUs a trial (training, eval_async) on the 2-CPU head: one at a time
+    assert tune_cli.main(["--space", str(space), "--engine", "planar", "--out", str(out)]) == 0
+    easy, hard = results(out)
+    assert (easy["status"], easy["timesteps"], easy["success_rate"]) == ("completed", "256", "1.0")
+    assert (hard["status"], hard["timesteps"], hard["success_rate"]) == (
+        "stopped early", "128", "0.0")
+    for name in ("trial_00000", "trial_00001"):
+        config = yaml.safe_load((out / name / "config.yaml").read_text())
+        assert (config["vectorization"], config["n_envs"]) == ("batched", 4)
+        assert (config["eval_engine"], config["eval_async"]) == ("pybullet", True)
+        assert (out / name / "monitor" / "seg0_batched.monitor.csv").is_file()
+    import ray
+
+    ray.init(address=ray_head, logging_level="WARNING")
+    try:
+        [head] = [node["NodeID"] for node in ray.nodes() if node["Alive"]]
+    finally:
+        ray.shutdown()
+    assert {easy["node_id"], hard["node_id"]} == {head}  # the head ran them, not a new Ray

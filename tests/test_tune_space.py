@@ -17,6 +17,7 @@ from smartcar_gym.scale.space import (
     fit_grace_period,
     load_space,
     parse_dimension,
+    preset_cpus,
     shipped_space_file,
 )
 
@@ -44,6 +45,42 @@ def test_shipped_space_is_valid_and_lists_its_trials():
     assert "n_timesteps" not in config["hyperparams"] and config["timesteps"] == 102400
     # ASHA decides at evaluations: its first rung is a multiple of them
     assert sweep.early_stopping["grace_period"] % sweep.eval_freq == 0
+
+
+@pytest.mark.parametrize(("engine", "n_steps", "timesteps", "cpus"), [
+    ("planar", 128, 229376, 2), ("mujoco", 128, 249856, 1)])
+def test_the_shipped_batched_space_is_smartcar_train_s_batched_preset(engine, n_steps,
+                                                                       timesteps, cpus):
+    """``smartcar-tune --engine E --vectorization batched``: the entry ``smartcar-train
+    --engine E --vectorization batched`` takes, with the space's values on top; a trial asks
+    for the CPUs it uses (planar: its process and the eval_async one)."""
+    data, path = load_space(shipped_space_file(vectorization="batched"))
+    assert path.name == "tune_ppo_batched.yaml"
+    data = apply_overrides(data, env_kwargs={"engine": engine})
+    sweep = build_sweep(data, path, path.parent)
+    preset = load_hyperparams("ppo", "SmartCar-v0", variant=(f"batched-{engine}", "batched"))
+    assert sweep.vectorization == "batched" and sweep.timesteps == timesteps == preset.pop(
+        "n_timesteps")
+    assert sweep.cpus_per_trial == cpus
+    assert set(sweep.dimensions()) == {"learning_rate", "n_epochs", "seed"}
+    assert len(sweep.trial_values()) == 16
+    config = sweep.trial_config(sweep.trial_values()[0])
+    assert config["vectorization"] == "batched" and config["env_kwargs"] == {"engine": engine}
+    searched = ("learning_rate", "n_epochs")
+    assert {k: v for k, v in config["hyperparams"].items() if k not in searched} == {
+        k: v for k, v in preset.items() if k not in searched}
+    assert (config["hyperparams"]["n_envs"], config["hyperparams"]["n_steps"]) == (16, n_steps)
+
+
+def test_a_trial_s_cpus_default_to_what_its_run_uses():
+    assert preset_cpus("subproc", {"eval_async": True}) == 1  # n_envs follows cpus_per_trial
+    assert preset_cpus("batched", {"eval_async": True}) == 2
+    assert preset_cpus("batched", {"eval_async": False}) == 1
+    sweep = sweep_of(vectorization="batched", env_kwargs={"engine": "planar"},
+                     hyperparams={"eval_async": False})
+    assert sweep.cpus_per_trial == 1 and sweep.hyperparams["n_envs"] == 16
+    assert sweep_of(vectorization="batched", env_kwargs={"engine": "planar"},
+                    cpus_per_trial=3).cpus_per_trial == 3
 
 
 def test_seeds_of_a_configuration_share_its_random_draws():
@@ -133,6 +170,7 @@ def test_a_mapping_that_names_no_dimension_is_a_value():
     ({"early_stopping": "asha"}, "early_stopping must be a mapping"),
     ({"hyperparams": [1, 2]}, "hyperparams must be a mapping"),
     ({"hyperparams_file": "missing.yaml"}, "hyperparams_file"),
+    ({"vectorization": "dummy"}, "vectorization must be one of subproc, batched, got 'dummy'"),
 ])
 def test_bad_spaces_are_refused_with_the_key(data, message):
     with pytest.raises(SpaceError, match="space.yaml") as err:
@@ -203,6 +241,14 @@ def test_sweep_yaml_round_trip(tmp_path):
     assert again.trial_values() == sweep.trial_values()
     assert again.early_stopping is None and again.timesteps == 4096
     assert env_kwargs_samples(again) == [{"goal_tolerance": 0.1}, {"goal_tolerance": 0.2}]
+
+
+def test_a_batched_sweep_yaml_is_the_same_sweep_again():
+    """What --resume reads back: the batched entry's values, the vectorization, the CPUs."""
+    sweep = sweep_of(vectorization="batched", env_kwargs={"engine": "planar"})
+    again = build_sweep(yaml.safe_load(yaml.safe_dump(sweep.to_yaml())), "sweep.yaml")
+    assert (again.vectorization, again.cpus_per_trial, again.timesteps) == ("batched", 2, 229376)
+    assert again.hyperparams == sweep.hyperparams and again.hyperparams["eval_async"] is True
 
 
 def test_numbers_without_a_dot_are_numbers_in_dimensions():

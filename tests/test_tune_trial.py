@@ -22,10 +22,14 @@ from smartcar_gym.scale.trial import (
     plain,
     prepare_run,
     trial_folder,
+    trial_threads,
     yaml_value,
 )
 
 TINY = {"n_envs": 1, "n_steps": 128, "batch_size": 64, "n_epochs": 1}
+# the batched planar preset, shrunk: 4 cars x 32 steps, evaluated on pybullet (eval_async)
+TINY_BATCHED = {"n_envs": 4, "n_steps": 32, "batch_size": 64, "n_epochs": 1,
+                "policy_kwargs": "dict(net_arch=[16, 16])"}
 
 
 def trial_config(**space):
@@ -124,3 +128,77 @@ def test_a_folder_holding_a_foreign_model_is_refused_with_its_name(tmp_path):
     (run_dir / "best_model.zip").write_bytes(b"not ours")
     with pytest.raises(TrialSetupError, match=r"trial_00000: .*best_model.zip"):
         prepare_run(trial_config(), run_dir)
+
+
+def batched_trial(cpus_per_trial=1):
+    sweep = build_sweep({"vectorization": "batched", "timesteps": 384, "eval_freq": 128,
+                         "eval_episodes": 1, "cpus_per_trial": cpus_per_trial,
+                         "hyperparams": TINY_BATCHED, "seed": 5,
+                         "env_kwargs": {"engine": "planar", "goal_range": [0.3, 0.4]}},
+                        "space.yaml")
+    return sweep, sweep.trial_config(sweep.trial_values()[0])
+
+
+def test_a_batched_trial_is_the_run_of_smartcar_train_s_batched_command(tmp_path):
+    sweep, config = batched_trial()
+    run_dir = tmp_path / "trial_00000"
+    run_config, _, command = prepare_run(config, run_dir)
+    argv = shlex.split(command)
+    assert argv[argv.index("--vectorization") + 1] == "batched"
+    assert build_parser().parse_args(argv[1:]).vectorization == "batched"
+    # the planar preset's settings: its own cars, evaluated on pybullet in a second process
+    assert (run_config["vectorization"], run_config["n_envs"]) == ("batched", 4)
+    assert (run_config["eval_engine"], run_config["eval_async"]) == ("pybullet", True)
+    assert trial_threads(sweep) == 1 and trial_threads(batched_trial(3)[0]) == 3
+    assert trial_threads(build_sweep({"cpus_per_trial": 3}, "space.yaml")) is None
+    # a subproc run in the folder is not this trial's
+    subproc = {**config, "vectorization": "subproc"}
+    run_config["n_timesteps"] = 128
+    train(run_config, run_dir, command=command, progress=False)
+    with pytest.raises(TrialSetupError, match="other vectorization"):
+        prepare_run(subproc, run_dir)
+
+
+class Threads(ReportEvaluations):
+    """ReportEvaluations that also notes the thread count of the cars it trains on."""
+
+    def _on_training_start(self):
+        super()._on_training_start()
+        venv = self.model.get_env()
+        while hasattr(venv, "venv"):
+            venv = venv.venv
+        self.threads = venv.unwrapped.threads
+
+
+def test_a_batched_trial_reports_every_evaluation_on_its_threads(tmp_path):
+    """eval_async results come in while training goes on, or after its last step: each is
+    reported, in order, after its checkpoint, the final one after train (as run_trial does)."""
+    sweep, config = batched_trial(cpus_per_trial=2)
+    run_dir = tmp_path / "trial_00000"
+    run_config, _, command = prepare_run(config, run_dir)
+    seen = []
+
+    def report(metrics):
+        steps = metrics["timesteps"]
+        seen.append((steps, (run_dir / "checkpoints" / f"ckpt_{steps}_steps.zip").is_file()))
+
+    reporter = Threads(report, 384)
+    result = train(run_config, run_dir, command=command, progress=False,
+                   extra_callbacks=[reporter], threads=trial_threads(sweep))
+    reporter.flush()
+    assert reporter.threads == 2
+    assert seen == [(128, True), (256, True)]
+    assert result.final_eval["timesteps"] == 384
+    assert np.load(run_dir / "eval" / "evaluations.npz")["timesteps"].tolist() == [128, 256, 384]
+
+
+def test_evaluations_logged_after_the_last_step_are_reported_once_by_flush():
+    seen = []
+    reporter = ReportEvaluations(seen.append, 384)
+    for steps in (128, 256, 384):  # eval_async's results, drained when training ended
+        reporter.capture.write({"eval/success_rate": steps / 384, "eval/mean_reward": 1.0}, {},
+                               steps)
+    reporter.flush()
+    reporter.flush()
+    assert seen == [{"success_rate": 1 / 3, "mean_reward": 1.0, "timesteps": 128},
+                    {"success_rate": 2 / 3, "mean_reward": 1.0, "timesteps": 256}]

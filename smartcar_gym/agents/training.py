@@ -61,6 +61,7 @@ def train(
     progress: bool = True,
     save_replay_buffer: bool | None = None,
     extra_callbacks: Sequence[Any] = (),
+    threads: int | None = None,
 ) -> TrainResult:
     """Train (or continue from ``checkpoint``) as ``config`` says, writing into ``run_dir``.
 
@@ -74,6 +75,9 @@ def train(
     failed start then leaves nothing behind (``config.yaml`` is written once both exist). Any
     other error (a full disk when saving a checkpoint...) closes the env workers and is raised;
     the checkpoints saved before it are left intact.
+
+    ``threads``: the worker threads a batched run's cars are stepped on (the vector env's
+    ``num_threads``; None: one per CPU); a subproc run has one process per env instead.
     """
     from stable_baselines3.common.callbacks import CallbackList
 
@@ -96,7 +100,7 @@ def train(
     segment = len(config.get("resumes", [])) + (checkpoint is not None)
     seed = int(config["seed"]) + start  # a resumed run does not replay the first run's goals
     with _undo_on_failure(run_dir, f"seg{segment}_"):
-        venv, eval_env = _make_envs(config, run_dir, seed, segment, checkpoint)
+        venv, eval_env = _make_envs(config, run_dir, seed, segment, checkpoint, threads)
         try:
             model = _make_model(config, venv, seed, run_dir / "tb", checkpoint)
             if checkpoint is not None:
@@ -219,9 +223,11 @@ def _undo_on_failure(run_dir: Path, monitor_prefix: str) -> Iterator[None]:
 
 
 def _make_envs(config: dict[str, Any], run_dir: Path, seed: int, segment: int,
-               checkpoint: str | os.PathLike | None) -> tuple[Any, Any]:
+               checkpoint: str | os.PathLike | None,
+               threads: int | None = None) -> tuple[Any, Any]:
     """The training VecEnv (Monitor files ``seg<segment>_<i>``) and the eval VecEnv (or None;
-    with ``eval_async`` an ``EvalWorker`` that builds it in a process of its own),
+    with ``eval_async`` an ``EvalWorker`` that builds it in a process of its own), batched
+    ones on ``threads`` worker threads (None: the vector env's default),
     wrapped as the hyperparameters say: zoo's env_wrapper and vec_env_wrapper, VecNormalize
     (statistics from ``checkpoint``), VecFrameStack."""
     from stable_baselines3.common.vec_env import VecFrameStack
@@ -255,11 +261,13 @@ def _make_envs(config: dict[str, Any], run_dir: Path, seed: int, segment: int,
                             "(--vectorization batched); a subproc run's env workers have the "
                             "cores already")
     vectorization = "batched" if batched else "subproc"
+    # the vector env's own argument, not the single env's (check_env, on_engine never see it)
+    on_threads = {"num_threads": threads} if batched and threads is not None else {}
     if batched and wrapper is not None:
         raise RunSetupError("env_wrapper wraps single envs; --vectorization batched has "
                             "none (use vec_env_wrapper, or --vectorization subproc)")
     try:
-        venv = make_vec_env(env_id, n_envs, seed=seed, env_kwargs=env_kwargs,
+        venv = make_vec_env(env_id, n_envs, seed=seed, env_kwargs={**env_kwargs, **on_threads},
                             monitor_dir=run_dir / "monitor", monitor_prefix=f"seg{segment}_",
                             env_wrapper=wrapper, monitor_kwargs=monitor_kwargs,
                             vectorization=vectorization)
@@ -278,7 +286,7 @@ def _make_envs(config: dict[str, Any], run_dir: Path, seed: int, segment: int,
                 n_eval_envs = min(n_envs, int(config["eval_episodes"]))
                 if not batched:
                     n_eval_envs = min(n_eval_envs, os.cpu_count() or 1)
-                env = make_vec_env(env_id, n_eval_envs, env_kwargs=env_kwargs,
+                env = make_vec_env(env_id, n_eval_envs, env_kwargs={**env_kwargs, **on_threads},
                                    env_wrapper=wrapper, monitor_kwargs=monitor_kwargs,
                                    vectorization=vectorization)
                 return wrap(env, training=False)

@@ -48,8 +48,9 @@ def ray_session(address: str | None = None, num_cpus: int | None = None,
     """A Ray instance for the body: a new local one (``num_cpus`` CPUs, default all) unless
     ``address`` names a running cluster (``"auto"``, ``"HOST:6379"``, ``"ray://HOST:10001"``).
 
-    A local instance is always a fresh one (``address="local"``), so a stale ``RAY_ADDRESS``
-    or the address file of a crashed instance is never picked up. Its workers (the trials,
+    A local instance is always a fresh one (``address="local"``), so the address file of a
+    crashed instance is never picked up, nor ``RAY_ADDRESS`` (a command that takes it, as
+    ``smartcar-tune`` does, passes it as ``address``). Its workers (the trials,
     the EnvRunners: the work itself) run at the niceness of this process, not at Ray's nice
     15, unless ``RAY_worker_niceness`` is set: at nice 15 any other job on the machine starves
     them (a 20 s test sweep took over 15 minutes beside two busy loops). Ray is shut down after

@@ -12,6 +12,10 @@ A space file (see the shipped ``smartcar_gym/config/tune_ppo.yaml``)::
     seed: {grid: [0, 1, 2]}
     early_stopping: {grace_period: 10240, reduction_factor: 2}   # ASHA; absent or null: none
 
+``vectorization: batched`` makes every trial a ``smartcar-train --vectorization batched`` run
+on the hyperparameters' ``<env>-batched-<engine>`` (else ``<env>-batched``) entry, as that
+command takes it (the shipped ``tune_ppo_batched.yaml``).
+
 Any value under ``hyperparams`` and ``env_kwargs``, and ``seed``, is either fixed or a search
 dimension: a mapping with one key out of ``DIMENSIONS``. Everything is checked here, before
 Ray starts, and errors name the file and the key. ``Sweep.trial_values`` lists the trials:
@@ -36,11 +40,13 @@ from smartcar_gym.agents.hyperparams import (
     HyperparamsError,
     build_algo_kwargs,
     discount,
+    hyperparams_variant,
     load_hyperparams,
     normalize_kwargs,
     parse_value,
     run_int,
 )
+from smartcar_gym.agents.vec_envs import VECTORIZATIONS
 
 # name -> what it takes
 DIMENSIONS = {
@@ -50,9 +56,9 @@ DIMENSIONS = {
     "loguniform": "[low, high], numbers with 0 < low < high",
     "randint": "[low, high], whole numbers with low < high (high excluded)",
 }
-KEYS = ("algo", "env", "hyperparams_file", "hyperparams", "env_kwargs", "seed", "num_samples",
-        "timesteps", "cpus_per_trial", "eval_freq", "eval_episodes", "eval_start",
-        "early_stopping", "random_seed")
+KEYS = ("algo", "env", "vectorization", "hyperparams_file", "hyperparams", "env_kwargs", "seed",
+        "num_samples", "timesteps", "cpus_per_trial", "eval_freq", "eval_episodes",
+        "eval_start", "early_stopping", "random_seed")
 ASHA_KEYS = ("grace_period", "reduction_factor")
 # A grace period that does not fit a shortened trial is scaled to an evaluation in this first
 # part of it, so ASHA still compares trials at least once before their end (the shipped space's
@@ -106,6 +112,7 @@ class Sweep:
     timesteps: int
     num_samples: int = 1
     cpus_per_trial: int = 1
+    vectorization: str = "subproc"  # how each trial runs its envs (smartcar-train's option)
     eval_freq: int = 10_240
     eval_episodes: int = 20
     eval_start: int = 0
@@ -165,16 +172,18 @@ class Sweep:
             elif name != "seed":
                 hyperparams[name] = value
         return {
-            "algo": self.algo, "env": self.env, "seed": seed,
+            "algo": self.algo, "env": self.env, "vectorization": self.vectorization, "seed": seed,
             "timesteps": self.timesteps, "eval_freq": self.eval_freq,
             "eval_episodes": self.eval_episodes, "eval_start": self.eval_start,
             "hyperparams": hyperparams, "env_kwargs": env_kwargs,
         }
 
 
-def shipped_space_file(algo: str = "ppo") -> Path:
-    """The example search space shipped in ``smartcar_gym/config/tune_<algo>.yaml``."""
-    return Path(str(resources.files("smartcar_gym") / "config" / f"tune_{algo}.yaml"))
+def shipped_space_file(algo: str = "ppo", vectorization: str = "subproc") -> Path:
+    """The example search space shipped in ``smartcar_gym/config/tune_<algo>.yaml`` (batched
+    trials: ``tune_<algo>_batched.yaml``)."""
+    suffix = "" if vectorization == "subproc" else f"_{vectorization}"
+    return Path(str(resources.files("smartcar_gym") / "config" / f"tune_{algo}{suffix}.yaml"))
 
 
 def parse_dimension(value: Any, where: str) -> Any:
@@ -233,11 +242,17 @@ def build_sweep(data: dict[str, Any], source: str | Path,
     env = data.get("env", "SmartCar-v0")
     if not isinstance(env, str):
         raise SpaceError(f"{source}: env must be an env id such as SmartCar-v0, got {env!r}")
+    vectorization = data.get("vectorization", "subproc")
+    if vectorization not in VECTORIZATIONS:
+        raise SpaceError(f"{source}: vectorization must be one of {', '.join(VECTORIZATIONS)}, "
+                         f"got {vectorization!r}")
+    engine = _mapping(data, "env_kwargs", source).get("engine")
     file = data.get("hyperparams_file")
     if file is not None:
         file = Path(file) if base_dir is None else base_dir / file
-    try:
-        hyperparams = load_hyperparams(algo, env, file)
+    try:  # the entry smartcar-train takes (a searched engine: the <env>-batched one)
+        hyperparams = load_hyperparams(algo, env, file, variant=hyperparams_variant(
+            vectorization, engine if isinstance(engine, str) else None))
     except (HyperparamsError, OSError) as err:
         raise SpaceError(f"{source}: hyperparams_file: {err}") from err
     overrides = _mapping(data, "hyperparams", source)
@@ -255,7 +270,10 @@ def build_sweep(data: dict[str, Any], source: str | Path,
         seed=parse_dimension(data.get("seed", 0), f"{source}: seed"),
         timesteps=_whole(timesteps, "timesteps", source, 1),
         num_samples=_whole(data.get("num_samples", 1), "num_samples", source, 1),
-        cpus_per_trial=_whole(data.get("cpus_per_trial", 1), "cpus_per_trial", source, 1),
+        cpus_per_trial=_whole(data.get("cpus_per_trial", preset_cpus(vectorization,
+                                                                     hyperparams)),
+                              "cpus_per_trial", source, 1),
+        vectorization=vectorization,
         eval_freq=_whole(data.get("eval_freq", 10_240), "eval_freq", source, 1),
         eval_episodes=_whole(data.get("eval_episodes", 20), "eval_episodes", source, 1),
         eval_start=_whole(data.get("eval_start", 0), "eval_start", source, 0),
@@ -269,6 +287,13 @@ def build_sweep(data: dict[str, Any], source: str | Path,
     sweep.hyperparams.setdefault("policy", "MlpPolicy")
     check_sweep(sweep)
     return sweep
+
+
+def preset_cpus(vectorization: str, hyperparams: dict[str, Any]) -> int:
+    """The CPUs a trial's run uses (``cpus_per_trial``'s default): its process, plus the
+    evaluation process of a batched run with ``eval_async``. A subproc run's ``n_envs``
+    defaults to this instead (one env process per CPU)."""
+    return 2 if vectorization == "batched" and hyperparams.get("eval_async") is True else 1
 
 
 def check_sweep(sweep: Sweep) -> None:

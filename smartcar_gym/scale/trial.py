@@ -10,6 +10,9 @@ after its checkpoint and best model are saved: a scheduler (ASHA) that stops the
 report stops it with everything up to that evaluation on disk. A trial that starts again
 (Tune's restore after a crash, or a retry) continues from the latest checkpoint of its run
 folder, as ``smartcar-train --resume`` does.
+
+A batched trial (``vectorization: batched``) steps its cars on as many threads as the CPUs Ray
+reserved for it (``cpus_per_trial``), not one per CPU of the node.
 """
 
 from __future__ import annotations
@@ -70,6 +73,8 @@ def train_argv(config: dict[str, Any], run_dir: Path, hyperparams_file: Path) ->
             str(config["eval_episodes"]), "--eval-start", str(config["eval_start"]),
             # a checkpoint at every evaluation: a trial stopped at a report loses nothing
             "--checkpoint-freq", str(config["eval_freq"]), "--no-progress"]
+    if config.get("vectorization", "subproc") != "subproc":
+        argv += ["--vectorization", config["vectorization"]]
     if config.get("env_kwargs"):
         argv += ["--env-kwargs", *(f"{k}={yaml_value(v)}" for k, v in
                                    config["env_kwargs"].items())]
@@ -82,17 +87,22 @@ def trial_hyperparams(config: dict[str, Any]) -> dict[str, Any]:
 
 
 class EvalCapture(KVWriter):
-    """An SB3 logger output that keeps the values of the latest evaluation dump."""
+    """An SB3 logger output that keeps the values of each evaluation dump until taken."""
 
     def __init__(self) -> None:
-        self.latest: dict[str, float] | None = None
+        self.found: list[dict[str, float]] = []
 
     def write(self, key_values: dict[str, Any], key_excluded: dict[str, Any],
               step: int = 0) -> None:
         if "eval/success_rate" in key_values:
-            self.latest = {key: float(key_values[f"eval/{key}"]) for key in EVAL_KEYS
-                           if f"eval/{key}" in key_values}
-            self.latest["timesteps"] = int(step)
+            values = {key: float(key_values[f"eval/{key}"]) for key in EVAL_KEYS
+                      if f"eval/{key}" in key_values}
+            self.found.append({**values, "timesteps": int(step)})
+
+    def take(self) -> list[dict[str, float]]:
+        """The evaluations dumped since the last call, in order."""
+        found, self.found = self.found, []
+        return found
 
     def close(self) -> None:
         pass
@@ -102,7 +112,8 @@ class ReportEvaluations(BaseCallback):
     """Pass each evaluation to ``report`` once its checkpoint and best model are saved (this
     callback runs after them). Evaluations at or past ``target`` steps are left to the caller,
     which reports the run's final evaluation after ``train`` returns, when every file of the
-    run is written."""
+    run is written. ``flush`` reports those that came after the last step: a batched run's
+    ``eval_async`` evaluations still running when training ended."""
 
     def __init__(self, report: Callable[[dict[str, Any]], None], target: int) -> None:
         super().__init__()
@@ -114,11 +125,14 @@ class ReportEvaluations(BaseCallback):
         self.model.logger.output_formats.append(self.capture)
 
     def _on_step(self) -> bool:
-        latest = self.capture.latest
-        if latest is not None and latest["timesteps"] < self.target:
-            self.capture.latest = None
-            self.report(latest)
+        self.flush()
         return True
+
+    def flush(self) -> None:
+        """Report the evaluations captured and not reported yet (before ``target``)."""
+        for evaluation in self.capture.take():
+            if evaluation["timesteps"] < self.target:
+                self.report(evaluation)
 
 
 def run_trial(config: dict[str, Any], out: str, sweep: Sweep) -> None:
@@ -142,16 +156,23 @@ def run_trial(config: dict[str, Any], out: str, sweep: Sweep) -> None:
         atomic_write_text(run_dir / TIME_FILE, json.dumps(metrics, indent=2) + "\n")
         tune.report(metrics)
 
-    target = int(run_config["n_timesteps"])
+    reporter = ReportEvaluations(report, int(run_config["n_timesteps"]))
     try:
         result = train(run_config, run_dir, checkpoint=checkpoint, command=command,
-                       progress=False, extra_callbacks=[ReportEvaluations(report, target)])
+                       progress=False, extra_callbacks=[reporter], threads=trial_threads(sweep))
     except (RunSetupError, HyperparamsError) as err:
         raise TrialSetupError(f"{run_dir}: {err}") from None
+    reporter.flush()  # eval_async: the evaluations that came in after the last step
     final = result.final_eval or result.best_eval
     if final is None:
         raise TrialSetupError(f"{run_dir}: the run ended without an evaluation")
     report({**{key: final[key] for key in EVAL_KEYS}, "timesteps": result.num_timesteps})
+
+
+def trial_threads(sweep: Sweep) -> int | None:
+    """The worker threads of a batched trial's cars: the CPUs Ray reserved for it (a subproc
+    trial's envs are processes: None)."""
+    return sweep.cpus_per_trial if sweep.vectorization == "batched" else None
 
 
 def prepare_run(config: dict[str, Any], run_dir: Path,
@@ -183,7 +204,8 @@ def prepare_run(config: dict[str, Any], run_dir: Path,
 
 def check_same_trial(run_config: dict[str, Any], config: dict[str, Any], run_dir: Path) -> None:
     """Refuse to continue a run folder that holds a run of other settings than the trial's."""
-    ours = {"algo": config["algo"], "env": config["env"], "seed": plain(config["seed"]),
+    ours = {"algo": config["algo"], "env": config["env"],
+            "vectorization": config.get("vectorization", "subproc"), "seed": plain(config["seed"]),
             "env_kwargs": plain(config.get("env_kwargs") or {}),
             "hyperparams": trial_hyperparams(config)}
     ours = yaml.safe_load(yaml.safe_dump(ours))  # as config.yaml holds them (lists, not tuples)

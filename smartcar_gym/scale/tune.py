@@ -6,7 +6,11 @@
     smartcar-tune --space my_space.yaml --seeds 0 1 2 --num-samples 4 --out sweeps/s1
     smartcar-tune --hyperparams "learning_rate={grid: [1e-4, 3e-4]}" --out sweeps/s2
     smartcar-tune --address auto --space my_space.yaml --out /shared/sweeps/s3  # a cluster
+    smartcar-tune --engine planar --vectorization batched --out sweeps/planar  # the fast preset
     smartcar-tune --resume sweeps/s1                      # after a crash or Ctrl-C
+
+Without ``--address``, ``RAY_ADDRESS`` names the cluster; with neither, a new local Ray
+instance runs the sweep.
 
 ``<out>`` holds ``sweep.yaml`` (the checked space), ``tune/`` (Ray Tune's experiment state,
 for ``--resume``), one run folder per trial (``trial_00000/``, ...), ``results.csv``,
@@ -16,6 +20,7 @@ for ``--resume``), one run folder per trial (``trial_00000/``, ...), ``results.c
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -25,6 +30,7 @@ import yaml
 
 from smartcar_gym.agents.atomic_files import output_path_error
 from smartcar_gym.agents.cli_args import key_value_arg, positive_int_arg
+from smartcar_gym.agents.vec_envs import VECTORIZATIONS
 from smartcar_gym.scale import results as results_mod
 from smartcar_gym.scale.ray_session import (
     RayUnavailableError,
@@ -40,6 +46,7 @@ from smartcar_gym.scale.space import (
     build_sweep,
     env_kwargs_samples,
     load_space,
+    shipped_space_file,
 )
 from smartcar_gym.scale.trial import TRIAL_KEY
 from smartcar_gym.sim.engines import add_engine_argument
@@ -49,7 +56,8 @@ EXPERIMENT = "tune"  # Ray Tune's folder in <out>
 INTERRUPTED_EXIT_CODE = 130
 # What --resume reads from <out>; the options that would change it.
 SWEEP_OPTIONS = ("space", "hyperparams", "seeds", "num_samples", "timesteps", "cpus_per_trial",
-                 "no_early_stopping", "engine")
+                 "no_early_stopping", "engine", "vectorization")
+ADDRESS_ENV = "RAY_ADDRESS"  # the cluster when --address is not given (Ray's own variable)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -60,7 +68,7 @@ def build_parser() -> argparse.ArgumentParser:
         "extra: pip install \"smartcar-gym[ray]\".")
     parser.add_argument("--space", type=Path, default=None, metavar="SPACE.yaml",
                         help="search space (default: the shipped smartcar_gym/config/"
-                             "tune_ppo.yaml)")
+                             "tune_ppo.yaml, with --vectorization batched tune_ppo_batched.yaml)")
     parser.add_argument("--hyperparams", nargs="+", type=key_value_arg, default=None,
                         metavar="KEY=VALUE", help="set or search hyperparameters: a YAML "
                         "value (3e-4) or a dimension (\"{grid: [1e-4, 3e-4]}\", \"{loguniform:"
@@ -73,17 +81,25 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--timesteps", type=positive_int_arg, default=None,
                         help="environment steps per trial (default: the space's timesteps)")
     parser.add_argument("--cpus-per-trial", type=positive_int_arg, default=None,
-                        help="CPUs Ray reserves per trial (default: the space's, else 1; a "
-                             "trial runs n_envs env processes)")
+                        help="CPUs Ray reserves per trial (default: the space's, else what a "
+                             "trial uses: 1, 2 for a batched trial with eval_async; a subproc "
+                             "trial runs n_envs env processes, a batched one steps its cars on "
+                             "this many threads)")
     add_engine_argument(parser, what="every trial's")
+    parser.add_argument("--vectorization", choices=VECTORIZATIONS, default=None,
+                        help="how each trial runs its envs, as smartcar-train's option "
+                             "(default: the space's, else subproc); batched: the fast preset, "
+                             "the hyperparameters' <env>-batched-<engine> entry (e.g. 16 planar "
+                             "cars in one process with --engine planar), on an engine with a "
+                             "car batch")
     parser.add_argument("--no-early-stopping", action="store_true",
                         help="run every trial to the end (no ASHA)")
     parser.add_argument("--num-cpus", type=positive_int_arg, default=None,
                         help="CPUs of the local Ray instance (default: all)")
     parser.add_argument("--address", default=None,
                         help="a running Ray cluster (\"auto\", HOST:6379 or ray://HOST:10001) "
-                             "instead of a local instance; --out must then be a folder every "
-                             "node sees at the same path")
+                             f"instead of a local instance (default: ${ADDRESS_ENV} if set); "
+                             "--out must then be a folder every node sees at the same path")
     where = parser.add_mutually_exclusive_group(required=True)
     where.add_argument("--out", type=folder_arg, default=None, metavar="DIR",
                        help="new sweep folder: run folders, results, Tune state")
@@ -112,17 +128,22 @@ def main(argv: Sequence[str] | None = None) -> int:
     failed, 130 if interrupted (``--resume`` continues), 2 for bad input or no Ray."""
     parser = build_parser()
     args = parser.parse_args(argv)
-    if args.address is not None and args.num_cpus is not None:
-        parser.error("--num-cpus sets the CPUs of a new local Ray instance; a running cluster "
-                     "(--address) has its own: give one or the other")
+    given = "--address" if args.address is not None else ADDRESS_ENV
+    address = args.address if args.address is not None else os.environ.get(ADDRESS_ENV) or None
+    if address is not None and args.num_cpus is not None:
+        parser.error(f"--num-cpus sets the CPUs of a new local Ray instance; a running cluster "
+                     f"({given}) has its own: give one or the other")
     try:
         require_ray("ray.tune")
         sweep, out = (resumed_sweep(args) if args.resume is not None else new_sweep(args))
-        with ray_session(args.address, args.num_cpus):
+        with ray_session(address, args.num_cpus):
             check_cpus([sweep.cpus_per_trial], "a trial", "cpus_per_trial (--cpus-per-trial)")
             rows = run_sweep(sweep, out, resume=args.resume is not None)
     except (SpaceError, SweepSetupError, RayUnavailableError, ResourceError) as err:
-        print(f"{PROG}: error: {err}", file=sys.stderr)
+        where = (f" ({ADDRESS_ENV}; unset it for a new local instance)"
+                 if isinstance(err, RayUnavailableError) and address and given == ADDRESS_ENV
+                 else "")
+        print(f"{PROG}: error: {err}{where}", file=sys.stderr)
         return 2
     names = list(sweep.dimensions())
     written = results_mod.write_results(rows, names, out, sweep.algo, sweep.env)
@@ -144,20 +165,24 @@ def new_sweep(args: argparse.Namespace) -> tuple[Sweep, Path]:
     if (out / "sweep.yaml").exists():
         raise SweepSetupError(f"{out} already holds a sweep; continue it with {PROG} --resume "
                               f"{out}, or choose another --out")
-    data, path = load_space(args.space)
+    data, path = load_space(args.space if args.space is not None else shipped_space_file(
+        vectorization=args.vectorization or "subproc"))
     data = apply_overrides(data, args.hyperparams, args.seeds, num_samples=args.num_samples,
-                           timesteps=args.timesteps, cpus_per_trial=args.cpus_per_trial)
+                           timesteps=args.timesteps, cpus_per_trial=args.cpus_per_trial,
+                           vectorization=args.vectorization)
     if args.no_early_stopping:
         data["early_stopping"] = None
     if args.engine is not None:
         data["env_kwargs"] = {**(data.get("env_kwargs") or {}), "engine": args.engine}
     sweep = build_sweep(data, path, base_dir=path.parent,
                         fit_early_stopping=args.timesteps is not None)
-    _check_env_kwargs(sweep)
+    _check_env_kwargs(sweep, "--vectorization batched" if args.vectorization is not None
+                      else f"{sweep.source}: vectorization: batched")
     for note in sweep.notes:
         print(f"{PROG}: note: {note}", file=sys.stderr)
     n_envs = sweep.hyperparams.get("n_envs")
-    if isinstance(n_envs, int) and n_envs > sweep.cpus_per_trial:
+    if sweep.vectorization == "subproc" and isinstance(n_envs, int) \
+            and n_envs > sweep.cpus_per_trial:
         print(f"{PROG}: note: each trial runs n_envs={n_envs} env processes on "
               f"cpus_per_trial={sweep.cpus_per_trial} reserved CPU(s)", file=sys.stderr)
     return sweep, out
@@ -269,15 +294,24 @@ def _folder(path: Path) -> Path:
     return path.absolute()
 
 
-def _check_env_kwargs(sweep: Sweep) -> None:
-    """Make the env once with each env_kwargs value a trial can get (a bad one fails here)."""
-    from smartcar_gym.agents.env_factory import EnvSetupError, check_env
+def _check_env_kwargs(sweep: Sweep, batched_by: str) -> None:
+    """Make the env once with each env_kwargs value a trial can get (a bad one fails here);
+    a batched sweep's cars must be a batch (``batched_by`` names where it was asked for)."""
+    from smartcar_gym.agents.env_factory import EnvSetupError, check_env, given_kwargs
+    from smartcar_gym.envs.vector.make import loop_reason
+    from smartcar_gym.sim.engines import batch_engines
 
     for kwargs in env_kwargs_samples(sweep):
         try:
             check_env(sweep.env, kwargs)
         except EnvSetupError as err:
             raise SweepSetupError(f"{sweep.source}: env_kwargs: {err}") from err
+        why = loop_reason(sweep.env, kwargs) if sweep.vectorization == "batched" else None
+        if why is not None:
+            raise SweepSetupError(
+                f"{batched_by}: {sweep.env} with {given_kwargs(kwargs)} runs as a loop of "
+                f"single envs in one process, not a batch ({why}); give an engine with a car "
+                f"batch ({', '.join(batch_engines())}), or --vectorization subproc")
 
 
 def _first_line(error: BaseException) -> str:

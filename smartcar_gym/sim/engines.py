@@ -252,10 +252,15 @@ def available(engine: str) -> bool:
         return False
 
 
+def batch_engines() -> list[str]:
+    """The installed engines with a car batch (``Engine.car_batch``), in registration order."""
+    return [n for n in engine_names() if get_engine(n).car_batch is not None and available(n)]
+
+
 def batch_engine(preferred: str | None = None) -> str:
     """An installed engine with a car batch: ``preferred`` where it is one, else the first
     registered; ValueError if none is."""
-    names = [n for n in engine_names() if get_engine(n).car_batch is not None and available(n)]
+    names = batch_engines()
     if not names:
         raise ValueError("no installed engine has a car batch (Engine.car_batch)")
     return preferred if preferred in names else names[0]

@@ -143,7 +143,8 @@ def versus(args: argparse.Namespace) -> int:
         args.out.write_text(json.dumps([
             {"round": round_, "cars": cars, "base": args.base,
              **{side: {k: v for k, v in got[side].items() if k != "records"} for side in got},
-             "records_differ": differing(got["this"]["records"], got["base"]["records"])}
+             **({} if args.laser else {"records_differ": differing(got["this"]["records"],
+                                                                    got["base"]["records"])})}
             for round_, cars, got in rows], indent=2))
     return 0 if same else 1
 

@@ -4,8 +4,9 @@ installed and that runs as plain Python otherwise. Both run the same code on the
 in the same heap order, so they return the same cells (``tests/test_costmap_planner.py``).
 
 A move between neighbours costs its length in cells (1 or sqrt 2) times the sum of the two
-cells' costs (twice navfn's mean: the same order of paths). The heuristic is the octile
-distance to the goal times twice the least cost a cell may have (``floor``), which never
+cells' costs (twice navfn's mean: the same order of paths); a cell's cost is read from the
+costmap through a table of 256 values, in place. The heuristic is the octile distance to the
+goal times twice the least cost a cell may have (a free cell's), which never
 overestimates, so the path is a cheapest one; among moves of equal estimate the deeper is
 taken first (heap key ``(f, -g, cell)``), then the lower cell index, so that every tie is
 broken one way.
@@ -25,13 +26,15 @@ _DX = np.array([1, -1, 0, 0, 1, 1, -1, -1], dtype=np.int64)
 _DY = np.array([0, 0, 1, -1, 1, -1, 1, -1], dtype=np.int64)
 
 
-def search(cost: np.ndarray, free: np.ndarray, start: int, goal: int, nx: int,
-           floor: float) -> np.ndarray:
-    """The cheapest 8-connected way from flat cell ``start`` to ``goal`` of a grid ``nx``
-    cells wide (``cost``, ``free``: flat, row by row) through ``free`` cells, as the flat
-    indices of its cells from start to goal; empty if there is none. ``floor``: the least
-    value of ``cost`` (the heuristic's unit)."""
-    size = cost.shape[0]
+def search(grid: np.ndarray, table: np.ndarray, start: int, goal: int) -> np.ndarray:
+    """The cheapest 8-connected way from cell ``start`` to ``goal`` (flat indices, row by row)
+    of ``grid`` (H, W; uint8 costmap costs, read in place), as the flat indices of its cells
+    from start to goal; empty if there is none. A cell of cost ``c`` costs ``table[c]`` (256
+    values, ``inf``: impassable), the start's ``table[0]`` whatever its own (navfn's
+    ``clearRobotCell``); ``table[0]`` is the least, the heuristic's unit."""
+    ny, nx = grid.shape
+    size = ny * nx
+    floor = table[0]
     g = np.full(size, np.inf)
     parent = np.full(size, -1, dtype=np.int64)
     closed = np.zeros(size, dtype=np.bool_)
@@ -51,14 +54,16 @@ def search(cost: np.ndarray, free: np.ndarray, start: int, goal: int, nx: int,
             found = True
             break
         x, y = i % nx, i // nx
+        here = floor if i == start else table[grid[y, x]]
         for k in range(8):
             xx, yy = x + _DX[k], y + _DY[k]
-            if xx < 0 or yy < 0 or xx >= nx or yy * nx + xx >= size:
+            if xx < 0 or yy < 0 or xx >= nx or yy >= ny:
                 continue
             j = yy * nx + xx
-            if closed[j] or not free[j]:
+            there = floor if j == start else table[grid[yy, xx]]
+            if closed[j] or there == np.inf:
                 continue
-            step = cost[i] + cost[j]
+            step = here + there
             if k >= 4:
                 step = SQRT2 * step
             gj = g[i] + step

@@ -43,6 +43,10 @@ def navfn_costs(costs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.where(free, cost, np.inf), free
 
 
+#: navfn's cost of each costmap cost (0-255): ``navfn_costs``' table, ``inf`` impassable
+NAVFN_TABLE = navfn_costs(np.arange(256))[0]
+
+
 def plan_on_costmap(costmaps: LaserCostmaps, car: int, start: np.ndarray, goal: np.ndarray
                     ) -> np.ndarray:
     """The cheapest way (cell centres, (M, 2) m, odom frame) from ``start``'s cell to
@@ -63,15 +67,11 @@ def plan_on_costmap(costmaps: LaserCostmaps, car: int, start: np.ndarray, goal: 
     y_lo = max(min(int(iy.min()), by_lo) - 1, 0)
     x_hi = min(max(int(ix.max()) + 1, bx_hi) + 1, n)
     y_hi = min(max(int(iy.max()) + 1, by_hi) + 1, n)
-    cost, free = navfn_costs(costs[y_lo:y_hi, x_lo:x_hi])
     w = x_hi - x_lo
     start_cell = (int(iy[0]) - y_lo) * w + int(ix[0]) - x_lo
     goal_cell = (int(iy[1]) - y_lo) * w + int(ix[1]) - x_lo
-    cost, free = cost.ravel(), free.ravel()
-    free[start_cell] = True  # navfn's clearRobotCell
-    cost[start_cell] = NEUTRAL_COST
     search = compiled_search if costmaps.compiled else astar.search
-    cells = search(cost, free, start_cell, goal_cell, w, float(NEUTRAL_COST))
+    cells = search(costs[y_lo:y_hi, x_lo:x_hi], NAVFN_TABLE, start_cell, goal_cell)
     if len(cells) == 0:
         raise NoPathError(f"no way on the costmap from {np.round(ends[0], 3).tolist()} to "
                           f"{np.round(ends[1], 3).tolist()} avoids its obstacles")

@@ -103,6 +103,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--resume", type=Path, default=None, metavar="RUN_DIR",
                         help="continue a run from its last checkpoint (its config.yaml is "
                              "reloaded; step count and normaliser are kept)")
+    parser.add_argument("--init", type=Path, default=None, metavar="MODEL",
+                        help="a new run starting from this model's weights and normaliser "
+                             "statistics (a model .zip or run folder; a pickle: only one you "
+                             "trust); its network and spaces must be the run's")
     parser.add_argument("--device", default="cpu")
     parser.add_argument("--torch-threads", type=positive_int_arg, default=1,
                         help="torch CPU threads (default 1: the env workers need the cores)")
@@ -124,6 +128,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             parser.error("--resume reloads the run's config.yaml (its engine); --engine cannot "
                          "be given with it")
         args.env_kwargs = [*(args.env_kwargs or []), ("engine", args.engine)]
+    if args.resume is not None and args.init is not None:
+        parser.error("--init starts a new run from a model; --resume continues a run: give one")
     if args.resume is not None:
         config, run_dir, checkpoint = resume_config(parser, args)
     else:

@@ -108,6 +108,7 @@ def new_config(args: argparse.Namespace, command: str) -> dict[str, Any]:
     if not isinstance(hyperparams.get("eval_async", False), bool):
         raise HyperparamsError(f"eval_async must be true or false, got "
                                f"{hyperparams['eval_async']!r}")
+    init = getattr(args, "init", None)
     return {
         "algo": algo,
         "env": env_id,
@@ -129,12 +130,31 @@ def new_config(args: argparse.Namespace, command: str) -> dict[str, Any]:
                        if getattr(args, "eval_async", None) is None else args.eval_async),
         "checkpoint_freq": 50_000 if args.checkpoint_freq is None else args.checkpoint_freq,
         "save_replay_buffer": bool(args.save_replay_buffer),
+        # the model whose weights and normaliser the run starts from (None: new ones)
+        "init": None if init is None else init_files(init),
         "device": args.device,
         "versions": _versions(),
         "command": command,
         "created": utc_timestamp(),
         "resumes": [],
     }
+
+
+def init_files(path: str | os.PathLike) -> dict[str, str | None]:
+    """``--init``'s model and normaliser files (``model``, ``normalizer``: absolute paths, the
+    normaliser None if the model's place has none); ``HyperparamsError`` if ``path`` names no
+    model."""
+    from smartcar_gym.agents.models import ModelFilesError, locate_model
+
+    try:
+        found = locate_model(path)
+    except (ModelFilesError, OSError) as err:
+        raise HyperparamsError(f"--init {path}: {err}") from None
+    if not found.model.is_file():
+        raise HyperparamsError(f"--init {path}: no such model file ({found.model})")
+    normalizer = found.normalizer
+    return {"model": str(Path(found.model).resolve()),
+            "normalizer": None if normalizer is None else str(Path(normalizer).resolve())}
 
 
 def new_run(parser: argparse.ArgumentParser, args: argparse.Namespace,

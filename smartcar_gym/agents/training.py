@@ -249,6 +249,9 @@ def _make_envs(config: dict[str, Any], run_dir: Path, seed: int, segment: int,
     except EnvSetupError as err:
         raise RunSetupError(str(err)) from err
     stats = None if checkpoint is None or normalize is None else vecnormalize_path_for(checkpoint)
+    init = config.get("init")  # runs before it existed: none
+    if checkpoint is None and normalize is not None and init and init["normalizer"]:
+        stats = Path(init["normalizer"])
 
     def wrap(env: Any, **normalize_args: Any) -> Any:
         env = zoo_keys.wrap_vec_env(env, hp.get("vec_env_wrapper"))
@@ -275,7 +278,13 @@ def _make_envs(config: dict[str, Any], run_dir: Path, seed: int, segment: int,
         raise RunSetupError(str(err)) from err
     eval_env = None
     try:
-        venv = wrap(venv, load_path=stats)
+        try:
+            venv = wrap(venv, load_path=stats)
+        except (AssertionError, ValueError) as err:
+            if checkpoint is not None or not init:
+                raise
+            raise RunSetupError(f"--init {init['model']}: its normaliser {stats} does not fit "
+                                f"the run's observations ({err})") from None
         eval_engine = config.get("eval_engine")
         if eval_engine is not None and eval_engine != env_kwargs.get("engine", DEFAULT_ENGINE):
             # evaluated on another engine (planar training, pybullet evaluations)
@@ -335,8 +344,8 @@ def _make_model(config: dict[str, Any], venv: Any, seed: int, tb_dir: Path,
         return model
     kwargs = build_algo_kwargs(algo, hp, n_actions=venv.action_space.shape[0])
     try:
-        return cls(policy_class(hp), venv, seed=seed, device=device,
-                   tensorboard_log=str(tb_dir), verbose=0, **kwargs)
+        model = cls(policy_class(hp), venv, seed=seed, device=device,
+                    tensorboard_log=str(tb_dir), verbose=0, **kwargs)
     except (ValueError, TypeError, AssertionError, RuntimeError) as err:
         given = ", ".join(f"{k}={v}" for k, v in hp.items() if k not in ("n_envs", "n_timesteps"))
         raise RunSetupError(
@@ -344,6 +353,32 @@ def _make_model(config: dict[str, Any], venv: Any, seed: int, tb_dir: Path,
             f"(hyperparameters: {given}; set in {config.get('hyperparams_file', 'the file')} "
             "or with --hyperparams)"
         ) from err
+    if config.get("init"):  # runs before it existed: none
+        _load_init(model, config["init"]["model"], algo, device)
+    return model
+
+
+def _load_init(model: Any, path: str, algo: str, device: str) -> None:
+    """``model``'s policy weights set to those of the model at ``path`` (``--init``);
+    ``RunSetupError`` if it cannot be loaded or its spaces or network differ."""
+    from smartcar_gym.agents.models import load_model
+
+    try:
+        source = load_model(path, algo, device=device)
+    except Exception as err:
+        raise RunSetupError(f"--init {path}: cannot load it as a {algo.upper()} model: "
+                            f"{err}") from err
+    for name in ("observation_space", "action_space"):
+        if getattr(source, name) != getattr(model, name):
+            raise RunSetupError(f"--init {path}: its {name.replace('_', ' ')} "
+                                f"{getattr(source, name)} is not the run's "
+                                f"{getattr(model, name)}")
+    try:
+        model.policy.load_state_dict(source.policy.state_dict())
+    except RuntimeError as err:
+        first = str(err).splitlines()[0]
+        raise RunSetupError(f"--init {path}: its network is not the run's ({first}); give "
+                            "the hyperparameters it was trained with") from err
 
 
 def _load_replay_buffer(model: Any, checkpoint: Path, config: dict[str, Any]) -> None:

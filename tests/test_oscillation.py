@@ -102,3 +102,28 @@ def test_speeds_are_commanded_through_the_cars_response():
     assert speed_command(np.array([0.0775]))[0] == pytest.approx(0.0875, rel=1e-2)
     # below the slowest speed it drives (0.0187 m/s for 0.04), between 0.03 and 0.04
     assert speed_command(np.array([0.01]))[0] == pytest.approx(0.03 + 0.01 / 0.0187 * 0.01)
+
+
+def test_the_dwa_driver_is_move_base_in_full_only_without_the_map():
+    import gymnasium as gym
+
+    from smartcar_gym.bench.dwa import DWADriver
+    from smartcar_gym.envs.vector.view import CarView
+
+    top = {}
+    for mode in ("known", "laser"):
+        env = gym.make("SmartCarBARN-v0", engine="planar", map_mode=mode)
+        obs, _ = env.reset(seed=0, options={"world": 0})
+        cars, driver = CarView([env]), DWADriver()
+        driver.reset(cars)
+        assert (driver.oscillation is None) == (mode == "known")
+        speeds = set()
+        for _ in range(20):  # the open corridor: DWA plans its top speed, 0.125 m/s
+            action = driver.act(cars, obs)[0]
+            speeds.add(round(float(action[0]) * env.unwrapped.task.car.max_linear, 5))
+            obs, *_ = env.step(action)
+        env.close()
+        top[mode] = max(speeds)
+    # without the map, through the car's response: 0.125 between the rows (0.125 -> 0.122,
+    # 0.15 -> 0.146) is 0.125 + 0.003 / 0.024 x 0.025
+    assert top == {"known": 0.125, "laser": pytest.approx(0.128125, abs=1e-5)}

@@ -9,9 +9,11 @@ followed from the pose on the map, as amcl's transform gives it to move_base, an
 from each new plan, as move_base hands navfn's plans to its local planner. It plans with
 ``navigation.dwa.DWAPlanner`` and returns the cars' actions, the cmd_vel (v, w) over
 ``max_linear`` and ``max_angular``, which go through the same emulated ArbotiX controller as
-a policy's. With ``map_mode="laser"`` it also runs move_base's recovery behaviours
+a policy's. With ``map_mode="laser"`` it is move_base in full: its recovery behaviours
 (``navigation.recovery``: a conservative costmap reset, a rotation in place, an aggressive
-reset, a rotation, then it stops commanding); on the known map never.
+reset, a rotation, then it stops commanding), TrajectoryPlanner's in-place turns, oscillation
+flags and escape (``navigation.oscillation``) and the speeds commanded through the car's
+response; on the known map none of these, its records unchanged.
 """
 
 from __future__ import annotations

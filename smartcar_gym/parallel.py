@@ -1,6 +1,7 @@
 """Compiled loops over robots, split across threads: ``run_chunks(work, n, threads)`` calls
 ``work(start, stop)`` on consecutive chunks of ``range(n)``, ``threads`` at once (each thread
-takes the next chunk when its last is done), and waits for them all.
+takes the next chunk when its last is done), and waits until every chunk is done (not for a
+thread that found none left).
 
 The loops are numba's with ``nogil=True``, each robot's work independent of the others' and
 written to its own rows, so a split run gives the numbers of one call bit for bit; numba's own
@@ -28,7 +29,8 @@ _POOL_LOCK = threading.Lock()
 
 def run_chunks(work: Callable[[int, int], None], n: int, threads: int) -> None:
     """``work(start, stop)`` over ``range(n)`` on at most ``threads`` threads in parallel, in
-    up to ``CHUNKS_PER_THREAD`` chunks per thread (of ``MIN_CHUNK`` robots or more)."""
+    up to ``CHUNKS_PER_THREAD`` chunks per thread (of ``MIN_CHUNK`` robots or more); the
+    first chunk's error (by robot) is raised once every chunk has run."""
     parts = max(1, min(threads, n // MIN_CHUNK))
     if parts == 1:
         work(0, n)
@@ -36,15 +38,27 @@ def run_chunks(work: Callable[[int, int], None], n: int, threads: int) -> None:
     pieces = max(parts, min(parts * CHUNKS_PER_THREAD, n // MIN_CHUNK))
     bounds = [n * k // pieces for k in range(pieces + 1)]
     taken = itertools.count()  # the next chunk: ``next`` on it is atomic (one C call)
+    finished = itertools.count(1)
+    all_done = threading.Event()
+    errors: dict[int, BaseException] = {}
 
     def drain() -> None:
         while (k := next(taken)) < pieces:
-            work(bounds[k], bounds[k + 1])
+            try:
+                work(bounds[k], bounds[k + 1])
+            except BaseException as error:  # raised in the calling thread
+                errors[k] = error
+            if next(finished) == pieces:
+                all_done.set()
 
-    futures = [_pool().submit(drain) for _ in range(parts - 1)]
+    for _ in range(parts - 1):
+        _pool().submit(drain)
     drain()  # the calling thread takes chunks too
-    for future in futures:
-        future.result()
+    # waits for the chunks, not for the threads: a thread the system wakes only once the
+    # caller has taken every chunk (a busy machine) costs nothing
+    all_done.wait()
+    if errors:
+        raise errors[min(errors)]
 
 
 def _pool() -> ThreadPoolExecutor:

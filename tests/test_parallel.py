@@ -10,6 +10,7 @@ import time
 import numpy as np
 import pytest
 
+from smartcar_gym import parallel
 from smartcar_gym.navigation.footprint import COMPILED, footprint_check
 from smartcar_gym.parallel import CHUNKS_PER_THREAD, MIN_CHUNK, run_chunks
 
@@ -55,6 +56,22 @@ def test_a_chunks_error_reaches_the_caller():
 
     with pytest.raises(ValueError, match="robot 4 has no scan"):
         run_chunks(work, 8, 2)
+
+
+def test_the_caller_does_not_wait_for_a_thread_that_found_no_chunk():
+    """On a busy machine a worker may start only after the caller has taken every chunk:
+    the call returns once the chunks are done, not when that worker gets to run."""
+    pool, release = parallel._pool(), threading.Event()
+    for _ in range(pool._max_workers):  # every worker busy
+        pool.submit(release.wait)
+    done: list[int] = []
+    caller = threading.Thread(target=run_chunks, args=(lambda a, b: done.append(a), 32, 2))
+    try:
+        caller.start()
+        caller.join(timeout=10)
+        assert not caller.is_alive() and len(done) == CHUNKS_PER_THREAD * 2
+    finally:
+        release.set()
 
 
 @pytest.mark.skipif(not COMPILED, reason="numba (the fast extra) is off or not installed")

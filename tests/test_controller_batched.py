@@ -273,3 +273,45 @@ def test_bad_input_is_refused(path):
     with pytest.raises(ValueError, match="not finite"):
         batch.board_tick(0.3, np.array([[math.nan, 0.0], [0.0, 0.0]]))
     assert batch.then[0] == 0.1  # refused before anything changed
+
+
+@pytest.mark.skipif(not compiled.COMPILED, reason="the threads split the compiled loops (fast "
+                                                  "extra)")
+def test_the_compiled_loops_give_the_same_bits_on_one_thread_or_two():
+    """``threads``: the compiled ``update`` and ``board_tick`` split the cars over threads
+    (``parallel.run_chunks``). Each car is its own, so 64 random cars with random commands,
+    encoder streams and updates give the same numbers every millisecond on 1 or 2 threads,
+    and a call that one car makes refuse changes no car on either."""
+    rng = np.random.default_rng(29)
+    n = 64
+    configs = [random_config(rng) for _ in range(n)]
+    radius = rng.uniform(0.01, 0.2, n)
+    angles = rng.uniform(-1e3, 1e3, (n, 2))
+    batches = [BatchedArbotix(configs, "hardware", radius, threads=t) for t in (1, 2)]
+    for batch in batches:
+        batch.reset(0.0, angles)
+    frames = 0
+    for t_ms in range(1, 400):
+        now_s = t_ms / 1000
+        angles += rng.normal(0, 0.05, (n, 2)) + rng.uniform(-0.5, 0.5, (n, 1))
+        cmd, due = rng.random(n) < 0.05, rng.random(n) < 0.1
+        lx, az = rng.uniform(-1, 1, n), rng.uniform(-4, 4, n)
+        ran = []
+        for batch in batches:
+            batch.cmd_vel(lx, az, now_s, cmd)
+            batch.update(now_s, angles, due)
+            ran.append(batch.board_tick(now_s, angles))
+        assert np.array_equal(*ran)
+        frames += int(ran[0].sum())
+        for block in ("floats", "ints", "flags"):
+            assert np.array_equal(getattr(batches[0], block), getattr(batches[1], block)), \
+                f"t = {t_ms} ms: {block}"
+    assert frames > 1000  # the boards ran
+    angles[n - 1, 0] = math.nan  # the last car's chunk refuses; the first chunks' cars wait
+    for batch in batches:
+        saved = [batch.floats.copy(), batch.ints.copy(), batch.flags.copy()]
+        for call in (batch.update, batch.board_tick):
+            with pytest.raises(ValueError, match="not finite"):
+                call(0.5, angles)
+            assert all(np.array_equal(a, b) for a, b in zip(
+                saved, (batch.floats, batch.ints, batch.flags), strict=True))

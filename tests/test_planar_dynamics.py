@@ -325,11 +325,12 @@ def test_contacts_that_cannot_carry_the_body_are_refused(points, com, message) -
         static_loads(np.array(points), np.array(com), 10.0)
 
 
-@pytest.mark.skipif(not dynamics.COMPILED, reason="the threads split numba's loop (fast extra)")
+@pytest.mark.skipif(not dynamics.COMPILED, reason="the threads split numba's loops (fast extra)")
 def test_the_batch_gives_the_same_bits_on_one_thread_or_two() -> None:
-    """The planar batch's cars split over threads (``PlanarBatch.threads``): each car is
-    stepped alone, so any split gives the same state, bit for bit, through 40 random steps
-    of 64 cars with per-car substeps."""
+    """The planar batched env splits its cars over threads (``num_threads``): the physics
+    (``PlanarBatch.threads``) and the boards and controllers (``BatchedArbotix.threads``).
+    Each car is stepped alone, so any split gives the same state, bit for bit, through 300
+    random steps of 64 cars with per-car substeps and autoresets."""
     import gymnasium as gym
 
     import smartcar_gym  # noqa: F401
@@ -338,12 +339,14 @@ def test_the_batch_gives_the_same_bits_on_one_thread_or_two() -> None:
         env = gym.make_vec("SmartCar-v0", num_envs=64, vectorization_mode="vector_entry_point",
                            engine="planar", num_threads=threads)
         try:
-            assert env.unwrapped.cars.batch.threads == threads
+            batch, base = env.unwrapped.cars.batch, env.unwrapped.base
+            assert batch.threads == base.threads == threads
             obs, _ = env.reset(seed=3)
             rng, out = np.random.default_rng(3), [obs]
-            for _ in range(40):
+            for _ in range(300):
                 step = env.step(rng.uniform(-1, 1, (64, 2)).astype(np.float32))
-                out += [step[0], step[1], env.unwrapped.cars.batch.state.copy()]
+                out += [*step[:4], batch.state.copy(), base.floats.copy(), base.ints.copy(),
+                        base.flags.copy()]
             return out
         finally:
             env.close()

@@ -81,6 +81,8 @@ class BatchedArbotix:
         mode: ``"hardware"`` or ``"sim"``, as ``ArbotixBase``.
         wheel_radius_m: the encoder wheels' radius, a number or N of them.
         num_cars: N (needed when ``configs`` is a single config).
+        threads: the threads the compiled loops split the cars over (``parallel.run_chunks``;
+            each car is its own, so any count gives the same bits); numpy's code runs on one.
 
     The simulator passes encoder wheel angles as an ``(N, 2)`` array (left, right, rad,
     forward-positive) wherever ``ArbotixBase`` would call ``WheelDrive.encoder_angles``; the
@@ -93,7 +95,7 @@ class BatchedArbotix:
 
     def __init__(self, configs: ArbotixConfig | Sequence[ArbotixConfig], mode: Mode,
                  wheel_radius_m: float | Sequence[float], num_cars: int | None = None,
-                 encoder_phase_ticks: float = 0.0) -> None:
+                 encoder_phase_ticks: float = 0.0, threads: int = 1) -> None:
         if mode not in MODES:
             raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
         if isinstance(configs, ArbotixConfig):
@@ -107,6 +109,7 @@ class BatchedArbotix:
         self.n = n
         self.mode: Mode = mode
         self.configs = configs
+        self.threads = int(threads)
 
         def col(f, dtype=np.float64):  # one value per car
             return np.array([f(c) for c in configs], dtype=dtype)

@@ -106,7 +106,7 @@ class SmartCarBatchVectorEnv(CarsVectorEnv):
         self.autoreset_mode = check_autoreset_mode(autoreset_mode)
         #: steps before a car's episode is truncated (None: no limit)
         self.max_episode_steps = check_max_episode_steps(max_episode_steps, env_id)
-        #: the worker threads the cars' compiled loops split over (physics, laser, the task)
+        #: the worker threads the cars' compiled loops split over (physics, laser, boards, task)
         self.threads = check_num_threads(num_threads)
         template = SmartCarEnv(**kwargs)
         try:
@@ -156,7 +156,8 @@ class SmartCarBatchVectorEnv(CarsVectorEnv):
         self.cars = cars
         self.period_ns = robot.update_period_ns
         self.base = BatchedArbotix(s.controller_config, HARDWARE, s.robot_model.wheel_radius_m,
-                                   num_cars=n, encoder_phase_ticks=robot.encoder_phase_ticks)
+                                   num_cars=n, encoder_phase_ticks=robot.encoder_phase_ticks,
+                                   threads=self.threads)
         laser = self.task.laser
         self._allocate_episodes(n, len(robot.wheel_joint_indices), self.task.readings())
         #: the task's laser on every car (None: the task's cars carry none)

@@ -6,7 +6,9 @@ The base commit is checked out into a temporary git worktree. Each round measure
 once on each side, alternating which side goes first, each measurement in a fresh subprocess
 with that side's checkout first on ``sys.path``. Cases: one env of each engine
 (``gym.make("SmartCar-v0", engine=...)``), the MuJoCo batch at N = 64 and the planar batch at
-N = 4096 (``gym.make_vec(..., vectorization_mode="vector_entry_point")``). The table gives
+N = 4096 (``gym.make_vec(..., vectorization_mode="vector_entry_point")``; its default
+``num_threads``, one per CPU, and 1 and 2 threads: ``--only "planar batch N=4096,"``). The
+table gives
 the median steps (car-steps for batches) per second of each side and the median of the
 per-round ratios (this checkout / base): ratios within a round, since this machine's speed
 drifts by half within minutes.
@@ -25,12 +27,15 @@ from pathlib import Path
 from timed import worktree_at  # benchmarks/timed.py, beside this script
 
 ROOT = Path(__file__).resolve().parent.parent
+#: label: (env id, engine, cars (0: one env), num_threads (0: the env's default))
 CASES = {
-    "pybullet single": ("SmartCar-v0", "pybullet", 0),
-    "mujoco single": ("SmartCar-v0", "mujoco", 0),
-    "planar single": ("SmartCar-v0", "planar", 0),
-    "mujoco batch N=64": ("SmartCar-v0", "mujoco", 64),
-    "planar batch N=4096": ("SmartCar-v0", "planar", 4096),
+    "pybullet single": ("SmartCar-v0", "pybullet", 0, 0),
+    "mujoco single": ("SmartCar-v0", "mujoco", 0, 0),
+    "planar single": ("SmartCar-v0", "planar", 0, 0),
+    "mujoco batch N=64": ("SmartCar-v0", "mujoco", 64, 0),
+    "planar batch N=4096": ("SmartCar-v0", "planar", 4096, 0),
+    "planar batch N=4096, 1 thread": ("SmartCar-v0", "planar", 4096, 1),
+    "planar batch N=4096, 2 threads": ("SmartCar-v0", "planar", 4096, 2),
 }
 
 MEASURE = r"""
@@ -38,7 +43,8 @@ import json, sys, time, warnings
 import gymnasium as gym
 import numpy as np
 import smartcar_gym
-env_id, engine, n, seconds = sys.argv[1], sys.argv[2], int(sys.argv[3]), float(sys.argv[4])
+env_id, engine, n, threads = sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[4])
+seconds = float(sys.argv[5])
 rng = np.random.default_rng(0)
 if n == 0:
     env = gym.make(env_id, engine=engine)
@@ -48,7 +54,7 @@ if n == 0:
     cars = 1
 else:
     env = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point",
-                       engine=engine)
+                       engine=engine, **({"num_threads": threads} if threads else {}))
     env.reset(seed=0)
     act = lambda: rng.uniform(-1, 1, (n, 2)).astype(np.float32)
     step = lambda a: env.step(a)
@@ -69,7 +75,7 @@ print(json.dumps({"rate": steps * cars / elapsed, "file": smartcar_gym.__file__}
 """
 
 
-def measure(checkout: Path, case: tuple[str, str, int], seconds: float) -> float:
+def measure(checkout: Path, case: tuple[str, str, int, int], seconds: float) -> float:
     env = {**os.environ, "PYTHONPATH": str(checkout)}
     out = subprocess.run([sys.executable, "-c", MEASURE, *map(str, case), str(seconds)],
                          env=env, cwd=checkout, capture_output=True, text=True, check=True)

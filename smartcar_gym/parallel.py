@@ -6,8 +6,8 @@ thread that found none left).
 The loops are numba's with ``nogil=True``, each robot's work independent of the others' and
 written to its own rows, so a split run gives the numbers of one call bit for bit; numba's own
 ``parallel=True`` is not used (its default threading layer aborts when two Python threads
-enter it at once). One pool serves the process; a thread count of 1, or fewer than
-``MIN_CHUNK`` robots per thread, runs in the calling thread.
+enter it at once). One pool serves the process; a thread count of 1, or too few robots
+for two chunks (``MIN_CHUNK``, or the caller's ``min_chunk``), runs in the calling thread.
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ import threading
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 
-MIN_CHUNK = 4  # robots per thread below which splitting costs more than it saves
+MIN_CHUNK = 4  # robots per chunk below which splitting costs more than it saves (by default)
 #: chunks per thread, taken in turn: a thread whose robots cost less takes more of them (the
 #: robots' costs differ: a DWA robot among many obstacle points costs several times another's)
 CHUNKS_PER_THREAD = 4
@@ -27,15 +27,17 @@ _POOL_PID = 0  # the process that made it: a forked child makes its own (it has 
 _POOL_LOCK = threading.Lock()
 
 
-def run_chunks(work: Callable[[int, int], None], n: int, threads: int) -> None:
+def run_chunks(work: Callable[[int, int], None], n: int, threads: int,
+               min_chunk: int = MIN_CHUNK) -> None:
     """``work(start, stop)`` over ``range(n)`` on at most ``threads`` threads in parallel, in
-    up to ``CHUNKS_PER_THREAD`` chunks per thread (of ``MIN_CHUNK`` robots or more); the
-    first chunk's error (by robot) is raised once every chunk has run."""
-    parts = max(1, min(threads, n // MIN_CHUNK))
+    up to ``CHUNKS_PER_THREAD`` chunks per thread of ``min_chunk`` robots or more (a split
+    costs some 20-40 us: cheap robots need many to a chunk); the first chunk's error (by
+    robot) is raised once every chunk has run."""
+    parts = max(1, min(threads, n // min_chunk))
     if parts == 1:
         work(0, n)
         return
-    pieces = max(parts, min(parts * CHUNKS_PER_THREAD, n // MIN_CHUNK))
+    pieces = max(parts, min(parts * CHUNKS_PER_THREAD, n // min_chunk))
     bounds = [n * k // pieces for k in range(pieces + 1)]
     taken = itertools.count()  # the next chunk: ``next`` on it is atomic (one C call)
     finished = itertools.count(1)

@@ -15,10 +15,11 @@ from smartcar_gym.navigation.footprint import COMPILED, footprint_check
 from smartcar_gym.parallel import CHUNKS_PER_THREAD, MIN_CHUNK, run_chunks
 
 
-@pytest.mark.parametrize("n, threads, chunks", [(0, 2, 1), (7, 2, 1), (8, 2, 2), (23, 3, 5),
-                                               (9, 1, 1), (100, 4, 16)])
-def test_every_robot_is_worked_once_in_consecutive_chunks(n, threads, chunks):
-    """Up to ``CHUNKS_PER_THREAD`` chunks per thread, none under ``MIN_CHUNK`` robots, on at
+@pytest.mark.parametrize("n, threads, min_chunk, chunks", [
+    (0, 2, MIN_CHUNK, 1), (7, 2, MIN_CHUNK, 1), (8, 2, MIN_CHUNK, 2), (23, 3, MIN_CHUNK, 5),
+    (9, 1, MIN_CHUNK, 1), (100, 4, MIN_CHUNK, 16), (2047, 2, 1024, 1), (4096, 2, 1024, 4)])
+def test_every_robot_is_worked_once_in_consecutive_chunks(n, threads, min_chunk, chunks):
+    """Up to ``CHUNKS_PER_THREAD`` chunks per thread, none under ``min_chunk`` robots, on at
     most ``threads`` threads; one thread (the caller's) below two chunks' worth."""
     seen = np.zeros(n, dtype=int)
     done, names = [], set()
@@ -28,9 +29,9 @@ def test_every_robot_is_worked_once_in_consecutive_chunks(n, threads, chunks):
         done.append((a, b))
         names.add(threading.current_thread().name)
 
-    run_chunks(work, n, threads)
+    run_chunks(work, n, threads, min_chunk)
     assert (seen == 1).all() and len(done) == chunks
-    assert all(b - a >= min(n, MIN_CHUNK) for a, b in done)
+    assert all(b - a >= min(n, min_chunk) for a, b in done)
     assert len(names) <= threads and (chunks > 1 or names == {threading.current_thread().name})
 
 

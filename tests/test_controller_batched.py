@@ -277,11 +277,13 @@ def test_bad_input_is_refused(path):
 
 @pytest.mark.skipif(not compiled.COMPILED, reason="the threads split the compiled loops (fast "
                                                   "extra)")
-def test_the_compiled_loops_give_the_same_bits_on_one_thread_or_two():
+def test_the_compiled_loops_give_the_same_bits_on_one_thread_or_two(monkeypatch):
     """``threads``: the compiled ``update`` and ``board_tick`` split the cars over threads
-    (``parallel.run_chunks``). Each car is its own, so 64 random cars with random commands,
-    encoder streams and updates give the same numbers every millisecond on 1 or 2 threads,
-    and a call that one car makes refuse changes no car on either."""
+    (``parallel.run_chunks``; here 64 cars, in chunks of 8). Each car is its own, so random
+    cars with random commands, encoder streams and updates give the same numbers every
+    millisecond on 1 or 2 threads, and a call that one car makes refuse changes no car on
+    either."""
+    monkeypatch.setattr(compiled, "MIN_CHUNK_CARS", 8)
     rng = np.random.default_rng(29)
     n = 64
     configs = [random_config(rng) for _ in range(n)]

@@ -326,14 +326,17 @@ def test_contacts_that_cannot_carry_the_body_are_refused(points, com, message) -
 
 
 @pytest.mark.skipif(not dynamics.COMPILED, reason="the threads split numba's loops (fast extra)")
-def test_the_batch_gives_the_same_bits_on_one_thread_or_two() -> None:
+def test_the_batch_gives_the_same_bits_on_one_thread_or_two(monkeypatch) -> None:
     """The planar batched env splits its cars over threads (``num_threads``): the physics
-    (``PlanarBatch.threads``) and the boards and controllers (``BatchedArbotix.threads``).
-    Each car is stepped alone, so any split gives the same state, bit for bit, through 300
-    random steps of 64 cars with per-car substeps and autoresets."""
+    (``PlanarBatch.threads``) and the boards and controllers (``BatchedArbotix.threads``; here
+    in chunks of 8 cars). Each car is stepped alone, so any split gives the same state, bit
+    for bit, through 300 random steps of 64 cars with per-car substeps and autoresets."""
     import gymnasium as gym
 
     import smartcar_gym  # noqa: F401
+    from smartcar_gym.controller import compiled
+
+    monkeypatch.setattr(compiled, "MIN_CHUNK_CARS", 8)
 
     def rollout(threads: int) -> list[np.ndarray]:
         env = gym.make_vec("SmartCar-v0", num_envs=64, vectorization_mode="vector_entry_point",

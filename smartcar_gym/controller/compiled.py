@@ -13,7 +13,8 @@ controller update is about 60 of them. Measured (docs/performance.md): the plana
 tenth of its step.
 
 The loops that change cars free the GIL and split the cars over ``BatchedArbotix.threads``
-(``parallel.run_chunks``); each car is its own, so any split gives the same bits. The checks
+(``parallel.run_chunks``, ``MIN_CHUNK_CARS`` or more to a chunk); each car is its own,
+so any split gives the same bits. The checks
 that refuse a call run first, over every car in the calling thread, so that a refused call
 changes no car whatever the split.
 
@@ -88,6 +89,9 @@ except ImportError:  # the fast extra is not installed
 
 COMPILED = numba is not None and os.environ.get("SMARTCAR_GYM_NUMBA", "1") != "0"
 
+#: cars per chunk below which a split costs more than it saves: a car's update or PID frame
+#: takes some 40 ns, a split 20-40 us
+MIN_CHUNK_CARS = 1024
 #: what a compiled call found wrong before it changed anything (0: nothing)
 NOT_READY, BACKWARDS, NOT_FINITE = 1, 2, 3
 MESSAGES = {
@@ -291,7 +295,8 @@ def update(b: BatchedArbotix, now_s: np.ndarray | float, angles: np.ndarray,
     now, angles, mask = _per_car(b, now_s, angles, mask)
     f, n, flags = b.floats, b.ints, b.flags
     _checked(_update_refused(mask, now, angles, f, flags))  # before any car changes
-    run_chunks(lambda i, j: _update_cars(i, j, mask, now, angles, f, n, flags), b.n, b.threads)
+    run_chunks(lambda i, j: _update_cars(i, j, mask, now, angles, f, n, flags), b.n, b.threads,
+               MIN_CHUNK_CARS)
 
 
 def board_tick(b: BatchedArbotix, now_s: np.ndarray | float, angles: np.ndarray,
@@ -301,5 +306,6 @@ def board_tick(b: BatchedArbotix, now_s: np.ndarray | float, angles: np.ndarray,
     ran = np.zeros(b.n, dtype=bool)
     f, n, flags = b.floats, b.ints, b.flags
     _checked(_frames_refused(mask, now, angles, ran, f, n, flags))  # before any car changes
-    run_chunks(lambda i, j: _frame_cars(i, j, now, angles, ran, f, n, flags), b.n, b.threads)
+    run_chunks(lambda i, j: _frame_cars(i, j, now, angles, ran, f, n, flags), b.n, b.threads,
+               MIN_CHUNK_CARS)
     return ran

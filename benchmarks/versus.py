@@ -2,16 +2,17 @@
 
     python benchmarks/versus.py --base 094ff80 [--rounds 5] [--seconds 3]
 
-The base commit is checked out into a temporary git worktree. Each round measures every case
-once on each side, alternating which side goes first, each measurement in a fresh subprocess
-with that side's checkout first on ``sys.path``. Cases: one env of each engine
+The base commit is checked out into a temporary git worktree. Each case runs on each side in
+a process of its own, with that side's checkout first on ``sys.path``, which makes the env
+once and then steps it for ``--seconds`` at each request (the others wait, idle). Each round
+measures every case once on each side, alternating which side goes first: the two
+measurements of a pair lie seconds apart. Cases: one env of each engine
 (``gym.make("SmartCar-v0", engine=...)``), the MuJoCo batch at N = 64 and the planar batch at
 N = 4096 (``gym.make_vec(..., vectorization_mode="vector_entry_point")``; its default
 ``num_threads``, one per CPU, and 1 and 2 threads: ``--only "planar batch N=4096,"``). The
-table gives
-the median steps (car-steps for batches) per second of each side and the median of the
-per-round ratios (this checkout / base): ratios within a round, since this machine's speed
-drifts by half within minutes.
+table gives the median steps (car-steps for batches) per second of each side and the median
+of the per-round ratios (this checkout / base): ratios within a round, since this machine's
+speed drifts by half within minutes.
 """
 
 from __future__ import annotations
@@ -44,7 +45,6 @@ import gymnasium as gym
 import numpy as np
 import smartcar_gym
 env_id, engine, n, threads = sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[4])
-seconds = float(sys.argv[5])
 rng = np.random.default_rng(0)
 if n == 0:
     env = gym.make(env_id, engine=engine)
@@ -63,26 +63,49 @@ for _ in range(5):
     out = step(act())
     if n == 0 and (out[0] or out[1]):
         env.reset()
-steps, start = 0, time.perf_counter()
-while time.perf_counter() - start < seconds:
-    out = step(act())
-    steps += 1
-    if n == 0 and (out[0] or out[1]):
-        env.reset()
-elapsed = time.perf_counter() - start
+print(json.dumps({"file": smartcar_gym.__file__}), flush=True)
+for line in sys.stdin:  # each line: the seconds of one measurement
+    steps, start = 0, time.perf_counter()
+    while time.perf_counter() - start < float(line):
+        out = step(act())
+        steps += 1
+        if n == 0 and (out[0] or out[1]):
+            env.reset()
+    print(json.dumps({"rate": steps * cars / (time.perf_counter() - start)}), flush=True)
 env.close()
-print(json.dumps({"rate": steps * cars / elapsed, "file": smartcar_gym.__file__}))
 """
 
 
-def measure(checkout: Path, case: tuple[str, str, int, int], seconds: float) -> float:
-    env = {**os.environ, "PYTHONPATH": str(checkout)}
-    out = subprocess.run([sys.executable, "-c", MEASURE, *map(str, case), str(seconds)],
-                         env=env, cwd=checkout, capture_output=True, text=True, check=True)
-    result = json.loads(out.stdout.strip().splitlines()[-1])
-    if not result["file"].startswith(str(checkout)):
-        raise RuntimeError(f"measured {result['file']}, not the checkout {checkout}")
-    return result["rate"]
+class Side:
+    """One case on one checkout: a process that made the env and measures it on request."""
+
+    def __init__(self, checkout: Path, case: tuple[str, str, int, int]) -> None:
+        self.proc = subprocess.Popen(
+            [sys.executable, "-c", MEASURE, *map(str, case)], cwd=checkout, text=True,
+            env={**os.environ, "PYTHONPATH": str(checkout)}, stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE)
+        measured = self._answer()["file"]
+        if not measured.startswith(str(checkout)):
+            raise RuntimeError(f"measured {measured}, not the checkout {checkout}")
+
+    def _answer(self) -> dict:
+        assert self.proc.stdout is not None
+        line = self.proc.stdout.readline()
+        if not line:
+            raise RuntimeError(f"the measuring process ended (exit {self.proc.wait()})")
+        return json.loads(line)
+
+    def measure(self, seconds: float) -> float:
+        """Steps (car-steps) per second over ``seconds`` of stepping."""
+        assert self.proc.stdin is not None
+        self.proc.stdin.write(f"{seconds}\n")
+        self.proc.stdin.flush()
+        return self._answer()["rate"]
+
+    def close(self) -> None:
+        assert self.proc.stdin is not None
+        self.proc.stdin.close()
+        self.proc.wait()
 
 
 def main() -> None:
@@ -96,17 +119,22 @@ def main() -> None:
     rates: dict[str, dict[str, list[float]]] = {k: {"this": [], "base": []} for k in cases}
     ratios: dict[str, list[float]] = {k: [] for k in cases}
     with worktree_at(ROOT, args.base) as base:
-        for r in range(args.rounds):
-            for label, case in cases.items():
-                order = [("this", ROOT), ("base", base)]
-                if r % 2:
-                    order.reverse()
-                got = {side: measure(path, case, args.seconds) for side, path in order}
-                for side, rate in got.items():
-                    rates[label][side].append(rate)
-                ratios[label].append(got["this"] / got["base"])
-                print(f"round {r}: {label}: this {got['this']:.0f}/s, base "
-                      f"{got['base']:.0f}/s, ratio {ratios[label][-1]:.3f}", flush=True)
+        sides = {label: {"this": Side(ROOT, case), "base": Side(base, case)}
+                 for label, case in cases.items()}
+        try:
+            for r in range(args.rounds):
+                for label in cases:
+                    order = ["this", "base"] if r % 2 == 0 else ["base", "this"]
+                    got = {side: sides[label][side].measure(args.seconds) for side in order}
+                    for side, rate in got.items():
+                        rates[label][side].append(rate)
+                    ratios[label].append(got["this"] / got["base"])
+                    print(f"round {r}: {label}: this {got['this']:.0f}/s, base "
+                          f"{got['base']:.0f}/s, ratio {ratios[label][-1]:.3f}", flush=True)
+        finally:
+            for pair in sides.values():
+                for side in pair.values():
+                    side.close()
     print(f"\n| case | this (steps/s) | {args.base} (steps/s) | ratio, median (min-max) |")
     print("|---|---|---|---|")
     for label in cases:

@@ -122,19 +122,24 @@ def test_an_out_folder_that_cannot_be_written(tmp_path, capsys):
     assert code == 2 and "--out: cannot create" in err and "is not a folder" in err
 
 
-@needs_tune
-def test_an_address_nothing_listens_on_fails_at_once(tmp_path, capsys, monkeypatch):
+def _dead_address(monkeypatch) -> str:
+    """An address nothing listens on, with the real ray_session in place."""
     import socket
 
     from smartcar_gym.scale import ray_session
 
     monkeypatch.setattr(tune_cli, "ray_session", ray_session.ray_session)  # the real one
-    with socket.socket() as free:  # a port nothing listens on
+    with socket.socket() as free:
         free.bind(("127.0.0.1", 0))
-        port = free.getsockname()[1]
+        return f"127.0.0.1:{free.getsockname()[1]}"
+
+
+@needs_tune
+def test_an_address_nothing_listens_on_fails_at_once(tmp_path, capsys, monkeypatch):
+    address = _dead_address(monkeypatch)
     start = time.monotonic()
-    code, err = run(["--address", f"127.0.0.1:{port}", "--out", tmp_path / "s"], capsys)
-    assert code == 2 and f"cannot connect to the Ray cluster at 127.0.0.1:{port}" in err
+    code, err = run(["--address", address, "--out", tmp_path / "s"], capsys)
+    assert code == 2 and f"cannot connect to the Ray cluster at {address}" in err
     assert err.count("\n") == 1 and time.monotonic() - start < 30  # Ray alone: minutes
     assert not (tmp_path / "s").exists()
 
@@ -215,18 +220,11 @@ def test_ray_address_names_the_cluster_num_cpus_a_local_one(tmp_path, capsys, mo
 
 @needs_tune
 def test_a_ray_address_nothing_listens_on_says_where_it_came_from(tmp_path, capsys, monkeypatch):
-    import socket
-
-    from smartcar_gym.scale import ray_session
-
-    monkeypatch.setattr(tune_cli, "ray_session", ray_session.ray_session)  # the real one
-    with socket.socket() as free:  # a port nothing listens on
-        free.bind(("127.0.0.1", 0))
-        port = free.getsockname()[1]
-    monkeypatch.setenv("RAY_ADDRESS", f"127.0.0.1:{port}")
+    address = _dead_address(monkeypatch)
+    monkeypatch.setenv("RAY_ADDRESS", address)
     code, err = run(["--out", tmp_path / "s"], capsys)
     assert code == 2 and err.count("\n") == 1
     assert err.startswith(f"smartcar-tune: error: cannot connect to the Ray cluster at "
-                          f"127.0.0.1:{port}: ")
+                          f"{address}: ")
     assert err.endswith("(RAY_ADDRESS; unset it for a new local instance)\n")
     assert not (tmp_path / "s").exists()

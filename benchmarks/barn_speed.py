@@ -39,7 +39,10 @@ def env_kwargs(args: argparse.Namespace, base: bool) -> list[str]:
     """The ``--env-kwargs`` of this checkout's command or of the base's."""
     if args.laser:
         return ["localize=true"] if base else LASER
-    return ["localize=true"] if args.localize else []
+    if args.localize:
+        return ["localize=true"]
+    # the known map: this checkout's DWA runs without it unless told (the base knows no map_mode)
+    return [] if base or args.pretrained else ["map_mode=known"]
 
 
 def run(cars: int, args: argparse.Namespace, folder: Path, checkout: Path | None = None

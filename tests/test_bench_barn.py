@@ -30,7 +30,8 @@ def test_dwa_on_two_worlds_prints_the_table_writes_json_and_misses_a_mark(tmp_pa
     # world 228: DWA times out on MuJoCo, turning in front of a gap (docs/barn.md); 0: a success
     code, out, err = _run(["barn", "--driver", "dwa", "--engine", "mujoco", "--worlds", "0",
                            "228", "--json", str(out_json), "--plot", str(out_png),
-                           "--fail-under", "60", "--max-final-distance", "5"], capsys)
+                           "--fail-under", "60", "--max-final-distance", "5",
+                           "--env-kwargs", "map_mode=known"], capsys)
     assert code == 1
     assert out.startswith("smartcar-bench barn: dwa on mujoco, 2 worlds x 1 run(s), seed 0\n")
     assert "| dwa | 2 | 0.500 | 0.000 | 0.500 | 0.000 |" in out
@@ -54,7 +55,8 @@ def test_dwa_on_two_worlds_prints_the_table_writes_json_and_misses_a_mark(tmp_pa
     (["--driver", "teb"], "--driver: unknown driver 'teb'; the drivers are dwa"),
     (["--pretrained", "jackal"], "--pretrained: no shipped policy 'jackal'; the shipped ones "
                                  "are default, robust, nav, ros, mujoco, barn"),
-    (["--env-kwargs", "lasr=1"], "cannot make SmartCarBARN-v0 with engine='mujoco', lasr=1, "
+    (["--env-kwargs", "lasr=1"], "cannot make SmartCarBARN-v0 with map_mode='laser', "
+                                 "engine='mujoco', lasr=1, "
                                  "world_file=None: SmartCarBARN-v0 got an unexpected keyword "
                                  "argument 'lasr' (did you mean 'laser'?)"),
     (["--env-kwargs", "engine=planar"], "--env-kwargs: engine is set by --engine, not here"),
@@ -143,11 +145,18 @@ def test_laser_noise_makes_a_worlds_runs_differ_and_the_json_says_so(tmp_path, c
         return result, [(r["steps"], r["final_distance_m"]) for r in result["records"]]
 
     plain, plain_runs = runs("plain")
-    assert plain_runs[0] == plain_runs[1] and plain["env_kwargs"] == {"engine": "planar"}
+    # DWA runs the challenge's protocol unless told: no map
+    assert plain_runs[0] == plain_runs[1]
+    assert plain["env_kwargs"] == {"engine": "planar", "map_mode": "laser"}
     noise = ["--env-kwargs", "laser={noise_std_m: 0.01}"]
     noisy, noisy_runs = runs("noisy", *noise)
     assert noisy_runs[0] != noisy_runs[1]
-    assert noisy["env_kwargs"] == {"engine": "planar", "laser": {"noise_std_m": 0.01}}
+    assert noisy["env_kwargs"] == {"engine": "planar", "map_mode": "laser",
+                                   "laser": {"noise_std_m": 0.01}}
+    # the known map when asked for, or when localize (scans matched to it) is
+    for extra, mode in ((["map_mode=known"], "known"), (["localize=true"], None)):
+        known, _ = runs("known", "--env-kwargs", *extra)
+        assert known["env_kwargs"].get("map_mode") == mode
     assert runs("again", *noise)[1] == noisy_runs
 
 
@@ -259,8 +268,10 @@ def test_a_world_failing_mid_run_keeps_the_runs_before_it(tmp_path, constant, mo
 
     monkeypatch.setattr(cli, "_plan_worlds", lambda cars, chosen: None)  # as if unchecked
     worlds, out_json = _world_file(tmp_path, [0], bad_start=True), tmp_path / "out.json"
+    # the known map: a reset plans the world's path on it (without the map, from the laser)
     code, out, err = _run(["barn", "--engine", "planar", "--world-file", str(worlds),
-                           "--worlds", "0", "1", "--json", str(out_json)], capsys)
+                           "--worlds", "0", "1", "--json", str(out_json), "--env-kwargs",
+                           "map_mode=known"], capsys)
     assert code == 2
     line = _error(err)
     assert line.startswith(f"BARN world 1 of {worlds} has no way for this car: the start ")

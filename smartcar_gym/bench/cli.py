@@ -3,6 +3,8 @@
 ::
 
     smartcar-bench barn --driver dwa --engine pybullet --runs 1 --json dwa.json --plot dwa.png
+        (DWA as the challenge's move_base: no map, its costmaps from the laser;
+        --env-kwargs map_mode=known for the old protocol on the known map)
     smartcar-bench barn --model runs/ppo_SmartCarBARN-v0_s0 --runs 10 --fail-under 80
 
 Every test world of the world file (the shipped one's: 0, 6, ..., 294; ``--worlds`` for
@@ -59,7 +61,8 @@ def build_parser() -> argparse.ArgumentParser:
     source.add_argument("--pretrained", metavar="NAME", help="a shipped policy by name")
     source.add_argument("--driver", metavar="NAME",
                         help=f"a classical driver: {', '.join(sorted(DRIVERS))} (the default: "
-                             "dwa)")
+                             "dwa), run on the challenge's protocol: no map (map_mode=laser; "
+                             "map_mode=known or localize=true: the known map)")
     add_engine_argument(barn)
     barn.add_argument("--runs", type=positive_int_arg, default=1, metavar="K",
                       help="runs of each world (default 1; the challenge: 10)")
@@ -169,9 +172,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.error(f"{failed} (the {len(records)} run(s) before it are kept"
                      f"{'' if args.json is None else f' in {args.json}'})")
     if args.plot is not None:
+        dashed = ("the known map's path, not given to the car" if kwargs.get("map_mode") ==
+                  "laser" else "the global path")
         plot_runs(records, worlds, scale, args.plot,
-                  f"{name} on {engine}: {summary['success_rate']:.0%} success (dashed: the "
-                  "global path)", paths)
+                  f"{name} on {engine}: {summary['success_rate']:.0%} success (dashed: "
+                  f"{dashed})", paths)
         print(f"wrote {args.plot}")
     for mark in marks:
         print(f"smartcar-bench: {mark['line']}", file=sys.stderr)
@@ -221,11 +226,14 @@ def _plan_worlds(cars: CarView, chosen: Sequence[int]) -> None:
 
 
 def _driver(args: argparse.Namespace) -> tuple[Any, str, dict[str, Any]]:
-    """The driver the arguments name, its name in the table, and the env kwargs it was
-    trained with (a policy of SmartCarBARN-v0; else none)."""
+    """The driver the arguments name, its name in the table, and the env kwargs it runs with
+    unless ``--env-kwargs`` says otherwise: a policy's, those it was trained with (a policy
+    of SmartCarBARN-v0); a classical driver's, the challenge's protocol (``map_mode`` laser:
+    no map), or the known map when ``localize`` is given (it matches scans to that map)."""
     if args.model is None and args.pretrained is None:
         name = args.driver or "dwa"
-        return make_driver(name), name, {}
+        known = "localize" in dict(args.env_kwargs)
+        return make_driver(name), name, {} if known else {"map_mode": DRIVER_MAP_MODE}
     from smartcar_gym.agents.models import PRETRAINED_POLICIES
     from smartcar_gym.agents.policies import Policy, PolicyError
 
@@ -244,6 +252,9 @@ def _driver(args: argparse.Namespace) -> tuple[Any, str, dict[str, Any]]:
     return PolicyDriver(policy, name), name, trained_with
 
 
+#: a classical driver's map mode unless told: the challenge's (move_base builds its costmaps
+#: from the laser; ``--env-kwargs map_mode=known`` runs the old protocol on the known map)
+DRIVER_MAP_MODE = "laser"
 #: a policy's env kwargs the benchmark does not take: the protocol sets the episode's length and
 #: runs the nominal car (a policy that learnt with ``randomize`` is measured without it)
 NOT_FROM_POLICY = ("max_episode_steps", "world_file", "render_mode", "randomize")

@@ -45,7 +45,7 @@ class GymVectorVecEnv(VecEnv):
         obs, info = self.venv.reset(seed=seeds, options=options)
         self._reset_seeds()
         self._reset_options()
-        self.reset_infos = [self._one_info(info, i) for i in range(self.num_envs)]
+        self.reset_infos = self._infos(info, self.num_envs)
         return obs
 
     def step_async(self, actions: np.ndarray) -> None:
@@ -54,27 +54,37 @@ class GymVectorVecEnv(VecEnv):
     def step_wait(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[dict[str, Any]]]:
         obs, rewards, terminated, truncated, info = self.venv.step(self._actions)
         dones = terminated | truncated
-        infos = [self._one_info(info, i) for i in range(self.num_envs)]
+        infos = self._infos(info, self.num_envs)
         final_obs, final_info = info.get("final_obs"), info.get("final_info", {})
-        for i in np.flatnonzero(dones):
-            last = self._one_info(final_info, i)
+        done = np.flatnonzero(dones)
+        lasts = self._infos(final_info, self.num_envs) if len(done) else []
+        for i in done.tolist():
+            last = lasts[i]
             last["terminal_observation"] = final_obs[i]
             last["TimeLimit.truncated"] = bool(truncated[i] and not terminated[i])
             infos[i] = last
         return obs, rewards.astype(np.float32), dones, infos
 
     @staticmethod
-    def _one_info(info: dict[str, Any], i: int) -> dict[str, Any]:
-        """Env i's entries of a Gymnasium vector ``info`` (those its ``_key`` mask marks)."""
-        out: dict[str, Any] = {}
+    def _infos(info: dict[str, Any], n: int) -> list[dict[str, Any]]:
+        """Each env's entries of a Gymnasium vector ``info`` (those its ``_key`` mask marks),
+        numbers as Python's: one pass over the keys, not one per env (16 cars' infos took 7 %
+        of the main job's rollouts a key and an env at a time)."""
+        out: list[dict[str, Any]] = [{} for _ in range(n)]
         for key, value in info.items():
-            if key.startswith("_") or key in ("final_obs", "final_info"):
+            if key.startswith("_") or key in ("final_obs", "final_info") or isinstance(
+                    value, dict):
                 continue
+            if isinstance(value, np.ndarray):  # numbers as Python's (.item()), rows as arrays
+                items = value.tolist() if value.ndim == 1 and value.dtype != object else list(
+                    value)
+            else:
+                items = [v.item() if isinstance(v, np.generic) else v for v in value]
             mask = info.get(f"_{key}")
-            if isinstance(value, dict) or (mask is not None and not mask[i]):
-                continue
-            item = value[i]
-            out[key] = item.item() if isinstance(item, np.generic) else item
+            marked = [True] * n if mask is None else np.asarray(mask).tolist()
+            for i, (one, item) in enumerate(zip(out, items, strict=True)):
+                if marked[i]:
+                    one[key] = item
         return out
 
     def close(self) -> None:

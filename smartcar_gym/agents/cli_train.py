@@ -86,9 +86,11 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--run-dir", type=Path, default=None,
                         help="default: runs/<algo>_<env>_s<seed>")
     parser.add_argument("--eval-freq", type=non_negative_int_arg, default=None,
-                        help="evaluate every N environment steps (0: never; default 20000)")
+                        help="evaluate every N environment steps (0: never; default: the "
+                             "hyperparameters' eval_freq, else 20000)")
     parser.add_argument("--eval-episodes", type=positive_int_arg, default=None,
-                        help="episodes per evaluation (default 40)")
+                        help="episodes per evaluation (default: the hyperparameters' "
+                             "eval_episodes, else 40)")
     parser.add_argument("--eval-start", type=non_negative_int_arg, default=None,
                         help="first evaluation at the first multiple of --eval-freq from N "
                              "steps on (default: half the run's steps; a policy that still "

@@ -34,7 +34,7 @@ ALGOS = ("ppo", "sac", "td3")
 # Keys of a zoo entry that configure the run, not the algorithm's constructor.
 RUN_KEYS = ("n_envs", "n_timesteps", "policy", "normalize", "env_wrapper", "vec_env_wrapper",
             "frame_stack", "callback", "monitor_kwargs", "env_kwargs", "eval_engine",
-            "eval_async")
+            "eval_async", "eval_freq", "eval_episodes")
 DEFAULT_ENTRY = "default"  # zoo: the entry for env ids the file does not name
 NOISE_KEYS = ("noise_type", "noise_std")
 SCHEDULE_KEYS = ("learning_rate", "clip_range", "clip_range_vf")

@@ -72,6 +72,22 @@ def utc_timestamp() -> str:
     return datetime.now(timezone.utc).isoformat(timespec="seconds")
 
 
+def _eval_setting(given: int | None, hyperparams: dict[str, Any], key: str, default: int) -> int:
+    """``--eval-freq``/``--eval-episodes`` if given, else the hyperparameters' ``key`` (a whole
+    number: >= 0 for ``eval_freq``, whose 0 turns evaluations off; >= 1 for
+    ``eval_episodes``), else ``default``."""
+    if given is not None:
+        return given
+    value = hyperparams.get(key)
+    if value is None:
+        return default
+    least = 0 if key == "eval_freq" else 1
+    if (isinstance(value, bool) or not isinstance(value, (int, float)) or value != int(value)
+            or value < least):
+        raise HyperparamsError(f"{key} must be a whole number >= {least}, got {value!r}")
+    return int(value)
+
+
 def new_config(args: argparse.Namespace, command: str) -> dict[str, Any]:
     """The config of a new run from parsed arguments; raises ``HyperparamsError``."""
     algo = args.algo or "ppo"
@@ -119,8 +135,9 @@ def new_config(args: argparse.Namespace, command: str) -> dict[str, Any]:
         "n_timesteps": int(timesteps),
         "hyperparams": hyperparams,
         "hyperparams_file": str(args.hyperparams_file or f"smartcar_gym/config/{algo}.yaml"),
-        "eval_freq": 20_000 if args.eval_freq is None else args.eval_freq,
-        "eval_episodes": args.eval_episodes or 40,
+        # the command line's, else the hyperparameters' (a preset's own), else 20,000 and 40
+        "eval_freq": _eval_setting(args.eval_freq, hyperparams, "eval_freq", 20_000),
+        "eval_episodes": _eval_setting(args.eval_episodes, hyperparams, "eval_episodes", 40),
         # the engine the evaluations run on (None: the training env's); the best model is
         # the one that does best there
         "eval_engine": eval_engine,

@@ -32,9 +32,10 @@ from smartcar_gym.agents.eval_worker import (  # noqa: E402
     normalization_stats,
 )
 
-# 4 planar cars trained for 3 updates, evaluated on pybullet (the planar preset's
-# eval_engine) at 512, 1024 and 1536 steps on 3 episodes of at most 40 steps
+# 4 planar cars trained for 3 updates, evaluated on pybullet at 512, 1024 and 1536 steps on 3
+# episodes of at most 40 steps (the planar preset's eval_async, on another engine)
 ARGV = ["--engine", "planar", "--vectorization", "batched", "--n-envs", "4", "--seed", "3",
+        "--eval-engine", "pybullet",
         "--timesteps", "1536", "--eval-freq", "512", "--eval-episodes", "3", "--eval-start", "0",
         "--checkpoint-freq", "0", "--no-progress", "--env-kwargs", "max_episode_steps=40",
         "goal_range=[0.3, 0.4]", "--hyperparams", "n_steps=128", "batch_size=128",

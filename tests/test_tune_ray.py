@@ -218,7 +218,7 @@ def ray_head():
 
 def test_a_batched_sweep_on_a_ray_start_head_through_ray_address(ray_head, tmp_path,
                                                                  monkeypatch, hard_timeout):
-    """The planar batched preset (4 cars here, evaluated on pybullet in a second process) on a
+    """The planar batched preset (4 cars here, evaluated on planar in a second process) on a
     running head named by RAY_ADDRESS: ASHA stops the weaker trial at its first evaluation."""
     hard_timeout(150)
     space = tmp_path / "space.yaml"
@@ -238,7 +238,7 @@ def test_a_batched_sweep_on_a_ray_start_head_through_ray_address(ray_head, tmp_p
     for name in ("trial_00000", "trial_00001"):
         config = yaml.safe_load((out / name / "config.yaml").read_text())
         assert (config["vectorization"], config["n_envs"]) == ("batched", 4)
-        assert (config["eval_engine"], config["eval_async"]) == ("pybullet", True)
+        assert (config["eval_engine"], config["eval_async"]) == (None, True)
         assert (out / name / "monitor" / "seg0_batched.monitor.csv").is_file()
     import ray
 

@@ -47,9 +47,9 @@ def test_shipped_space_is_valid_and_lists_its_trials():
     assert sweep.early_stopping["grace_period"] % sweep.eval_freq == 0
 
 
-@pytest.mark.parametrize(("engine", "n_steps", "timesteps", "cpus"), [
-    ("planar", 128, 229376, 2), ("mujoco", 128, 249856, 1)])
-def test_the_shipped_batched_space_is_smartcar_train_s_batched_preset(engine, n_steps,
+@pytest.mark.parametrize(("engine", "n_envs", "n_steps", "timesteps", "cpus"), [
+    ("planar", 32, 64, 229376, 2), ("mujoco", 16, 128, 249856, 1)])
+def test_the_shipped_batched_space_is_smartcar_train_s_batched_preset(engine, n_envs, n_steps,
                                                                        timesteps, cpus):
     """``smartcar-tune --engine E --vectorization batched``: the entry ``smartcar-train
     --engine E --vectorization batched`` takes, with the space's values on top; a trial asks
@@ -69,7 +69,7 @@ def test_the_shipped_batched_space_is_smartcar_train_s_batched_preset(engine, n_
     searched = ("learning_rate", "n_epochs")
     assert {k: v for k, v in config["hyperparams"].items() if k not in searched} == {
         k: v for k, v in preset.items() if k not in searched}
-    assert (config["hyperparams"]["n_envs"], config["hyperparams"]["n_steps"]) == (16, n_steps)
+    assert (config["hyperparams"]["n_envs"], config["hyperparams"]["n_steps"]) == (n_envs, n_steps)
 
 
 def test_a_trial_s_cpus_default_to_what_its_run_uses():
@@ -78,7 +78,7 @@ def test_a_trial_s_cpus_default_to_what_its_run_uses():
     assert preset_cpus("batched", {"eval_async": False}) == 1
     sweep = sweep_of(vectorization="batched", env_kwargs={"engine": "planar"},
                      hyperparams={"eval_async": False})
-    assert sweep.cpus_per_trial == 1 and sweep.hyperparams["n_envs"] == 16
+    assert sweep.cpus_per_trial == 1 and sweep.hyperparams["n_envs"] == 32
     assert sweep_of(vectorization="batched", env_kwargs={"engine": "planar"},
                     cpus_per_trial=3).cpus_per_trial == 3
 

@@ -89,7 +89,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--vectorization", choices=VECTORIZATIONS, default=None,
                         help="how each trial runs its envs, as smartcar-train's option "
                              "(default: the space's, else subproc); batched: the fast preset, "
-                             "the hyperparameters' <env>-batched-<engine> entry (e.g. 16 planar "
+                             "the hyperparameters' <env>-batched-<engine> entry (e.g. 32 planar "
                              "cars in one process with --engine planar), on an engine with a "
                              "car batch")
     parser.add_argument("--no-early-stopping", action="store_true",

@@ -27,7 +27,7 @@ from smartcar_gym.scale.trial import (
 )
 
 TINY = {"n_envs": 1, "n_steps": 128, "batch_size": 64, "n_epochs": 1}
-# the batched planar preset, shrunk: 4 cars x 32 steps, evaluated on pybullet (eval_async)
+# the batched planar preset, shrunk: 4 cars x 32 steps, evaluated in a second process
 TINY_BATCHED = {"n_envs": 4, "n_steps": 32, "batch_size": 64, "n_epochs": 1,
                 "policy_kwargs": "dict(net_arch=[16, 16])"}
 
@@ -146,9 +146,9 @@ def test_a_batched_trial_is_the_run_of_smartcar_train_s_batched_command(tmp_path
     argv = shlex.split(command)
     assert argv[argv.index("--vectorization") + 1] == "batched"
     assert build_parser().parse_args(argv[1:]).vectorization == "batched"
-    # the planar preset's settings: its own cars, evaluated on pybullet in a second process
+    # the planar preset's settings: its own cars, evaluated on planar in a second process
     assert (run_config["vectorization"], run_config["n_envs"]) == ("batched", 4)
-    assert (run_config["eval_engine"], run_config["eval_async"]) == ("pybullet", True)
+    assert (run_config["eval_engine"], run_config["eval_async"]) == (None, True)
     assert trial_threads(sweep) == 1 and trial_threads(batched_trial(3)[0]) == 3
     assert trial_threads(build_sweep({"cpus_per_trial": 3}, "space.yaml")) is None
     # a subproc run in the folder is not this trial's

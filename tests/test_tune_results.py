@@ -109,5 +109,17 @@ def test_best_file_command_carries_env_kwargs(tmp_path):
     command = next(line for line in text.splitlines() if "Train it with:" in line)
     args = build_parser().parse_args(shlex.split(command.split("Train it with: ", 1)[1])[1:])
     assert dict(args.env_kwargs) == {"goal_range": [0.5, 0.6], "wheel_contact": "urdf"}
-    assert args.seed == 3
+    assert args.seed == 3 and args.vectorization is None  # a subproc sweep: the default
     assert args.hyperparams_file == tmp_path / "my sweep" / "best_hyperparams.yaml"
+
+
+def test_a_batched_sweep_s_best_file_trains_batched(tmp_path):
+    """The command a batched sweep's best file gives runs its cars in one process, as its
+    trials did (not 32 subprocess envs)."""
+    best = row("trial_00000", 1e-4, 1, 1.0, 1.0)
+    best.env_kwargs = {"engine": "planar"}
+    write_results([best], ["learning_rate", "seed"], tmp_path, "ppo", "SmartCar-v0", "batched")
+    text = (tmp_path / "best_hyperparams.yaml").read_text()
+    command = next(line for line in text.splitlines() if "Train it with:" in line)
+    args = build_parser().parse_args(shlex.split(command.split("Train it with: ", 1)[1])[1:])
+    assert args.vectorization == "batched" and dict(args.env_kwargs) == {"engine": "planar"}

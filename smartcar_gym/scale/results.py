@@ -80,9 +80,11 @@ def best_group(rows: list[TrialRow]) -> tuple[list[TrialRow], float, float] | No
     return best, *score(best)
 
 
-def best_hyperparams_yaml(rows: list[TrialRow], algo: str, env: str, out: Path) -> str | None:
+def best_hyperparams_yaml(rows: list[TrialRow], algo: str, env: str, out: Path,
+                          vectorization: str = "subproc") -> str | None:
     """The best configuration as a zoo-format hyperparameter file with a header saying where
-    it comes from and how to train it; None if no trial has an evaluation."""
+    it comes from and how to train it (with the sweep's ``vectorization``); None if no trial
+    has an evaluation."""
     found = best_group(rows)
     if found is None:
         return None
@@ -91,6 +93,8 @@ def best_hyperparams_yaml(rows: list[TrialRow], algo: str, env: str, out: Path) 
     path = out / "best_hyperparams.yaml"
     argv = ["smartcar-train", "--algo", algo, "--env", env, "--hyperparams-file", str(path),
             "--seed", str(first.seed)]
+    if vectorization != "subproc":  # a batched sweep's cars in one process, as its trials
+        argv += ["--vectorization", vectorization]
     if first.env_kwargs:  # JSON is YAML: smartcar-train reads the values back
         argv += ["--env-kwargs", *(f"{k}={json.dumps(v)}" for k, v in first.env_kwargs.items())]
     command = shlex.join(argv)
@@ -120,7 +124,7 @@ def table_rows(rows: list[TrialRow], names: list[str]) -> list[dict[str, Any]]:
 
 
 def write_results(rows: list[TrialRow], names: list[str], out: Path, algo: str,
-                  env: str) -> list[Path]:
+                  env: str, vectorization: str = "subproc") -> list[Path]:
     """Write ``results.csv``, ``results.json`` and (if any trial has an evaluation)
     ``best_hyperparams.yaml`` into ``out``; returns the paths written."""
     flat = table_rows(rows, names)
@@ -140,7 +144,7 @@ def write_results(rows: list[TrialRow], names: list[str], out: Path, algo: str,
         "trials": [asdict(row) for row in rows],
     }
     atomic_write_text(written[1], json.dumps(summary, indent=2, default=str) + "\n")
-    best = best_hyperparams_yaml(rows, algo, env, out)
+    best = best_hyperparams_yaml(rows, algo, env, out, vectorization)
     if best is not None:
         written.append(out / "best_hyperparams.yaml")
         atomic_write_text(written[-1], best)

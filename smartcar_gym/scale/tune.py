@@ -146,7 +146,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"{PROG}: error: {err}{where}", file=sys.stderr)
         return 2
     names = list(sweep.dimensions())
-    written = results_mod.write_results(rows, names, out, sweep.algo, sweep.env)
+    written = results_mod.write_results(rows, names, out, sweep.algo, sweep.env,
+                                        sweep.vectorization)
     results_mod.print_table(rows, names, f"{PROG}: {len(rows)} trials in {out}")
     print("written: " + ", ".join(str(p) for p in written))
     if any(row.status == results_mod.UNFINISHED for row in rows):

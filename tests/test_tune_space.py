@@ -48,7 +48,7 @@ def test_shipped_space_is_valid_and_lists_its_trials():
 
 
 @pytest.mark.parametrize(("engine", "n_envs", "n_steps", "timesteps", "cpus"), [
-    ("planar", 32, 64, 229376, 2), ("mujoco", 16, 128, 249856, 1)])
+    ("planar", 32, 64, 262144, 2), ("mujoco", 16, 128, 249856, 1)])
 def test_the_shipped_batched_space_is_smartcar_train_s_batched_preset(engine, n_envs, n_steps,
                                                                        timesteps, cpus):
     """``smartcar-tune --engine E --vectorization batched``: the entry ``smartcar-train
@@ -247,7 +247,7 @@ def test_a_batched_sweep_yaml_is_the_same_sweep_again():
     """What --resume reads back: the batched entry's values, the vectorization, the CPUs."""
     sweep = sweep_of(vectorization="batched", env_kwargs={"engine": "planar"})
     again = build_sweep(yaml.safe_load(yaml.safe_dump(sweep.to_yaml())), "sweep.yaml")
-    assert (again.vectorization, again.cpus_per_trial, again.timesteps) == ("batched", 2, 229376)
+    assert (again.vectorization, again.cpus_per_trial, again.timesteps) == ("batched", 2, 262144)
     assert again.hyperparams == sweep.hyperparams and again.hyperparams["eval_async"] is True
 
 

@@ -285,14 +285,15 @@ def _schedule(key: str, value: Any) -> Any:
     return value
 
 
-def run_int(hyperparams: dict[str, Any], key: str) -> int | None:
-    """``hyperparams[key]`` as a whole number >= 1 (None if absent); ``2e5`` is allowed."""
+def run_int(hyperparams: dict[str, Any], key: str, least: int = 1) -> int | None:
+    """``hyperparams[key]`` as a whole number >= ``least`` (None if absent); ``2e5`` is
+    allowed."""
     value = hyperparams.get(key)
     if value is None:
         return None
     if (isinstance(value, bool) or not isinstance(value, (int, float))
-            or value != int(value) or value < 1):
-        raise HyperparamsError(f"{key} must be a whole number >= 1, got {value!r}")
+            or value != int(value) or value < least):
+        raise HyperparamsError(f"{key} must be a whole number >= {least}, got {value!r}")
     return int(value)
 
 

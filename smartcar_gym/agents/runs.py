@@ -78,14 +78,8 @@ def _eval_setting(given: int | None, hyperparams: dict[str, Any], key: str, defa
     ``eval_episodes``), else ``default``."""
     if given is not None:
         return given
-    value = hyperparams.get(key)
-    if value is None:
-        return default
-    least = 0 if key == "eval_freq" else 1
-    if (isinstance(value, bool) or not isinstance(value, (int, float)) or value != int(value)
-            or value < least):
-        raise HyperparamsError(f"{key} must be a whole number >= {least}, got {value!r}")
-    return int(value)
+    value = run_int(hyperparams, key, least=0 if key == "eval_freq" else 1)
+    return default if value is None else value
 
 
 def new_config(args: argparse.Namespace, command: str) -> dict[str, Any]:

@@ -66,8 +66,11 @@ def test_the_builder_reads_what_the_robot_knows(env):
     state.wheel_velocity[0] = list(joints.velocity)
     state.goal[0] = list(env.goal)
     state.previous_action[0] = [0.6, -0.4]
-    built = env.task.observe(SimpleNamespace(state=state))
+    built = env.task.observe(SimpleNamespace(state=state, values=lambda array: array))
     assert built.shape == (1, 21) and built[0].tobytes() == obs.tobytes()
+    # on the car's values (numpy scalars and rows, as the single env runs it): the same bits
+    one = env.task.observe(SimpleNamespace(state=state, values=lambda array: array[0]))
+    assert one.shape == (21,) and one.tobytes() == obs.tobytes()
     dx, dy = env.goal[0] - odom.x, env.goal[1] - odom.y
     ahead = math.cos(odom.theta) * dx + math.sin(odom.theta) * dy
     assert obs[env.observation.index("goal_x_base")] == pytest.approx(ahead, abs=1e-6)

@@ -99,7 +99,8 @@ def test_scan_entry_names_and_reads_the_sectors(laser_model, shipped_config):
                           "pybullet"))
     task.attach(2)
     cars = SimpleNamespace(state=CarState.zeros(2, 4, {SCAN: ((360,), np.float32),
-                                                       SCAN_TIME: ((), np.int64)}))
+                                                       SCAN_TIME: ((), np.int64)}),
+                           values=lambda array: array)
     ranges = cars.state.readings[SCAN]
     ranges[:] = np.inf
     ranges[0, 185] = 0.5  # 5 degrees left of ahead: sector 18

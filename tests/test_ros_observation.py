@@ -131,7 +131,8 @@ def test_theta_through_a_quaternion_keeps_the_float32_observation():
         state.wheel_velocity[0] = [1.0, 2.0, 3.0, 4.0]
         state.goal[0] = [0.5, -0.7]
         state.previous_action[0] = [0.1, -0.2]
-        return task.observe(SimpleNamespace(state=state, threads=1))[0]
+        return task.observe(SimpleNamespace(state=state, threads=1,
+                                            values=lambda array: array))[0]
 
     for _ in range(2000):
         theta = rng.uniform(-30, 30)

@@ -33,6 +33,8 @@ def wrap_angles(theta: np.ndarray) -> np.ndarray:
     (Sterbenz). A remainder of exactly half a turn (the IEEE tie, which rounds the quotient to
     even) is left to ``math.remainder`` itself.
     """
+    if np.ndim(theta) == 0:  # one number: math.remainder's
+        return math.remainder(theta, TWO_PI)
     theta = np.asarray(theta, dtype=np.float64)
     if theta.size <= SMALL:  # math.remainder itself: cheaper than numpy's calls on a few
         return np.array([math.remainder(t, TWO_PI) for t in theta.ravel().tolist()]
@@ -54,6 +56,7 @@ def planar_norms(d: np.ndarray) -> np.ndarray:
 
 def exact_hypot(dx: np.ndarray, dy: np.ndarray) -> np.ndarray:
     """``math.hypot`` of each pair, to its bit (``np.hypot`` is libm's, which differs): for
-    the few values a task takes it of (``stop_speed``'s distances)."""
-    return np.array([math.hypot(a, b) for a, b in zip(np.ravel(dx).tolist(),
-                                                     np.ravel(dy).tolist(), strict=True)])
+    the few values a task takes it of (``stop_speed``'s distances). Numbers give a number."""
+    out = np.array([math.hypot(a, b) for a, b in zip(np.ravel(dx).tolist(),
+                                                    np.ravel(dy).tolist(), strict=True)])
+    return out.reshape(np.shape(dx))[()]

@@ -55,23 +55,24 @@ class Observation:
         self.low = np.concatenate([[e.low] * e.size for e in self.entries]).astype(np.float32)
         self.space = spaces.Box(self.low, self.high, dtype=np.float32)
         self._sizes = tuple((e.key, e.size) for e in self.entries)
+        self._keys = tuple(e.key for e in self.entries)
 
     def build(self, columns: Mapping[str, Sequence[Any]]) -> np.ndarray:
         """Every car's observation from each entry's ``columns`` (by key: one float64 array or
         number per name, over the N cars, or a (names, N) array): (N, D) float32, each value
-        rounded once, clipped into the bounds."""
-        values: list[Any] = []
-        for key, size in self._sizes:
-            given = columns[key]
-            if len(given) != size:
-                raise ValueError(f"observation entry {key!r} gave {len(given)} columns for "
-                                 f"its {size} names")
-            values.extend(given)
-        try:  # every column an (N,) array: one copy
+        rounded once, clipped into the bounds. Numbers alone (one car's values: a number per
+        name, or a (names,) array) give that car's (D,)."""
+        values = [value for key in self._keys for value in columns[key]]
+        if len(values) != len(self.names):
+            for key, size in self._sizes:
+                if len(columns[key]) != size:
+                    raise ValueError(f"observation entry {key!r} gave {len(columns[key])} "
+                                     f"columns for its {size} names")
+        try:  # every column an (N,) array (or every value a number): one copy
             table = np.array(values, dtype=np.float64)
         except ValueError:  # numbers among arrays: each broadcast over the cars
             table = None
-        if table is None or table.ndim != 2:
+        if table is None:
             n = max(np.size(v) for v in values)
             table = np.array([np.broadcast_to(v, (n,)) for v in values], dtype=np.float64)
         obs = table.T.astype(np.float32, order="C")

@@ -35,7 +35,7 @@ from smartcar_gym.envs.settings import (
     split_keywords,
 )
 from smartcar_gym.envs.state import CarState
-from smartcar_gym.envs.tasks.base import CarSettings, Task
+from smartcar_gym.envs.tasks.base import CarSettings, Task, runs_on_values
 from smartcar_gym.envs.tasks.registry import get_task
 from smartcar_gym.envs.world import World
 from smartcar_gym.model import RobotModel
@@ -263,6 +263,8 @@ class SmartCarEnv(gym.Env):
         """The car's state, the observation, its space and names."""
         #: the car's public state (one row): what the task reads and writes
         self.state = CarState.zeros(1, len(self.task.car.wheel_joints), self.task.readings())
+        #: the step hooks run on the car's values (numbers), not one-row arrays
+        self._on_values = runs_on_values(self.task)
         self.observation = self.task.observation()
         #: the observation's space, and what each value is (per key of a Dict space)
         self.observation_space, self.observation_names = space_and_names(self.observation)
@@ -274,6 +276,9 @@ class SmartCarEnv(gym.Env):
     # -- what the task sees (``tasks.base.Cars``) ------------------------------------------------
     def rng(self, car: int) -> np.random.Generator:
         return self.np_random
+
+    def values(self, array: np.ndarray) -> Any:
+        return array[0] if self._on_values else array
 
     def clearances(self, cars: np.ndarray, max_distance_m: float) -> np.ndarray:
         return np.array([self.world.clearance(max_distance_m)])
@@ -332,7 +337,7 @@ class SmartCarEnv(gym.Env):
             self._needs_reset = False
             if self.render_mode == "human":
                 self.render()
-            return self._observe(), self._info(np.zeros(1, dtype=bool))
+            return self._observe(), self._info(self.values(np.zeros(1, dtype=bool)))
 
     def step(self, action: np.ndarray) -> tuple[Any, float, bool, bool, dict[str, Any]]:
         with self.world.exclusive("step"):
@@ -344,15 +349,17 @@ class SmartCarEnv(gym.Env):
             sim.run_until(sim.now_ns + robot.update_period_ns, physics=not robot.kinematic)
             state.steps[0] += 1
             world.read(state, task.needs_speed)
-            reward, success, failure = task.score(self, action.reshape(1, 2))
+            car = self._car
+            reward, success, failure = task.score(
+                self, action if self._on_values else action.reshape(1, 2))
             state.previous_action[0] = action
             truncated = task.truncated(self)
             if world.markers is not None:
                 world.mark_odometry()
             if self.render_mode == "human":
                 self.render()
-            return (self._observe(), float(reward[0]), bool(success[0] or failure[0]),
-                    bool(truncated[0]), self._info(success))
+            return (self._observe(), float(car(reward)), bool(car(success) or car(failure)),
+                    bool(car(truncated)), self._info(success))
 
     def render(self) -> np.ndarray | None:
         if self.render_mode is None:
@@ -382,14 +389,19 @@ class SmartCarEnv(gym.Env):
         if self._needs_reset:
             raise ResetNeeded(f"SmartCarEnv: call reset() before {call}()")
 
+    def _car(self, value: Any) -> Any:
+        """The car's value of what a step hook gave (its row 0, unless on values)."""
+        return value if self._on_values else value[0]
+
     def _observe(self) -> Any:
         obs = self.task.observe(self)
         if isinstance(obs, dict):
-            return {key: value[0] for key, value in obs.items()}
-        return obs[0]
+            return {key: self._car(value) for key, value in obs.items()}
+        return self._car(obs)
 
     def _info(self, success: np.ndarray) -> dict[str, Any]:
-        info = {key: _scalar(value[0]) for key, value in self.task.info(self, success).items()}
+        info = {key: _scalar(self._car(value))
+                for key, value in self.task.info(self, success).items()}
         if self.draw is not None:
             info["randomization"] = self.draw.info
         return info

@@ -43,6 +43,11 @@ class _Car:
     state: CarState
     threads: int = 1
 
+    @staticmethod
+    def values(array: np.ndarray) -> np.ndarray:
+        """The car's values as a one-row array (the observation is built as a batch's)."""
+        return array
+
 
 @dataclass(frozen=True)
 class Command:

@@ -14,7 +14,6 @@ from typing import Any
 import numpy as np
 
 from smartcar_gym.envs.observation import Entry
-from smartcar_gym.envs.state import CarState
 
 MAX_SPEED_M_S = 5.0  # odometry twist bounds: far above the car's 0.84 m/s
 MAX_TURN_RAD_S = 50.0
@@ -52,23 +51,26 @@ def previous_action_entry() -> Entry:
                  "previous action")
 
 
-def heading(state: CarState) -> tuple[np.ndarray, np.ndarray]:
-    """The cosine and sine of every car's odometry heading."""
-    theta = state.odometry[:, 2]
+def heading(odometry: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The cosine and sine of the odometry's heading (``odometry``: the state's, as
+    ``Cars.values`` gives it: (N, 5) or one car's (5,))."""
+    theta = odometry[..., 2]
     return np.cos(theta), np.sin(theta)
 
 
-def robot_columns(state: CarState, cos: np.ndarray, sin: np.ndarray) -> dict[str, Any]:
-    """The columns of ``robot_entries`` and ``previous_action_entry`` over the cars
-    (``cos``, ``sin``: ``heading(state)``; a 2-D value holds one column a row)."""
-    x, y, _, v, w = state.odometry.T
-    wrapped = (state.wheel_position + math.pi) % TWO_PI - math.pi
+def robot_columns(cars: Any, cos: np.ndarray, sin: np.ndarray) -> dict[str, Any]:
+    """The columns of ``robot_entries`` and ``previous_action_entry`` from ``cars``' state
+    (``tasks.base.Cars``; ``cos``, ``sin``: ``heading`` of its odometry; a 2-D value holds
+    one column a row; one car's values give numbers and rows)."""
+    state, values = cars.state, cars.values
+    x, y, _, v, w = values(state.odometry).T
+    wrapped = (values(state.wheel_position) + math.pi) % TWO_PI - math.pi
     return {
         "odom_position": (x, y),
         "odom_heading": (cos, sin),
         "odom_linear": (v,),
         "odom_angular": (w,),
         "wheel_positions": wrapped.T,
-        "wheel_velocities": state.wheel_velocity.T,
-        "previous_action": state.previous_action.T,
+        "wheel_velocities": values(state.wheel_velocity).T,
+        "previous_action": values(state.previous_action).T,
     }

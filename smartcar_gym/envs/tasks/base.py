@@ -20,6 +20,14 @@ The order of a reset, for the cars ``idx`` (``idx`` is an int array):
 A step: the env sends each car's action, runs the period and reads the state, then
 ``score`` (reward, success, failure), ``truncated``, ``observe`` and ``info``. Tasks are
 registered by name (``envs.tasks.registry``), each with the ids made from it.
+
+The step hooks read the cars' per-car arrays (the state's, and the task's own) through
+``Cars.values``. A hook written so that it works on what that gives whether it is arrays over
+the cars or one car's values (numpy scalars, and a row for a 2-D field: index columns with
+``[..., k]``, reduce with ``axis=-1``, write the task's arrays with ``a[...] = value``) says so
+with ``@one_or_many``; a single env whose task's step hooks all say so runs them on its car's
+values, which costs a third of running them on one-row arrays (numpy's cost per call). Any
+other hook sees one-row arrays in a single env: a task may be written over arrays alone.
 """
 
 from __future__ import annotations
@@ -43,6 +51,21 @@ if TYPE_CHECKING:
 
 #: reward, success and failure of every car after a step
 Score = tuple[np.ndarray, np.ndarray, np.ndarray]
+#: the hooks a step calls, which ``Cars.values`` serves
+STEP_HOOKS = ("score", "truncated", "columns", "observe", "info")
+
+
+def one_or_many(hook: Any) -> Any:
+    """Mark a step hook as written for one car's values as well as for arrays of cars (the
+    module says how)."""
+    hook.one_or_many = True
+    return hook
+
+
+def runs_on_values(task: Task) -> bool:
+    """Whether every step hook of ``task`` is ``one_or_many``: a single env then hands them
+    its car's values (``Cars.values``) instead of one-row arrays."""
+    return all(getattr(getattr(type(task), name), "one_or_many", False) for name in STEP_HOOKS)
 
 
 @dataclass(frozen=True)
@@ -82,6 +105,11 @@ class Cars(Protocol):
 
     def rng(self, car: int) -> np.random.Generator:
         """Car ``car``'s generator (the single env's ``np_random``)."""
+
+    def values(self, array: np.ndarray) -> Any:
+        """A per-car array (the state's or the task's) as the step hooks see it: the array,
+        or in a single env whose task ``runs_on_values`` its one car's value (row 0: a numpy
+        scalar of an (N,) array, a row of an (N, k) one)."""
 
     def clearances(self, cars: np.ndarray, max_distance_m: float) -> np.ndarray:
         """(K,): each listed car's ground-truth distance (m) to its nearest obstacle, at most
@@ -219,21 +247,26 @@ class Task:
         """The listed cars' numbers once their state is read at the start."""
 
     # -- step ----------------------------------------------------------------------------------
+    @one_or_many
     def score(self, cars: Cars, action: np.ndarray) -> Score:
         """Every car's reward, success and failure after a step (``action``: (N, 2), clipped);
         terminated is success or failure."""
         raise NotImplementedError
 
+    @one_or_many
     def truncated(self, cars: Cars) -> np.ndarray:
         """Which cars the task cuts short this step (before any time limit)."""
-        return np.zeros(self.num, dtype=bool)
+        return cars.values(np.zeros(self.num, dtype=bool))
 
+    @one_or_many
     def columns(self, cars: Cars) -> dict[str, Any]:
         """Every observation entry's values as columns over the cars (by the entry's key)."""
         raise NotImplementedError
 
+    @one_or_many
     def observe(self, cars: Cars) -> Any:
-        """Every car's observation ((N, D) float32, or a dict of them)."""
+        """Every car's observation ((N, D) float32, or a dict of them; one car's values:
+        (D,))."""
         observation = self.observation()
         assert isinstance(observation, Observation)
         return observation.build(self.columns(cars))
@@ -245,7 +278,8 @@ class Task:
             return {key: value[car].copy() for key, value in obs.items()}
         return obs[car].copy()
 
+    @one_or_many
     def info(self, cars: Cars, success: np.ndarray) -> dict[str, np.ndarray]:
-        """Every car's ``info`` values by key (arrays over the cars)."""
+        """Every car's ``info`` values by key (arrays over the cars, or one car's values)."""
         return {}
 

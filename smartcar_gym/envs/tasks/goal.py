@@ -217,7 +217,8 @@ class GoalTask(ReachTask):
 
     def observe(self, cars: Cars) -> dict[str, np.ndarray]:
         state = cars.state
-        columns = {**robot_columns(state, *heading(state)), **self._goal_columns(state)}
+        columns = {**robot_columns(cars, *heading(state.odometry)),
+                   **self._goal_columns(state)}
         return {key: o.build(columns) for key, o in self.observation().items()}
 
     def info(self, cars: Cars, success: np.ndarray) -> dict[str, np.ndarray]:

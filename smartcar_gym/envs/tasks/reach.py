@@ -21,7 +21,7 @@ from smartcar_gym.envs.robots.entries import (
     robot_columns,
     robot_entries,
 )
-from smartcar_gym.envs.tasks.base import Cars, Score, Task
+from smartcar_gym.envs.tasks.base import Cars, Score, Task, one_or_many
 
 FLIP_UP_Z = 0.5  # base_link's z axis tilted more than 60 degrees: flipped over
 #: the rows of SmartCar-v0's observation, in order (entries come from robot, task and env)
@@ -175,15 +175,18 @@ class ReachTask(Task):
                   "goal in the ``odom`` frame (as a goal is given in ROS)", ("-2A", "2A")),
         ]
 
+    @one_or_many
     def columns(self, cars: Cars) -> dict[str, Any]:
         state = cars.state
-        cos, sin = heading(state)
-        goal = state.goal.T
-        gx, gy = (state.goal - state.odometry[:, :2]).T
-        return {**robot_columns(state, cos, sin),
+        odometry = cars.values(state.odometry)
+        cos, sin = heading(odometry)
+        x, y = odometry[..., 0], odometry[..., 1]
+        goal_x, goal_y = cars.values(state.goal).T
+        gx, gy = goal_x - x, goal_y - y
+        return {**robot_columns(cars, cos, sin),
                 "goal_base": (cos * gx + sin * gy, -sin * gx + cos * gy),
                 "goal_distance": (np.hypot(gx, gy),),
-                "goal_odom": goal}
+                "goal_odom": (goal_x, goal_y)}
 
     # -- cars ----------------------------------------------------------------------------------
     def attach(self, num: int) -> None:
@@ -248,27 +251,30 @@ class ReachTask(Task):
                                                    odometry[:, 1] - pose[:, 1])
 
     # -- step ----------------------------------------------------------------------------------
+    @one_or_many
     def score(self, cars: Cars, action: np.ndarray) -> Score:
         """Progress, time and action costs, the success bonus and the failure penalty (and
         ``stop_speed``'s arrival terms) from each car's true position."""
-        state = cars.state
-        position = state.pose[:, :2]
-        d = position - state.goal
-        distance = planar_norms(d)
+        state, values = cars.state, cars.values
+        x, y, _ = values(state.pose).T
+        goal_x, goal_y = values(state.goal).T
+        dx, dy = x - goal_x, y - goal_y
+        distance = np.sqrt(dx * dx + dy * dy)
         success = distance < self.goal_tolerance_m
         arrival = None
         if self.stop_speed_m_s is not None:
-            success, arrival = self._arrival(state, position[:, 0], position[:, 1], success)
-        failure = (state.up_z < FLIP_UP_Z) | (np.abs(position) > self.arena_half_size_m).any(
-            axis=1)
-        self.terms = {"progress": self.progress_weight * (self.distance - distance),
+            success, arrival = self._arrival(cars, x, y, success)
+        half = self.arena_half_size_m
+        failure = (values(state.up_z) < FLIP_UP_Z) | (abs(x) > half) | (abs(y) > half)
+        linear, angular = action.T
+        self.terms = {"progress": self.progress_weight * (values(self.distance) - distance),
                       "time": -self.time_cost,
-                      "action": -(self.action_cost * np.add.reduce(action * action, axis=1)),
+                      "action": -(self.action_cost * (linear * linear + angular * angular)),
                       "success": self.success_bonus * success,
                       "failure": -(self.failure_penalty * failure)}
         if arrival is not None:
             self.terms["arrival"] = -arrival
-        self.distance = distance
+        self.distance[...] = distance
         return self.reward(), success, failure
 
     def reward(self) -> np.ndarray:
@@ -279,17 +285,19 @@ class ReachTask(Task):
             total = total + term
         return total
 
-    def _arrival(self, state: Any, px: np.ndarray, py: np.ndarray,
+    def _arrival(self, cars: Cars, px: np.ndarray, py: np.ndarray,
                  success: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``stop_speed``: success at rest and by odometry too, and the arrival cost."""
-        ox, oy = state.odometry[:, 0], state.odometry[:, 1]
+        state, values = cars.state, cars.values
+        odometry, goal = values(state.odometry), values(state.goal)
+        ox, oy = odometry[..., 0], odometry[..., 1]
         odometry_error = exact_hypot(ox - px, oy - py)
-        inside = success & (exact_hypot(ox - state.goal[:, 0], oy - state.goal[:, 1])
+        inside = success & (exact_hypot(ox - goal[..., 0], oy - goal[..., 1])
                             < self.goal_tolerance_m)
-        speed = np.abs(state.speed)
+        speed = np.abs(values(state.speed))
         arrival = (self.speed_cost * speed * inside.astype(np.float64)
-                   + self.odometry_cost * (odometry_error - self.odometry_error))
-        self.odometry_error = odometry_error
+                   + self.odometry_cost * (odometry_error - values(self.odometry_error)))
+        self.odometry_error[...] = odometry_error
         return inside & (speed < self.stop_speed_m_s), arrival
 
     def is_success(self, distance: np.ndarray | float,
@@ -301,19 +309,20 @@ class ReachTask(Task):
             return inside
         return inside & (np.abs(np.asarray(speed)) < self.stop_speed_m_s)
 
+    @one_or_many
     def info(self, cars: Cars, success: np.ndarray) -> dict[str, np.ndarray]:
         """Success, the distance, the true and odometry poses and their gap."""
-        state = cars.state
-        odometry, pose = state.odometry, state.pose
-        odom_pose = odometry[:, :3].copy()
-        odom_pose[:, 2] = wrap_angles(odom_pose[:, 2])
-        d = odometry[:, :2] - pose[:, :2]
+        state, values = cars.state, cars.values
+        odometry, pose = values(state.odometry), values(state.pose)
+        odom_pose = odometry[..., :3].copy()
+        odom_pose[..., 2] = wrap_angles(odom_pose[..., 2])
+        ex, ey = odometry[..., 0] - pose[..., 0], odometry[..., 1] - pose[..., 1]
         return {
             "is_success": success.copy(),
-            "distance": self.distance.copy(),
+            "distance": values(self.distance).copy(),
             "pose": pose.copy(),
             "odom_pose": odom_pose,
-            "odom_error": planar_norms(d),
+            "odom_error": np.sqrt(ex * ex + ey * ey),
         }
 
 

@@ -85,6 +85,11 @@ class CarsVectorEnv(gym.vector.VectorEnv):
         return self.state.goal
 
     # -- what the task sees (``tasks.base.Cars``) ------------------------------------------------
+    @staticmethod
+    def values(array: np.ndarray) -> np.ndarray:
+        """Every car's values: the array itself."""
+        return array
+
     def rng(self, car: int) -> np.random.Generator:
         """Car ``car``'s generator (created from entropy if it had none)."""
         if self._rngs[car] is None:

@@ -26,7 +26,8 @@ _HALF = TWO_PI / 2  # exact: a power-of-two division
 
 
 def wrap_angles(theta: np.ndarray) -> np.ndarray:
-    """Each angle in [-pi, pi]: exactly ``math.remainder(t, 2 * math.pi)`` for every ``t``.
+    """Each angle in [-pi, pi]: exactly ``math.remainder(t, 2 * math.pi)`` for every ``t`` (a
+    number gives a number).
 
     ``np.fmod`` is exact; where its result lies beyond half a turn, one turn is taken off, and
     the two operands are then within a factor of two of each other, so the subtraction is exact

@@ -226,6 +226,13 @@ def _world_file(tmp_path, indices, bad_start=False):
      "--plot-worlds: world(s) 6, 12 are not run"),
     (["--env-kwargs", "max_episode_steps=5"], "--env-kwargs: max_episode_steps is set by the "
                                               "protocol"),
+    (["--goal-rate", "0"], "argument --goal-rate: expected a rate in Hz > 0, got '0'"),
+    (["--goal-rate", "10", "--env-kwargs", "map_mode=known"],
+     "--goal-rate: the goal is sent to move_base, which runs with map_mode=laser only"),
+    (["--goal-rate", "10", "--env-kwargs", "localize=true"],
+     "--goal-rate: the goal is sent to move_base, which runs with map_mode=laser only"),
+    (["--goal-rate", "10", "--pretrained", "barn"],
+     "--goal-rate: a classical driver's (move_base's goal); a policy takes its goal once"),
 ])
 def test_bad_arguments_are_one_line_before_any_run(argv, line, tmp_path, constant, capsys):
     argv = [a.replace("{tmp}", str(tmp_path)) for a in argv]
@@ -249,6 +256,7 @@ def test_a_file_of_one_world_runs_its_own_test_world_on_one_car(tmp_path, consta
     assert code == 0 and made == [1]
     assert out.startswith("smartcar-bench barn: dwa on planar, 1 worlds x 1 run(s), seed 0\n")
     data = json.loads(out_json.read_text())
+    assert data["goal_rate_hz"] is None  # the goal sent once (--goal-rate: its rate)
     assert data["worlds"] == [0] and [r["world"] for r in data["records"]] == [0]
     assert data["records"][0]["outcome"] in ("success", "collision", "timeout", "failure")
 

@@ -201,3 +201,79 @@ def test_on_the_known_map_the_driver_never_recovers_and_acts_as_without_recoveri
     assert drivers[0].recoveries is None
     for env in envs:
         env.close()
+
+
+
+def _stream(machine: Recoveries, cycles: int, valid=lambda k: False) -> list[int]:
+    """The action of each cycle, every 0.125 s (binary-exact times), a plan every cycle."""
+    out = []
+    for k in range(cycles):
+        act = int(machine.step([0], np.array([k * 0.125]), np.zeros((1, 2)), np.array([True]),
+                               np.array([valid(k)]))[0])
+        if act in (ROTATE, ROTATING):
+            machine.rotated(0, k * 0.125)
+        out.append(act)
+    return out
+
+
+def test_a_goal_sent_again_resets_the_patience_so_no_behaviour_ever_runs():
+    """The challenge's goal at 10 Hz (here every 0.25 s): each sending sets the patience's
+    clock to now, so no valid command for 5 s, five times the patience, runs no behaviour;
+    without the sendings the same cycles run all four and abort."""
+    stream = Recoveries(1, RecoveryConfig(controller_patience=1.0, planner_patience=0.5,
+                                          goal_period=0.25))
+    stream.reset(0, 0.0, np.zeros(2))
+    assert _stream(stream, 40) == [STOP] * 40 and stream.log[0] == []
+    assert stream.next_goal[0] == 5.0  # the 20th sending was at 4.75 s
+    once = Recoveries(1, RecoveryConfig(controller_patience=1.0, planner_patience=0.5))
+    once.reset(0, 0.0, np.zeros(2))
+    assert ABORTED in _stream(once, 40)
+    assert once.log[0] == [CONSERVATIVE, ROTATE, AGGRESSIVE, ROTATE]
+
+
+def test_an_aborted_goal_is_taken_up_again_by_the_next_sending():
+    """A goal sent every 3 s: the behaviours run out and abort within it (as above), and the
+    next sending (t = 3 s) starts the goal afresh: with a plan and a valid command, CONTROL,
+    the index back to 0."""
+    config = RecoveryConfig(controller_patience=1.0, planner_patience=0.5, goal_period=3.0)
+    machine = Recoveries(1, config)
+    machine.reset(0, 0.0, np.zeros(2))
+    acts = _stream(machine, 30, valid=lambda k: k >= 24)
+    assert acts[23] == ABORTED and machine.log[0] == [CONSERVATIVE, ROTATE, AGGRESSIVE, ROTATE]
+    assert acts[24:] == [CONTROL] * 6 and machine.index[0] == 0
+
+
+@pytest.mark.parametrize("period", [-0.1, math.nan, math.inf])
+def test_a_goal_period_that_is_no_duration_is_refused(period):
+    with pytest.raises(ValueError, match="goal_period must be a finite number of seconds"):
+        RecoveryConfig(goal_period=period)
+
+
+def test_the_driver_sends_its_goal_at_the_rate_it_is_given_scaled_as_the_times():
+    """DWADriver(goal_rate_hz=10): the goal every 0.1 s scaled as move_base's times (the
+    patience's 15 s / 150), sent again along the drive (the sendings' clock runs ahead of the
+    car's); without a rate, once. (On the 50 test worlds without noise no behaviour runs
+    either way: docs/barn.md.)"""
+    from smartcar_gym.bench.dwa import DWADriver
+    from smartcar_gym.envs.vector.view import CarView
+    from smartcar_gym.navigation.recovery import CHALLENGE_GOAL_RATE_HZ
+
+    for rate in (None, CHALLENGE_GOAL_RATE_HZ):
+        env = gym.make("SmartCarBARN-v0", engine="planar", map_mode="laser")
+        env.reset(seed=0, options={"world": 0})
+        driver, cars = DWADriver(goal_rate_hz=rate), CarView([env])
+        driver.reset(cars)
+        machine = driver.recoveries
+        for _ in range(20):
+            env.step(driver.act(cars)[0])
+        now = int(env.unwrapped.state.now_ns[0]) / 1e9
+        env.close()
+        if rate is None:
+            assert machine.config.goal_period == 0.0 and machine.next_goal[0] == math.inf
+            continue
+        period = machine.config.goal_period
+        assert period == pytest.approx(machine.config.controller_patience / 150)
+        # the last cycle (now - 0.1 s) took the sending due then; the next is within a period
+        assert now - 0.1 < machine.next_goal[0] <= now - 0.1 + period + 1e-9
+    with pytest.raises(ValueError, match="goal_rate_hz must be a rate > 0"):
+        DWADriver(goal_rate_hz=0)

@@ -59,6 +59,14 @@ def percent_arg(text: str) -> float:
     return value
 
 
+def rate_arg(text: str) -> float:
+    """argparse type for a rate in Hz (> 0, finite)."""
+    value = _number(text)
+    if not 0.0 < value < math.inf:
+        raise argparse.ArgumentTypeError(f"expected a rate in Hz > 0, got {text!r}")
+    return value
+
+
 def distance_arg(text: str) -> float:
     """argparse type for a distance in metres (> 0, finite)."""
     value = _number(text)

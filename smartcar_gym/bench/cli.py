@@ -35,6 +35,7 @@ from smartcar_gym.agents.cli_args import (
     non_negative_int_arg,
     percent_arg,
     positive_int_arg,
+    rate_arg,
 )
 from smartcar_gym.agents.cli_eval import check_marks
 from smartcar_gym.agents.env_factory import EnvSetupError, check_env
@@ -64,6 +65,10 @@ def build_parser() -> argparse.ArgumentParser:
                              "dwa), run on the challenge's protocol: no map (map_mode=laser; "
                              "map_mode=known or localize=true: the known map)")
     add_engine_argument(barn)
+    barn.add_argument("--goal-rate", type=rate_arg, metavar="HZ",
+                      help="a classical driver's goal sent again at this rate, as the "
+                           "challenge's launch sends it (rostopic pub -r 10: --goal-rate 10; "
+                           "move_base then runs no recovery behaviour); default: sent once")
     barn.add_argument("--runs", type=positive_int_arg, default=1, metavar="K",
                       help="runs of each world (default 1; the challenge: 10)")
     barn.add_argument("--worlds", type=non_negative_int_arg, nargs="+", metavar="I",
@@ -156,7 +161,8 @@ def main(argv: Sequence[str] | None = None) -> int:
           f"run(s), seed {args.seed}")
     print(table(summary, name))
     if args.json is not None:
-        payload = {"benchmark": "barn", "driver": name, "env": ENV_ID, "engine": engine,
+        payload = {"benchmark": "barn", "driver": name, "goal_rate_hz": args.goal_rate,
+                   "env": ENV_ID, "engine": engine,
                    "vectorization": "batched" if batched else "single",
                    "runs_per_world": args.runs, "seed": args.seed,
                    "env_kwargs": {k: v for k, v in kwargs.items() if k != "world_file"},
@@ -233,7 +239,17 @@ def _driver(args: argparse.Namespace) -> tuple[Any, str, dict[str, Any]]:
     if args.model is None and args.pretrained is None:
         name = args.driver or "dwa"
         known = "localize" in dict(args.env_kwargs)
-        return make_driver(name), name, {} if known else {"map_mode": DRIVER_MAP_MODE}
+        if args.goal_rate is not None and (known or dict(args.env_kwargs).get(
+                "map_mode", DRIVER_MAP_MODE) != "laser"):
+            raise DriverError("--goal-rate: the goal is sent to move_base, which runs with "
+                              "map_mode=laser only (on the known map the driver has no "
+                              "move_base cycle)")
+        options = {} if args.goal_rate is None else {"goal_rate_hz": args.goal_rate}
+        return (make_driver(name, **options), name,
+                {} if known else {"map_mode": DRIVER_MAP_MODE})
+    if args.goal_rate is not None:
+        raise DriverError("--goal-rate: a classical driver's (move_base's goal); a policy "
+                          "takes its goal once")
     from smartcar_gym.agents.models import PRETRAINED_POLICIES
     from smartcar_gym.agents.policies import Policy, PolicyError
 

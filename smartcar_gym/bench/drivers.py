@@ -24,12 +24,13 @@ class DriverError(ValueError):
     """A driver that cannot drive these envs (unknown name, another observation space)."""
 
 
-def make_driver(name: str) -> Any:
-    """The classical driver called ``name`` (DriverError listing them for another name)."""
+def make_driver(name: str, **options: Any) -> Any:
+    """The classical driver called ``name``, given ``options`` (DriverError listing them for
+    another name)."""
     if name not in DRIVERS:
         raise DriverError(f"--driver: unknown driver {name!r}; the drivers are "
                           f"{', '.join(sorted(DRIVERS))}")
-    return DRIVERS[name]()
+    return DRIVERS[name](**options)
 
 
 class PolicyDriver:

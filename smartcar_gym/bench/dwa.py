@@ -18,6 +18,7 @@ response; on the known map none of these, its records unchanged.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import Any
 
@@ -88,7 +89,9 @@ class DWADriver:
     (costmap_2d's ``clearing: true``, as the challenge's Jackal; ``obstacles.ObstacleLayers``),
     else cells stay marked until they age out; ``recoveries``: with the task's
     ``map_mode="laser"``, move_base's recovery behaviours (``navigation.recovery``; None:
-    ``RecoveryConfig.challenge`` for the cars' car, False: none); on the known map never.
+    ``RecoveryConfig.challenge`` for the cars' car, False: none); on the known map never;
+    ``goal_rate_hz``: with them, the goal sent again at this rate, as the challenge's launch
+    sends it (``CHALLENGE_GOAL_RATE_HZ``: then no behaviour runs), None: once.
 
     With ``map_mode="laser"`` the driver is the challenge's move_base in full: besides the
     recoveries, TrajectoryPlanner's choice of in-place turns, its oscillation flags and its
@@ -104,10 +107,16 @@ class DWADriver:
 
     def __init__(self, config: DWAConfig | None = None, compensate_turns: bool = True,
                  compiled: bool | None = None, threads: int | None = None,
-                 clearing: bool = True, recoveries: RecoveryConfig | bool | None = None
-                 ) -> None:
+                 clearing: bool = True, recoveries: RecoveryConfig | bool | None = None,
+                 goal_rate_hz: float | None = None) -> None:
+        if goal_rate_hz is not None and not (
+                isinstance(goal_rate_hz, int | float) and math.isfinite(goal_rate_hz)
+                and goal_rate_hz > 0):
+            raise ValueError(f"goal_rate_hz must be a rate > 0 (Hz) or None (the goal sent "
+                             f"once), got {goal_rate_hz!r}")
         self.config = config
         self.recovery_config = recoveries
+        self.goal_rate_hz = goal_rate_hz
         self.compensate_turns = compensate_turns
         self.clearing = clearing
         self.compiled = compiled  # the obstacle layers and the planner: None, numba if there
@@ -180,7 +189,8 @@ class DWADriver:
             scale=car_width(car.robot_model) / JACKAL_WIDTH_M,
             speed_scale=car.max_linear / JACKAL_TOP_SPEED_M_S,
             circumscribed_m=float(np.hypot(c.half_length + c.footprint_padding,
-                                           c.half_width + c.footprint_padding)))
+                                           c.half_width + c.footprint_padding)),
+            goal_rate_hz=self.goal_rate_hz)
 
     def act(self, cars: CarView, obs: Any = None,
             indices: Sequence[int] | None = None) -> np.ndarray:

@@ -15,6 +15,13 @@ ROS navigation (noetic-devel) ``move_base/src/move_base.cpp``, ``executeCycle`` 
 * CLEARING, in the next cycle: runs behaviour ``index`` of (conservative reset, rotate,
   aggressive reset, rotate), then ``index += 1``, PLANNING, ``last_valid_plan`` and the
   oscillation timer set to now; with every behaviour run, the goal is aborted.
+* A goal sent again (``goal_period``: the challenge's ``rostopic pub -r 10`` of its goal),
+  ``executeCb``'s new goal: the index back to 0, PLANNING, ``last_valid_control``,
+  ``last_valid_plan`` and the oscillation timer set to now, an aborted goal taken up again.
+  So the patience never runs out and no behaviour runs. move_base's planner thread plans for
+  the new goal while that cycle publishes nothing; here the cycle goes on with the plan the
+  env made in the same step (a delay under one control cycle is not emulated). A rotation in
+  place holds the goal until it ends (``runBehavior`` blocks ``executeCb``'s loop).
 
 ``Recoveries.step`` is one control cycle of the robots ``slots``: it says per robot what to do
 (``CONTROL``: send the local planner's command; ``STOP``: zero; ``CONSERVATIVE`` /
@@ -25,6 +32,7 @@ place, which the caller runs and ends with ``rotated``; ``ROTATING``: go on with
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -44,6 +52,9 @@ CHALLENGE_CONTROLLER_PATIENCE_S = 15.0
 CHALLENGE_PLANNER_PATIENCE_S = 5.0
 CHALLENGE_OSCILLATION_TIMEOUT_S = 0.0  # 0: off
 CHALLENGE_OSCILLATION_DISTANCE_M = 0.5
+#: the challenge's move_base_DWA.launch sends its goal again at this rate (``rostopic pub -r
+#: 10 /move_base_simple/goal``), Hz
+CHALLENGE_GOAL_RATE_HZ = 10.0
 #: move_base's conservative_reset_dist default (not set by the challenge)
 CONSERVATIVE_RESET_M = 3.0
 #: move_base's aggressive reset: 4 x the footprint's circumscribed radius
@@ -69,16 +80,27 @@ class RecoveryConfig:
     aggressive_reset_m: float = AGGRESSIVE_RESET_RADII * float(np.hypot(0.31, 0.265))
     #: move_base's recovery_behavior_enabled
     enabled: bool = True
+    #: s between two sendings of the goal (0: sent once)
+    goal_period: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.goal_period) and self.goal_period >= 0.0):
+            raise ValueError(f"goal_period must be a finite number of seconds >= 0 (0: the "
+                             f"goal is sent once), got {self.goal_period!r}")
 
     @classmethod
     def challenge(cls, scale: float, speed_scale: float,
-                  circumscribed_m: float | None = None) -> RecoveryConfig:
+                  circumscribed_m: float | None = None,
+                  goal_rate_hz: float | None = None) -> RecoveryConfig:
         """The challenge's set for a robot ``scale`` times as big, ``speed_scale`` times as
         fast (as ``DWAConfig.challenge``: lengths x scale, times x scale / speed_scale);
         ``circumscribed_m``: the robot's padded footprint's circumscribed radius (None: the
-        challenge's, scaled)."""
+        challenge's, scaled); ``goal_rate_hz``: the goal sent again at this rate (the
+        challenge's launch: ``CHALLENGE_GOAL_RATE_HZ``; its period scaled as the times),
+        None: once."""
         base, time = cls(), scale / speed_scale
-        return cls(controller_patience=base.controller_patience * time,
+        return cls(goal_period=0.0 if goal_rate_hz is None else time / goal_rate_hz,
+                   controller_patience=base.controller_patience * time,
                    planner_patience=base.planner_patience * time,
                    oscillation_timeout=base.oscillation_timeout * time,
                    oscillation_distance=base.oscillation_distance * scale,
@@ -100,6 +122,8 @@ class Recoveries:
         self.last_valid_plan = np.zeros(n)
         self.last_oscillation_reset = np.zeros(n)
         self.oscillation_pose = np.zeros((n, 2))
+        #: when each robot's goal is sent again (inf: never)
+        self.next_goal = np.full(n, np.inf)
         #: the behaviours each robot ran, in order (codes of ``BEHAVIOURS``)
         self.log: list[list[int]] = [[] for _ in range(n)]
 
@@ -110,6 +134,7 @@ class Recoveries:
         self.last_valid_control[i] = self.last_valid_plan[i] = now
         self.last_oscillation_reset[i] = now
         self.oscillation_pose[i] = position
+        self.next_goal[i] = now + self.config.goal_period if self.config.goal_period else np.inf
         self.log[i] = []
 
     def step(self, slots: Sequence[int], now: np.ndarray, positions: np.ndarray,
@@ -121,11 +146,17 @@ class Recoveries:
         out = np.full(len(slots), STOP)
         for k, i in enumerate(slots):
             t = float(now[k])
-            if self.state[i] == DONE:
-                out[k] = ABORTED
-                continue
             if self.state[i] == IN_RECOVERY:  # move_base is inside runBehavior
                 out[k] = ROTATING
+                continue
+            if t >= self.next_goal[i]:  # executeCb takes the goal sent again
+                self.next_goal[i] += c.goal_period * (
+                    math.floor((t - self.next_goal[i]) / c.goal_period) + 1)
+                self.state[i], self.index[i] = PLANNING, 0
+                self.last_valid_control[i] = self.last_valid_plan[i] = t
+                self.last_oscillation_reset[i] = t
+            if self.state[i] == DONE:
+                out[k] = ABORTED
                 continue
             if np.hypot(*(positions[k] - self.oscillation_pose[i])) >= c.oscillation_distance:
                 self.last_oscillation_reset[i] = t

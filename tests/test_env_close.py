@@ -19,11 +19,11 @@ import pytest
 import smartcar_gym  # noqa: F401
 from smartcar_gym.sim.pybullet.bullet import pybullet
 
-CYCLES = 200
+CYCLES = 100  # a window; two are measured
 WARM_UP = 10
 # A client left connected holds about 30 MB (the world, the model, the render buffers): one
 # leaked client, or ~50 kB of Python objects per cycle, fails this.
-MAX_GROWTH_MB = 10.0
+MAX_GROWTH_MB = 5.0
 
 
 def _rss_mb() -> float:
@@ -75,17 +75,23 @@ def _cycle(seed: int) -> int:
 
 
 def test_make_step_close_cycles_leak_no_client_and_little_memory():
+    """A leak grows every window of cycles; the heap may grow once (by up to ~20 MB under
+    pytest-xdist, depending on what the process ran before), so the smaller of two windows
+    is what is held."""
     before = {i for i in range(64) if _connected(i)}  # other tests' live clients, if any
     for i in range(WARM_UP):
         assert not _connected(_cycle(i))
-    start = _rss_mb()
-    for i in range(CYCLES):
-        cid = _cycle(WARM_UP + i)
-        assert not _connected(cid), f"cycle {i}: client {cid} still connected after close()"
-    growth = _rss_mb() - start
+    growth = []
+    for window in range(2):
+        start = _rss_mb()
+        for i in range(CYCLES):
+            cid = _cycle(WARM_UP + window * CYCLES + i)
+            assert not _connected(cid), f"cycle {i}: client {cid} still connected after close()"
+        growth.append(_rss_mb() - start)
     assert {i for i in range(64) if _connected(i)} == before
-    print(f"RSS growth over {CYCLES} make/reset/2 steps/close cycles: {growth:.2f} MB")
-    assert growth < MAX_GROWTH_MB, f"RSS grew by {growth:.1f} MB over {CYCLES} cycles"
+    print(f"RSS growth over two windows of {CYCLES} make/reset/2 steps/close cycles: "
+          f"{growth[0]:.2f}, {growth[1]:.2f} MB")
+    assert min(growth) < MAX_GROWTH_MB, f"RSS grew by {growth} MB over each {CYCLES} cycles"
 
 
 def test_resets_do_not_grow_memory():

@@ -46,6 +46,7 @@ def test_train_stores_the_engine_with_the_run_and_resume_refuses_it(tmp_path, ca
     assert "--engine cannot be given with it" in capsys.readouterr().err
 
 
+@pytest.mark.xdist_group("ray")
 def test_tune_puts_the_engine_in_every_trial_s_env_kwargs(tmp_path):
     pytest.importorskip("ray", reason="smartcar-tune needs the ray extra")
     from smartcar_gym.scale import tune as tune_cli

@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 pytest.importorskip("ray.rllib", reason='RLlib is not installed: pip install "smartcar-gym[ray]"')
+pytestmark = pytest.mark.xdist_group("ray")  # one Ray cluster at a time (pytest-xdist)
 
 from smartcar_gym.scale import rllib  # noqa: E402
 from smartcar_gym.scale.ray_session import ResourceError, ray_session  # noqa: E402

@@ -34,7 +34,8 @@ HERE = Path(__file__).parent
 PROBE = HERE / "ros_probe.py"
 
 
-pytestmark = ros_needs.needs("roscore", ros_needs.ROSPY)
+# one ROS graph at a time (pytest-xdist): some tests time the driver's rates in real time
+pytestmark = [ros_needs.needs("roscore", ros_needs.ROSPY), pytest.mark.xdist_group("ros")]
 
 
 def _free_port() -> int:

@@ -52,7 +52,7 @@ def test_without_robot_state_publisher_the_launch_test_is_skipped_and_says_why()
     code = (f"import sys; sys.path.insert(0, {str(HERE)!r}); import ros_needs; "
             "ros_needs._node_found = lambda package, executable: False; import pytest; "
             f"sys.exit(pytest.main([{str(HERE / 'test_ros_live.py')!r}, '-q', '-rs', "
-            "'-p', 'no:cacheprovider', '-k', 'launch_file']))")
+            "'-p', 'no:cacheprovider', '-n', '0', '-k', 'launch_file']))")
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                             timeout=300, cwd=HERE.parent)
     output = result.stdout

@@ -23,6 +23,7 @@ import pytest
 import yaml
 
 pytest.importorskip("ray.tune", reason='Ray Tune is not installed: pip install "smartcar-gym[ray]"')
+pytestmark = pytest.mark.xdist_group("ray")  # one Ray cluster at a time (pytest-xdist)
 
 from smartcar_gym.agents.callbacks import find_latest_checkpoint  # noqa: E402
 from smartcar_gym.agents.hyperparams import load_hyperparams  # noqa: E402

@@ -26,8 +26,9 @@ The step hooks read the cars' per-car arrays (the state's, and the task's own) t
 the cars or one car's values (numpy scalars, and a row for a 2-D field: index columns with
 ``[..., k]``, reduce with ``axis=-1``, write the task's arrays with ``a[...] = value``) says so
 with ``@one_or_many``; a single env whose task's step hooks all say so runs them on its car's
-values, which costs a third of running them on one-row arrays (numpy's cost per call). Any
-other hook sees one-row arrays in a single env: a task may be written over arrays alone.
+values, in about two thirds of the time they take on one-row arrays (numpy's cost per call).
+Otherwise every hook sees one-row arrays in a single env: a task may be written over arrays
+alone.
 """
 
 from __future__ import annotations

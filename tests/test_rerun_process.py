@@ -3,9 +3,11 @@ errors come back, and no recorder process outlives ``close``, ``discard`` or ``s
 
 from __future__ import annotations
 
+import gc
 import multiprocessing
 import socket
 import urllib.request
+import warnings
 
 import numpy as np
 import pytest
@@ -120,6 +122,11 @@ def test_a_web_port_in_use_fails_like_the_in_process_sink():
             RerunProcessSink(serve=True, grpc_port=_free_port(), web_port=port)
     assert str(there.value) == str(here.value).splitlines()[0]
     assert not any(p.name == "smartcar-rerun-recorder" for p in multiprocessing.active_children())
+    with warnings.catch_warnings(record=True) as caught:  # the failed start closed its pipe
+        warnings.simplefilter("always")
+        del here, there
+        gc.collect()
+    assert not [w for w in caught if issubclass(w.category, ResourceWarning)], caught
 
 
 def test_a_recorder_that_died_is_named(tmp_path):

@@ -144,7 +144,7 @@ class WebViewerServer:
                     found.append(int(match.group(1)))
                     return
 
-        reader = threading.Thread(target=read, daemon=True)
+        self._reader = reader = threading.Thread(target=read, daemon=True)
         reader.start()
         reader.join(timeout_s)
         if found:
@@ -179,11 +179,12 @@ class WebViewerServer:
             except subprocess.TimeoutExpired:
                 process.kill()
                 process.wait(10)
-        drainer = getattr(self, "_drainer", None)
-        if drainer is not None:
-            drainer.join(1.0)  # at the pipe's end once the command has ended
-            if not drainer.is_alive():
-                process.stderr.close()
+        readers = [t for t in (getattr(self, "_reader", None), getattr(self, "_drainer", None))
+                   if t is not None]
+        for reader in readers:
+            reader.join(1.0)  # at the pipe's end once the command has ended
+        if process is not None and not any(reader.is_alive() for reader in readers):
+            process.stderr.close()  # also after a failed start: no unclosed pipe left
         shutil.rmtree(self._home, ignore_errors=True)
         atexit.unregister(self.stop)
 

@@ -18,7 +18,7 @@ from gymnasium.utils.env_checker import data_equivalence
 from gymnasium.vector import AutoresetMode
 
 import smartcar_gym  # noqa: F401
-from smartcar_gym.envs.exact import planar_norms, wrap_angles
+from smartcar_gym.envs.exact import planar_norm, wrap_angles
 from tests import test_vector_batched, test_vector_goal_mujoco
 
 #: the stated bound on SmartCarSim-v0's pose yaw (docs/vector.md; measured up to 8.2e-7 rad)
@@ -113,7 +113,8 @@ def test_batch_results_and_infos_equal_n_single_envs_exactly(env_id, engine, mod
 
 def test_the_info_arithmetic_is_the_single_envs_to_the_bit():
     """``wrap_angles`` is ``math.remainder(t, 2 pi)`` (ties, signed zeros, many turns) and
-    ``planar_norms`` the single env's ``math.sqrt(dx * dx + dy * dy)``, on every element."""
+    ``planar_norm`` the single env's ``math.sqrt(dx * dx + dy * dy)``, on every element (and
+    on one car's numbers)."""
     rng = np.random.default_rng(0)
     two_pi = 2 * math.pi
     theta = np.concatenate([rng.uniform(-50, 50, 20000), rng.uniform(-1e9, 1e9, 2000),
@@ -124,4 +125,5 @@ def test_the_info_arithmetic_is_the_single_envs_to_the_bit():
     assert np.array_equal(got, want) and np.array_equal(np.signbit(got), np.signbit(want))
     dx, dy = rng.normal(0, 1e-3, 20000), rng.normal(0, 1e-3, 20000)
     want = [math.sqrt(x * x + y * y) for x, y in zip(dx.tolist(), dy.tolist(), strict=True)]
-    assert np.array_equal(planar_norms(np.stack([dx, dy], axis=1)), want)
+    assert np.array_equal(planar_norm(dx, dy), want)
+    assert [planar_norm(x, y) for x, y in zip(dx[:100], dy[:100], strict=True)] == want[:100]

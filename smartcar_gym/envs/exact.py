@@ -9,8 +9,8 @@ exact by construction:
 
 - ``wrap_angles``: ``math.remainder(theta, 2 pi)`` (IEEE remainder, an exact result) from
   ``np.fmod`` (exact) and one subtraction that Sterbenz's lemma makes exact;
-- ``planar_norms``: ``sqrt(dx * dx + dy * dy)`` of rows (every operation is IEEE-rounded, so floats
-  and arrays give the same bits on any machine);
+- ``planar_norm``: ``sqrt(dx * dx + dy * dy)`` (every operation is IEEE-rounded, so floats,
+  numpy's numbers and arrays give the same bits on any machine);
 - ``exact_hypot``: ``math.hypot`` itself, pair by pair (for a few values).
 """
 
@@ -48,11 +48,11 @@ def wrap_angles(theta: np.ndarray) -> np.ndarray:
     return r
 
 
-def planar_norms(d: np.ndarray) -> np.ndarray:
-    """``sqrt(dx * dx + dy * dy)`` of each row (dx, dy) of ``d`` (..., 2): the bits of
+def planar_norm(dx: np.ndarray, dy: np.ndarray) -> np.ndarray:
+    """``sqrt(dx * dx + dy * dy)`` of each pair (arrays, or numbers for one car): the bits of
     ``math.sqrt(dx * dx + dy * dy)`` on each pair of floats (``np.hypot`` and ``math.hypot``
-    disagree in the last bit). One reduction: fewer numpy calls than the two columns' five."""
-    return np.sqrt(np.add.reduce(d * d, axis=-1))
+    disagree in the last bit)."""
+    return np.sqrt(dx * dx + dy * dy)
 
 
 def exact_hypot(dx: np.ndarray, dy: np.ndarray) -> np.ndarray:

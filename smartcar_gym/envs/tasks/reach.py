@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from smartcar_gym import checks
-from smartcar_gym.envs.exact import exact_hypot, planar_norms, wrap_angles
+from smartcar_gym.envs.exact import exact_hypot, planar_norm, wrap_angles
 from smartcar_gym.envs.observation import Entry, Observation
 from smartcar_gym.envs.robots.entries import (
     heading,
@@ -243,8 +243,8 @@ class ReachTask(Task):
 
     def begin(self, cars: Cars, idx: np.ndarray) -> None:
         state = cars.state
-        d = state.pose[idx, :2] - state.goal[idx]
-        self.distance[idx] = planar_norms(d)
+        pose, goal = state.pose[idx], state.goal[idx]
+        self.distance[idx] = planar_norm(pose[:, 0] - goal[:, 0], pose[:, 1] - goal[:, 1])
         if self.stop_speed_m_s is not None:
             odometry, pose = state.odometry[idx], state.pose[idx]
             self.odometry_error[idx] = exact_hypot(odometry[:, 0] - pose[:, 0],
@@ -258,8 +258,7 @@ class ReachTask(Task):
         state, values = cars.state, cars.values
         x, y, _ = values(state.pose).T
         goal_x, goal_y = values(state.goal).T
-        dx, dy = x - goal_x, y - goal_y
-        distance = np.sqrt(dx * dx + dy * dy)
+        distance = planar_norm(x - goal_x, y - goal_y)
         success = distance < self.goal_tolerance_m
         arrival = None
         if self.stop_speed_m_s is not None:
@@ -316,13 +315,13 @@ class ReachTask(Task):
         odometry, pose = values(state.odometry), values(state.pose)
         odom_pose = odometry[..., :3].copy()
         odom_pose[..., 2] = wrap_angles(odom_pose[..., 2])
-        ex, ey = odometry[..., 0] - pose[..., 0], odometry[..., 1] - pose[..., 1]
         return {
             "is_success": success.copy(),
             "distance": values(self.distance).copy(),
             "pose": pose.copy(),
             "odom_pose": odom_pose,
-            "odom_error": np.sqrt(ex * ex + ey * ey),
+            "odom_error": planar_norm(odometry[..., 0] - pose[..., 0],
+                                      odometry[..., 1] - pose[..., 1]),
         }
 
 

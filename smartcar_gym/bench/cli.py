@@ -237,10 +237,10 @@ def _driver(args: argparse.Namespace) -> tuple[Any, str, dict[str, Any]]:
     of SmartCarBARN-v0); a classical driver's, the challenge's protocol (``map_mode`` laser:
     no map), or the known map when ``localize`` is given (it matches scans to that map)."""
     if args.model is None and args.pretrained is None:
-        name = args.driver or "dwa"
-        known = "localize" in dict(args.env_kwargs)
-        if args.goal_rate is not None and (known or dict(args.env_kwargs).get(
-                "map_mode", DRIVER_MAP_MODE) != "laser"):
+        name, given = args.driver or "dwa", dict(args.env_kwargs)
+        known = "localize" in given
+        if args.goal_rate is not None and (
+                known or given.get("map_mode", DRIVER_MAP_MODE) != "laser"):
             raise DriverError("--goal-rate: the goal is sent to move_base, which runs with "
                               "map_mode=laser only (on the known map the driver has no "
                               "move_base cycle)")

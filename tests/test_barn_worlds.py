@@ -112,6 +112,17 @@ def test_the_tracker_looks_ahead_along_the_path_and_never_goes_back():
     assert np.allclose(tracker.waypoint(np.array([1.9, 0.0])), [2.0, 0.0])  # clipped at the end
 
 
+def test_the_trackers_arc_lengths_are_the_norms_of_the_paths_steps_to_the_bit():
+    rng = np.random.default_rng(5)
+    for m in (1, 2, 7, 300):
+        path = np.cumsum(rng.normal(size=(m, 2)) * 0.02, axis=0)
+        arc = PathTracker(path, lookahead_m=0.5).arc
+        steps = np.linalg.norm(np.diff(path, axis=0), axis=1)
+        assert np.array_equal(arc, np.concatenate([[0.0], np.cumsum(steps)]))
+    with pytest.raises(ValueError, match="a path needs at least one point"):
+        PathTracker(np.zeros((0, 2)), lookahead_m=0.5)
+
+
 def _wall_with_gap(gap: float) -> tuple[np.ndarray, np.ndarray]:
     """A wall of 0.05 m circles across x = 1, from y = -1 to 1 (the whole map), with a gap
     at y = 0.5."""

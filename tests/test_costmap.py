@@ -21,7 +21,7 @@ from smartcar_gym.navigation.costmap import (
     LaserCostmaps,
 )
 from smartcar_gym.navigation.costmap_loops import inflate_numpy
-from smartcar_gym.navigation.costmap_planner import Replanner, plan_on_costmap
+from smartcar_gym.navigation.costmap_planner import Replanner, plan_cells, plan_on_costmap
 from smartcar_gym.navigation.grid_planner import NoPathError
 
 CONFIG = CostmapConfig(size=8.0, inscribed_radius=0.12)
@@ -114,6 +114,16 @@ def test_numba_and_numpy_give_the_same_grids_bit_for_bit():
             r[rng.random(r.shape) < share] = value
         for maps in ways:
             maps.update(cars, poses, r, ROUND)
+    # then scans again and again from nearby poses with 1 cm of noise, as a car drives: the
+    # same returns fall in one cell or the next, marks come and go (the compiled update
+    # inflates again only around those)
+    wall = _wall_scan(1.01, 0.6)[0].astype(float)
+    for step in range(15):
+        cars = np.array([0, 3, 5])
+        poses = np.c_[np.full(3, 0.01 * step), rng.normal(0.0, 0.01, 3), rng.normal(0.0, 0.02, 3)]
+        r = (wall + rng.normal(0.0, 0.01, (3, 360))).astype(np.float32)
+        for maps in ways:
+            maps.update(cars, poses, r, ROUND)
     for car in range(6):
         assert np.array_equal(ways[0].costs(car), ways[1].costs(car))
         assert np.array_equal(ways[0].lethal(car), ways[1].lethal(car))
@@ -161,6 +171,25 @@ def test_the_planner_goes_around_a_wall_it_has_seen_and_straight_through_unseen_
         plan_on_costmap(maps, 1, np.zeros(2), np.array([5.0, 0.0]))
 
 
+def test_one_points_cell_and_the_ways_cells_are_world_to_cells():
+    maps = LaserCostmaps(CONFIG, 2)
+    rng = np.random.default_rng(3)
+    points = np.concatenate([rng.uniform(-4.5, 4.5, (500, 2)),  # some off the 8 m grid
+                             [[-4.0, -4.0], [3.9999999, 0.0], [4.0, 0.0], [0.06, -0.06]]])
+    ix, iy, inside = maps.world_to_cell(points)
+    for (x, y), i, j, k in zip(points.tolist(), ix.tolist(), iy.tolist(), inside.tolist(),
+                               strict=True):
+        assert maps.cell_of(x, y) == ((i, j) if k else None)
+    assert maps.cell_of(0.06, -0.06) == (81, 78) and maps.cell_of(4.0, 0.0) is None
+    maps.update([1], np.zeros((1, 3)), _wall_scan(1.01, 0.6), ROUND)
+    way = plan_on_costmap(maps, 1, np.zeros(2), np.array([2.0, 0.0]))
+    cx, cy = plan_cells(maps, 1, np.zeros(2), np.array([2.0, 0.0]))
+    ix, iy, inside = maps.world_to_cell(way)
+    assert inside.all() and np.array_equal(cx, ix) and np.array_equal(cy, iy)
+    with pytest.raises(IndexError, match=r"costmap cars must be in \[0, 2\), got \[2\]"):
+        maps.costs(2)
+
+
 def test_the_replanner_plans_at_its_rate_and_at_once_when_its_path_is_blocked():
     maps = LaserCostmaps(CONFIG, 1)
     replanner = Replanner(maps, period_s=0.1)
@@ -176,6 +205,25 @@ def test_the_replanner_plans_at_its_rate_and_at_once_when_its_path_is_blocked():
     assert np.abs(path[:, 1]).max() > 0.3 and not replanner.needs_plan(0, 0.2)
     assert Replanner.challenge(maps, 0.4186, 0.25).period_s == pytest.approx(
         0.4186 / 0.25 / 20.0)  # 20 Hz, times scaled by 1.674
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_planning_many_cars_at_once_gives_each_cars_own_plan(threads):
+    maps = LaserCostmaps(CONFIG, 4)
+    for car, x in enumerate((0.6, 1.0, 1.4, 1.0)):
+        maps.update([car], np.zeros((1, 3)), _wall_scan(x, 0.4 + 0.1 * car), ROUND)
+    one, many = Replanner(maps, period_s=0.1), Replanner(maps, period_s=0.1)
+    goals = np.array([[2.0, 0.0], [2.0, 0.3], [2.5, -0.2], [1.0, 0.0]])  # car 3's in its wall
+    starts = np.zeros((4, 2))
+    for car in range(3):
+        one.plan(car, starts[car], goals[car], 0.5)
+    before = many.plan(3, starts[3], np.array([2.0, 0.0]), 0.0)
+    assert many.plan_many([0, 1, 2, 3], starts, goals, [0.5] * 4, threads=threads) == [0, 1, 2]
+    for car in range(3):
+        assert np.array_equal(many.path(car), one.path(car))
+    # car 3 keeps its last path, and the try counts as the plan of its period
+    assert many.path(3) is before and not many.needs_plan(3, 0.55) and many.needs_plan(3, 0.6)
+    assert len({len(many.path(car)) for car in range(3)}) == 3  # three different ways
 
 
 def test_the_challenges_values_scale_to_the_same_cell_counts():

@@ -17,9 +17,10 @@ its lengths. ``LaserCostmaps`` holds N such grids, one per car, as costmap_2d's 
 * **inflation** (``InflationLayer``): a cell within ``inflation_radius`` of a lethal cell costs
   ``computeCost`` of its distance to the nearest one: 253 within the inscribed radius, else
   ``int(252 exp(-cost_scaling_factor (d - inscribed_radius)))``, at cell-centre distances.
-  After each update only the cells an update can have changed are inflated again (the box of
-  the touched cells, grown by the inflation radius), from the lethal cells within the
-  inflation radius of them: the costs are always the whole grid's inflation, exactly.
+  After each update only the cells an update can have changed are inflated again (numpy: the
+  box of the touched cells, grown by the inflation radius; the compiled loops: the box of the
+  cells whose mark changed, so grown, nothing when none did), from the lethal cells within
+  the inflation radius of them: the costs are always the whole grid's inflation, exactly.
 
 Two ways, the same arrays bit for bit (``tests/test_costmap.py``): numpy, and numba's loops
 (the ``fast`` extra) where installed, both in ``costmap_loops.py``. The float work (each beam's
@@ -29,6 +30,7 @@ end cell, its cut, the boxes) is numpy's for both; the loops do integer work onl
 from __future__ import annotations
 
 import math
+import operator
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -211,8 +213,11 @@ class LaserCostmaps:
         self.threads = checks.positive_int("costmap threads", threads)
         self._marks = np.zeros((n, cells, cells), dtype=np.uint8)
         self._costs = np.zeros((n, cells, cells), dtype=np.uint8)
-        self._kernel = config.kernel()
         self._table = config.cost_table()
+        # the kernel's half width at each row offset |dy| <= r: |dx| <= half[|dy|] (r * r >= d2)
+        r = config.inflation_cells
+        self._half = np.array([math.isqrt(r * r - dy * dy) for dy in range(r + 1)],
+                              dtype=np.int64)
         # per car, a box (x_lo, y_lo, x_hi, y_hi, exclusive) holding every cell that has had a
         # cost since its reset: the union of its updates' boxes
         self._bounds = np.tile(np.array([cells, cells, 0, 0], dtype=np.int64), (n, 1))
@@ -225,6 +230,13 @@ class LaserCostmaps:
             raise ValueError(f"costmap cars must be distinct, got {idx.tolist()}")
         return idx
 
+    def _car(self, car: int) -> int:
+        """One car's index, checked as ``_cars`` checks many (without its arrays)."""
+        i = operator.index(car)
+        if not 0 <= i < self.n:
+            raise IndexError(f"costmap cars must be in [0, {self.n}), got [{i}]")
+        return i
+
     def reset(self, cars: Sequence[int] | np.ndarray) -> None:
         """Clears the grids of ``cars``: nothing seen."""
         idx = self._cars(cars)
@@ -233,11 +245,15 @@ class LaserCostmaps:
         self._bounds[idx] = (self.config.cells, self.config.cells, 0, 0)
 
     def update(self, cars: Sequence[int] | np.ndarray, poses: np.ndarray, ranges: np.ndarray,
-               angles: np.ndarray, mount: np.ndarray | None = None) -> None:
+               angles: np.ndarray, mount: np.ndarray | None = None,
+               threads: int | None = None) -> None:
         """Clears, marks and inflates the grids of ``cars`` (K,) from one scan each:
         ``ranges`` (K, B) m (REP 117: ``+inf`` nothing in range, ``-inf`` too close) at beam
         ``angles`` (B,) rad, taken at ``poses`` (K, 3: x, y, theta in the odom frame) of the
-        laser frame, or of base_link with the laser at ``mount`` (its 4 x 4 pose there)."""
+        laser frame, or of base_link with the laser at ``mount`` (its 4 x 4 pose there);
+        ``threads``: the compiled loops' (None: ``self.threads``)."""
+        threads = self.threads if threads is None else checks.positive_int("costmap threads",
+                                                                            threads)
         idx = self._cars(cars)
         poses = np.asarray(poses, dtype=np.float64).reshape(len(idx), 3)
         if mount is not None:
@@ -253,7 +269,6 @@ class LaserCostmaps:
         self._bounds[idx[touched]] = np.concatenate(
             [np.minimum(old[:, :2], new[:, :2]), np.maximum(old[:, 2:], new[:, 2:])], axis=1)
         r = self.config.inflation_cells
-        kdx, kdy, kcost = self._kernel
         if not self.compiled:
             k, xs, ys = trace_cells(beams)
             self._marks[idx[k], ys, xs] = FREE
@@ -266,11 +281,11 @@ class LaserCostmaps:
 
         def work(a: int, b: int) -> None:
             compiled_update(idx[a:b], beams.x0[a:b], beams.y0[a:b], beams.ok[a:b],
-                             beams.x1[a:b], beams.y1[a:b], beams.end[a:b], beams.trace[a:b],
-                             beams.mx[a:b], beams.my[a:b], beams.mark[a:b], beams.box[a:b], r,
-                             kdx, kdy, kcost, self._marks, self._costs)
+                            beams.x1[a:b], beams.y1[a:b], beams.end[a:b], beams.trace[a:b],
+                            beams.mx[a:b], beams.my[a:b], beams.mark[a:b], r, self._half,
+                            self._table, self._marks, self._costs)
 
-        run_chunks(work, len(idx), self.threads)
+        run_chunks(work, len(idx), threads)
 
     def clear_outside(self, cars: Sequence[int] | np.ndarray, centres: np.ndarray,
                       side: float) -> None:
@@ -296,7 +311,7 @@ class LaserCostmaps:
 
     def costs(self, car: int) -> np.ndarray:
         """Car ``car``'s costs ``[iy, ix]`` (uint8; a read-only view)."""
-        view = self._costs[self._cars([car])[0]]
+        view = self._costs[self._car(car)]
         view.flags.writeable = False
         return view
 
@@ -304,12 +319,12 @@ class LaserCostmaps:
         """A box ``(x_lo, y_lo, x_hi, y_hi)`` (cells, exclusive; empty when ``x_lo >= x_hi``)
         holding every cell of car ``car``'s grid that has had a cost since its reset: the union
         of its updates' boxes. Outside it every cell is FREE."""
-        x_lo, y_lo, x_hi, y_hi = self._bounds[self._cars([car])[0]].tolist()
+        x_lo, y_lo, x_hi, y_hi = self._bounds[self._car(car)].tolist()
         return x_lo, y_lo, x_hi, y_hi
 
     def lethal(self, car: int) -> np.ndarray:
         """Car ``car``'s lethal cells ``[iy, ix]``: the obstacle layer's marks (bool)."""
-        return self._marks[self._cars([car])[0]] == LETHAL
+        return self._marks[self._car(car)] == LETHAL
 
     def world_to_cell(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The cells ``(ix, iy, inside)`` holding ``points`` (..., 2: x, y, m in the odom
@@ -322,6 +337,14 @@ class LaserCostmaps:
         inside = (fx >= 0) & (fy >= 0) & (fx < n) & (fy < n)
         return (np.where(inside, fx, 0).astype(np.int64),
                 np.where(inside, fy, 0).astype(np.int64), inside)
+
+    def cell_of(self, x: float, y: float) -> tuple[int, int] | None:
+        """``world_to_cell`` of one point (x, y; m, odom frame) on Python's floats (the same
+        arithmetic): its cell ``(ix, iy)``, None off the grid."""
+        x0, y0 = self.config.corner
+        res, n = self.config.resolution, self.config.cells
+        fx, fy = math.floor((float(x) - x0) / res), math.floor((float(y) - y0) / res)
+        return (fx, fy) if 0 <= fx < n and 0 <= fy < n else None
 
     def cell_to_world(self, ix: np.ndarray, iy: np.ndarray) -> np.ndarray:
         """The centres (..., 2, m in the odom frame) of cells ``(ix, iy)`` (``mapToWorld``)."""

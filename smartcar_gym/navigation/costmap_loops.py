@@ -162,14 +162,20 @@ def inflate_numpy(marks: np.ndarray, costs: np.ndarray, box: np.ndarray, r: int,
     costs[y_lo:y_hi, x_lo:x_hi] = np.where(near, table[np.where(near, d2, 0)], FREE)
 
 
-def update_loops(cars, x0, y0, ok, x1, y1, end, trace, mx, my, mark, box, r, kdx, kdy,
-                  kcost, marks, costs):
+def update_loops(cars, x0, y0, ok, x1, y1, end, trace, mx, my, mark, r, half, table,
+                 marks, costs):
     """The compiled update of grids ``cars`` (numpy's, cell for cell): per car its beams'
     Bresenham lines cleared (``Costmap2D::bresenham2D``, step by step), then its returns
-    marked, then its box inflated by stamping the kernel of each lethal cell near it."""
+    marked, then the costs inflated again where they can have changed: within ``r`` cells of
+    a cell whose mark changed (the box of those cells grown by ``r``). There each cell's cost
+    is the most of ``table[dx * dx + dy * dy]`` over the lethal cells at offsets ``(dx, dy)``
+    with ``|dx| <= half[|dy|]`` (the kernel of ``CostmapConfig.kernel``, rows clipped to the
+    box). Elsewhere the costs, the whole grid's inflation before, still are."""
     ny, nx = marks.shape[1], marks.shape[2]
     for k in range(cars.shape[0]):
         g = cars[k]
+        # the box of the cells whose mark changed (x_lo, y_lo, x_hi, y_hi, inclusive)
+        c_x_lo, c_y_lo, c_x_hi, c_y_hi = nx, ny, -1, -1
         if ok[k]:
             for b in range(x1.shape[1]):
                 if not trace[k, b]:
@@ -179,29 +185,36 @@ def update_loops(cars, x0, y0, ok, x1, y1, end, trace, mx, my, mark, box, r, kdx
                 sy = 1 if dy > 0 else -1
                 adx, ady = abs(dx), abs(dy)
                 x, y = x0[k], y0[k]
-                if adx >= ady:
-                    error = adx // 2
-                    for _ in range(end[k, b]):
+                major, minor, error = (adx, ady, adx // 2) if adx >= ady else (ady, adx, ady // 2)
+                for i in range(end[k, b] + 1):
+                    if marks[g, y, x] == 254:
                         marks[g, y, x] = 0
+                        c_x_lo, c_x_hi = min(c_x_lo, x), max(c_x_hi, x)
+                        c_y_lo, c_y_hi = min(c_y_lo, y), max(c_y_hi, y)
+                    if i == end[k, b]:
+                        break
+                    error += minor
+                    if adx >= ady:
                         x += sx
-                        error += ady
-                        if error >= adx:
+                        if error >= major:
                             y += sy
-                            error -= adx
-                else:
-                    error = ady // 2
-                    for _ in range(end[k, b]):
-                        marks[g, y, x] = 0
+                            error -= major
+                    else:
                         y += sy
-                        error += adx
-                        if error >= ady:
+                        if error >= major:
                             x += sx
-                            error -= ady
-                marks[g, y, x] = 0
+                            error -= major
         for b in range(mx.shape[1]):
             if mark[k, b]:
-                marks[g, my[k, b], mx[k, b]] = 254
-        x_lo, y_lo, x_hi, y_hi = box[k, 0], box[k, 1], box[k, 2], box[k, 3]
+                x, y = mx[k, b], my[k, b]
+                if marks[g, y, x] != 254:
+                    marks[g, y, x] = 254
+                    c_x_lo, c_x_hi = min(c_x_lo, x), max(c_x_hi, x)
+                    c_y_lo, c_y_hi = min(c_y_lo, y), max(c_y_hi, y)
+        if c_x_hi < 0:  # no mark changed: nor did any cost
+            continue
+        x_lo, y_lo = max(c_x_lo - r, 0), max(c_y_lo - r, 0)
+        x_hi, y_hi = min(c_x_hi + r + 1, nx), min(c_y_hi + r + 1, ny)
         for y in range(y_lo, y_hi):
             for x in range(x_lo, x_hi):
                 costs[g, y, x] = 0
@@ -209,11 +222,14 @@ def update_loops(cars, x0, y0, ok, x1, y1, end, trace, mx, my, mark, box, r, kdx
             for sx_ in range(max(x_lo - r, 0), min(x_hi + r, nx)):
                 if marks[g, sy_, sx_] != 254:
                     continue
-                for m in range(kdx.shape[0]):
-                    x = sx_ + kdx[m]
-                    y = sy_ + kdy[m]
-                    if x_lo <= x < x_hi and y_lo <= y < y_hi and kcost[m] > costs[g, y, x]:
-                        costs[g, y, x] = kcost[m]
+                for y in range(max(sy_ - r, y_lo), min(sy_ + r + 1, y_hi)):
+                    dy = y - sy_
+                    w = half[abs(dy)]
+                    for x in range(max(sx_ - w, x_lo), min(sx_ + w + 1, x_hi)):
+                        dx = x - sx_
+                        c = table[dx * dx + dy * dy]
+                        if c > costs[g, y, x]:
+                            costs[g, y, x] = c
 
 
 compiled_update = None

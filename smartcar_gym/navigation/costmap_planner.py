@@ -28,6 +28,7 @@ from smartcar_gym.navigation import astar
 from smartcar_gym.navigation.astar import compiled_search
 from smartcar_gym.navigation.costmap import INSCRIBED, LaserCostmaps
 from smartcar_gym.navigation.grid_planner import NoPathError
+from smartcar_gym.parallel import run_chunks
 
 NEUTRAL_COST = 50  # navfn.h: COST_NEUTRAL, the cost of a free cell
 COST_FACTOR = 0.8  # navfn.h: COST_FACTOR, per unit of the costmap's cost
@@ -52,30 +53,56 @@ def plan_on_costmap(costmaps: LaserCostmaps, car: int, start: np.ndarray, goal: 
     """The cheapest way (cell centres, (M, 2) m, odom frame) from ``start``'s cell to
     ``goal``'s on car ``car``'s costmap (module docstring). NoPathError if either is off the
     grid, the goal's cell is an obstacle, or no way avoids them."""
-    ends = np.asarray([start, goal], dtype=float).reshape(2, 2)
-    ix, iy, inside = costmaps.world_to_cell(ends)
-    for k, name in enumerate(("start", "goal")):
-        if not inside[k]:
-            raise NoPathError(f"the {name} {np.round(ends[k], 3).tolist()} is off the costmap")
-    costs = costmaps.costs(car)
-    if costs[iy[1], ix[1]] >= INSCRIBED:
-        raise NoPathError(f"the goal {np.round(ends[1], 3).tolist()} is in an obstacle's cell "
-                          f"(cost {costs[iy[1], ix[1]]})")
-    n = costs.shape[0]
-    bx_lo, by_lo, bx_hi, by_hi = costmaps.bounds(car)
-    x_lo = max(min(int(ix.min()), bx_lo) - 1, 0)
-    y_lo = max(min(int(iy.min()), by_lo) - 1, 0)
-    x_hi = min(max(int(ix.max()) + 1, bx_hi) + 1, n)
-    y_hi = min(max(int(iy.max()) + 1, by_hi) + 1, n)
-    w = x_hi - x_lo
-    start_cell = (int(iy[0]) - y_lo) * w + int(ix[0]) - x_lo
-    goal_cell = (int(iy[1]) - y_lo) * w + int(ix[1]) - x_lo
-    search = compiled_search if costmaps.compiled else astar.search
-    cells = search(costs[y_lo:y_hi, x_lo:x_hi], NAVFN_TABLE, start_cell, goal_cell)
-    if len(cells) == 0:
-        raise NoPathError(f"no way on the costmap from {np.round(ends[0], 3).tolist()} to "
-                          f"{np.round(ends[1], 3).tolist()} avoids its obstacles")
-    return costmaps.cell_to_world(cells % w + x_lo, cells // w + y_lo)
+    return costmaps.cell_to_world(*plan_cells(costmaps, car, start, goal))
+
+
+def plan_cells(costmaps: LaserCostmaps, car: int, start: np.ndarray, goal: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """``plan_on_costmap``'s way as its cells ``(ix, iy)`` (M,) each."""
+    search = _Search(costmaps, car, start, goal)
+    return search.cells(search.run(costmaps.compiled))
+
+
+class _Search:
+    """One plan's search on car ``car``'s costmap (``plan_on_costmap``): the grid's box
+    (``grid``, its corner ``x_lo, y_lo``, its width ``w``) and the two ends' cells in it;
+    NoPathError (at once) if an end is off the grid or the goal's cell is an obstacle."""
+
+    def __init__(self, costmaps: LaserCostmaps, car: int, start: np.ndarray,
+                 goal: np.ndarray) -> None:
+        self.ends = np.asarray([start, goal], dtype=float).reshape(2, 2)
+        cells = [costmaps.cell_of(x, y) for x, y in self.ends.tolist()]
+        for k, name in enumerate(("start", "goal")):
+            if cells[k] is None:
+                raise NoPathError(f"the {name} {np.round(self.ends[k], 3).tolist()} is off "
+                                  "the costmap")
+        (sx, sy), (gx, gy) = cells
+        costs = costmaps.costs(car)
+        if costs[gy, gx] >= INSCRIBED:
+            raise NoPathError(f"the goal {np.round(self.ends[1], 3).tolist()} is in an "
+                              f"obstacle's cell (cost {costs[gy, gx]})")
+        n = costs.shape[0]
+        bx_lo, by_lo, bx_hi, by_hi = costmaps.bounds(car)
+        self.x_lo = max(min(sx, gx, bx_lo) - 1, 0)
+        self.y_lo = max(min(sy, gy, by_lo) - 1, 0)
+        x_hi = min(max(sx + 1, gx + 1, bx_hi) + 1, n)
+        y_hi = min(max(sy + 1, gy + 1, by_hi) + 1, n)
+        self.w = x_hi - self.x_lo
+        self.grid = costs[self.y_lo:y_hi, self.x_lo:x_hi]
+        self.start = (sy - self.y_lo) * self.w + sx - self.x_lo
+        self.goal = (gy - self.y_lo) * self.w + gx - self.x_lo
+
+    def run(self, compiled: bool) -> np.ndarray:
+        """The way's flat indices in the box (``astar.search``; empty if there is none)."""
+        search = compiled_search if compiled else astar.search
+        return search(self.grid, NAVFN_TABLE, self.start, self.goal)
+
+    def cells(self, way: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``way`` (``run``'s) as the grid's cells; NoPathError if it is empty."""
+        if len(way) == 0:
+            raise NoPathError(f"no way on the costmap from {np.round(self.ends[0], 3).tolist()} "
+                              f"to {np.round(self.ends[1], 3).tolist()} avoids its obstacles")
+        return way % self.w + self.x_lo, way // self.w + self.y_lo
 
 
 class Replanner:
@@ -124,7 +151,36 @@ class Replanner:
         """Plans car ``car``'s path at ``now_s`` (``plan_on_costmap``) and keeps it; on
         NoPathError the last path stays and the attempt counts as the plan for the period."""
         self._last[car] = now_s
-        path = plan_on_costmap(self.costmaps, car, start, goal)
-        ix, iy, _ = self.costmaps.world_to_cell(path)
-        self._paths[car], self._cells[car] = path, (ix, iy)
-        return path
+        self._keep(car, plan_cells(self.costmaps, car, start, goal))
+        return self._paths[car]
+
+    def plan_many(self, cars: Sequence[int], starts: np.ndarray, goals: np.ndarray,
+                  now_s: Sequence[float], threads: int = 1) -> list[int]:
+        """``plan`` for each of ``cars`` (starts and goals (K, 2), times (K,)), the searches
+        split over ``threads`` where compiled (numba's frees the GIL; each car's search is its
+        own, so the paths are the same whatever the split); the cars whose plan succeeded
+        (the others keep their last path)."""
+        searches = []
+        for car, start, goal, now in zip(cars, starts, goals, now_s, strict=True):
+            self._last[car] = now
+            try:
+                searches.append((car, _Search(self.costmaps, car, start, goal)))
+            except NoPathError:
+                continue
+        ways: list[np.ndarray] = [np.zeros(0, np.int64)] * len(searches)
+        compiled = self.costmaps.compiled
+
+        def work(a: int, b: int) -> None:
+            for k in range(a, b):
+                ways[k] = searches[k][1].run(compiled)
+
+        run_chunks(work, len(searches), threads if compiled else 1, min_chunk=2)
+        planned = []
+        for (car, search), way in zip(searches, ways, strict=True):
+            if len(way):
+                self._keep(car, search.cells(way))
+                planned.append(car)
+        return planned
+
+    def _keep(self, car: int, cells: tuple[np.ndarray, np.ndarray]) -> None:
+        self._paths[car], self._cells[car] = self.costmaps.cell_to_world(*cells), cells

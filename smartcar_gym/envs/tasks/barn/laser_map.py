@@ -16,7 +16,6 @@ import numpy as np
 from smartcar_gym.envs.state import SCAN, SCAN_TIME, CarState
 from smartcar_gym.navigation.costmap import CostmapConfig, LaserCostmaps
 from smartcar_gym.navigation.costmap_planner import Replanner
-from smartcar_gym.navigation.grid_planner import NoPathError
 from smartcar_gym.sim.clock import NS_PER_S
 
 
@@ -34,30 +33,30 @@ class LaserMap:
         self.angles, self.mount = angles, mount
         self._marked = np.full(num, -1, dtype=np.int64)  # the time of the scan last marked
 
-    def start(self, state: CarState, idx: np.ndarray, paths: list[np.ndarray]) -> None:
+    def start(self, state: CarState, idx: np.ndarray, paths: list[np.ndarray],
+              threads: int = 1) -> None:
         """Cars ``idx`` start a run: nothing seen, then their first scans marked and their
         paths planned (into ``paths``)."""
         self.costmaps.reset(idx)
         self.replanner.reset(idx.tolist())
         self._marked[idx] = -1
-        self.update(state, idx, paths)
+        self.update(state, idx, paths, threads)
 
-    def update(self, state: CarState, idx: np.ndarray, paths: list[np.ndarray]) -> list[int]:
+    def update(self, state: CarState, idx: np.ndarray, paths: list[np.ndarray],
+               threads: int = 1) -> list[int]:
         """Cars ``idx``' new scans marked, and their paths planned again where due (written
-        into ``paths``); the cars whose path changed."""
+        into ``paths``); the cars whose path changed. The compiled marking and searches run
+        on ``threads`` threads (the same grids and paths whatever the count)."""
         fresh = idx[state.readings[SCAN_TIME][idx] != self._marked[idx]]
         if len(fresh):
             self.costmaps.update(fresh, state.odometry[fresh, :3], state.readings[SCAN][fresh],
-                                 self.angles, self.mount)
+                                 self.angles, self.mount, threads=threads)
             self._marked[fresh] = state.readings[SCAN_TIME][fresh]
-        changed = []
-        for i in idx.tolist():
-            now_s = int(state.now_ns[i]) / NS_PER_S
-            if not self.replanner.needs_plan(i, now_s):
-                continue
-            try:
-                paths[i] = self.replanner.plan(i, state.odometry[i, :2], state.goal[i], now_s)
-            except NoPathError:  # the last path stays
-                continue
-            changed.append(i)
+        now_s = [int(now) / NS_PER_S for now in state.now_ns[idx].tolist()]
+        due = [k for k, i in enumerate(idx.tolist()) if self.replanner.needs_plan(i, now_s[k])]
+        cars = idx[due]
+        changed = self.replanner.plan_many(cars.tolist(), state.odometry[cars, :2],
+                                           state.goal[cars], [now_s[k] for k in due], threads)
+        for i in changed:
+            paths[i] = self.replanner.path(i)
         return changed

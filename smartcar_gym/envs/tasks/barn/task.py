@@ -353,7 +353,7 @@ class BarnTask(NavTask):
         costmap cleared, marked with its first scan and planned on)."""
         super().begin(cars, idx)
         if self._laser_map is not None and len(idx):
-            self._laser_map.start(cars.state, idx, self.global_paths)
+            self._laser_map.start(cars.state, idx, self.global_paths, cars.threads)
         for i in idx.tolist():
             self._clocks[i] = RunClock(np.zeros(2), self.protocol.moved_m)
             self._trackers.start(i, self.global_paths[i])
@@ -371,7 +371,7 @@ class BarnTask(NavTask):
         matching a new scan (laser: on the path planned on their costmap)."""
         state = cars.state
         if self._laser_map is not None and len(idx):
-            for i in self._laser_map.update(state, idx, self.global_paths):
+            for i in self._laser_map.update(state, idx, self.global_paths, cars.threads):
                 self._trackers.start(i, self.global_paths[i])
         poses = state.odometry[idx, :3].astype(float)
         if self.localize:

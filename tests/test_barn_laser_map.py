@@ -71,13 +71,34 @@ def test_the_known_map_stays_the_default():
     ({"map_mode": "laser", "localize": True},
      "localize=True matches each scan to the known map's cylinders: map_mode='laser' has no "
      "map (leave localize False)"),
-    ({"map_mode": "laser", "progress": "path"},
-     "progress='path' measures the progress along the known map's path"),
 ])
 def test_a_map_mode_it_cannot_run_is_one_line(kwargs, message):
     with pytest.raises(ValueError) as err:
         gym.make("SmartCarBARN-v0", engine="planar", **kwargs)
     assert str(err.value).startswith(message) and "\n" not in str(err.value)
+
+
+def test_the_path_progress_reward_is_the_known_paths_in_either_map_mode():
+    """progress='path' on the laser map: the reward is the known map's path progress (the
+    simulator's truth, a training signal), the same to the bit as on the known map for the
+    same actions; only the waypoint in the observation differs."""
+    envs = [gym.make("SmartCarBARN-v0", engine="planar", map_mode=mode, progress="path")
+            for mode in ("known", "laser")]
+    try:
+        for env in envs:
+            env.reset(seed=0, options={"world": 6})
+        rng = np.random.default_rng(0)
+        waypoints_differ = False
+        for _ in range(30):
+            action = rng.uniform([0.2, -0.5], [1.0, 0.5]).astype(np.float32)
+            (obs_k, r_k, *_), (obs_l, r_l, *_) = (env.step(action) for env in envs)
+            assert r_k == r_l
+            waypoints_differ |= not np.array_equal(obs_k[-2:], obs_l[-2:])
+        assert waypoints_differ and envs[1].unwrapped.costmaps is not None
+        assert np.all(np.asarray(envs[1].unwrapped.task.terms["path"]) != 0.0)
+    finally:
+        for env in envs:
+            env.close()
 
 
 def test_dwa_follows_each_new_plan_of_the_laser_costmap(laser_env):

@@ -136,6 +136,29 @@ def test_numba_and_numpy_give_the_same_grids_bit_for_bit():
     assert np.array_equal(whole, ways[0].costs(5))
 
 
+@pytest.mark.skipif(not COMPILED, reason="numba (the fast extra) is not installed")
+def test_the_beams_cells_are_numpys_to_the_bit_when_compiled():
+    from smartcar_gym.navigation.costmap_loops import beams_to_cells, beams_to_cells_compiled
+
+    config = CostmapConfig.challenge(0.4186, inscribed_radius=0.105)
+    rng = np.random.default_rng(11)
+    # poses on the grid, near and along its edges and off it; returns short, long, beyond
+    # the ranges, +-inf and NaN; beams that leave the grid on every side
+    poses = np.c_[rng.uniform(-9.5, 9.5, (40, 2)), rng.uniform(-4, 4, 40)]
+    poses[:8, 0] = config.corner[0] + rng.uniform(-0.01, 0.05, 8)
+    poses[8:12, :2] = [[-8.372, -8.372], [8.3719, 8.3719], [0.0, -8.372], [8.372, 0.0]]
+    r = rng.uniform(0.0, 3.0, (40, 360))
+    for value, share in ((np.inf, 0.1), (-np.inf, 0.03), (np.nan, 0.03), (0.0, 0.02)):
+        r[rng.random(r.shape) < share] = value
+    r = r.astype(np.float32)
+    want = beams_to_cells(config, poses, r, ROUND)
+    got = beams_to_cells_compiled(config, poses, r, ROUND)
+    for field in ("x0", "y0", "ok", "x1", "y1", "end", "trace", "mx", "my", "mark", "box"):
+        a, b = getattr(want, field), getattr(got, field)
+        assert a.dtype == b.dtype and np.array_equal(a, b), field
+    assert want.trace.sum() > 5000 and want.mark.sum() > 2000 and not want.ok.all()
+
+
 @pytest.mark.parametrize("compiled", WAYS)
 def test_three_cars_keep_their_own_grids(compiled):
     maps = LaserCostmaps(CONFIG, 3, compiled=compiled)

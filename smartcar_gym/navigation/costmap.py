@@ -43,6 +43,7 @@ from smartcar_gym.navigation.costmap_loops import (
     INSCRIBED,
     LETHAL,
     beams_to_cells,
+    beams_to_cells_compiled,
     compiled_update,
     inflate_numpy,
     trace_cells,
@@ -262,7 +263,8 @@ class LaserCostmaps:
         ranges = np.asarray(ranges).reshape(len(idx), len(angles))
         if len(idx) == 0:
             return
-        beams = beams_to_cells(self.config, poses, ranges, angles)
+        beams = (beams_to_cells_compiled(self.config, poses, ranges, angles)
+                 if self.compiled else beams_to_cells(self.config, poses, ranges, angles))
         touched = (beams.box[:, 0] < beams.box[:, 2]) & (beams.box[:, 1] < beams.box[:, 3])
         old = self._bounds[idx[touched]]
         new = beams.box[touched]

@@ -137,12 +137,15 @@ class BarnTask(NavTask):
     ``localize`` (False) takes the waypoint from the scan-matched pose on the map (above); it
     needs the laser at the controller's rate (the shipped 10 Hz). ``map_mode``: ``"known"``
     (the default: the world's cylinders) or ``"laser"`` (the car's own costmap, above), which
-    takes neither ``localize`` (there is no map to match) nor ``progress="path"`` (its path
-    changes as the costmap fills).
+    does not take ``localize`` (there is no map to match). With ``"laser"``,
+    ``progress="path"`` still measures the progress along the known map's path: a training
+    signal from the simulator's truth, as the reward's other terms are; the observation holds
+    nothing of it.
 
     ## Version History
 
-    * v0 (0.5.0): ``map_mode="laser"``; no step limit but the protocol's timeout (was 1676
+    * v0 (0.5.0): ``map_mode="laser"`` (with ``progress="path"``: the known path's progress
+      as the reward); no step limit but the protocol's timeout (was 1676
       steps); the world file's own split; the task written once for the single and the
       batched envs (``BarnTask``).
     * v0 (0.4.0): initial version (the known map, ``localize``, ``progress``).
@@ -183,10 +186,6 @@ class BarnTask(NavTask):
         if map_mode == "laser" and self.localize:
             raise ValueError("localize=True matches each scan to the known map's cylinders: "
                              "map_mode='laser' has no map (leave localize False)")
-        if map_mode == "laser" and progress == "path":
-            raise ValueError("progress='path' measures the progress along the known map's path: "
-                             "with map_mode='laser' the path changes as the costmap fills (use "
-                             "progress='goal')")
         #: the global paths planned so far, by world
         self.planned_paths: dict[int, np.ndarray] = {}
         # the reaching task's goal and arena come from the protocol, once the car is known
@@ -357,7 +356,10 @@ class BarnTask(NavTask):
         for i in idx.tolist():
             self._clocks[i] = RunClock(np.zeros(2), self.protocol.moved_m)
             self._trackers.start(i, self.global_paths[i])
-            self._reward_trackers.start(i, self.global_paths[i])
+            # progress="path": the known map's path in either mode (laser: a training signal
+            # the observation never sees)
+            self._reward_trackers.start(i, self.plan(int(self.world_index[i]))
+                                        if self.path_progress_weight else self.global_paths[i])
             self._to_go[i] = self._reward_trackers.to_go([i], np.zeros((1, 2)))[0]
             matcher = self.matchers[i]
             self._localizers[i] = None if matcher is None else Localizer(matcher, *self._beams)

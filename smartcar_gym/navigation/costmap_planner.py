@@ -14,7 +14,8 @@ the box is never cheaper than along its edge).
 
 ``Replanner`` is move_base's planning loop per car: a new plan every ``period_s`` (move_base's
 ``planner_frequency``, 20 Hz in the challenge, times scaled with the world and the speed), and
-at once when a cell of the current path has become an obstacle.
+at once when a cell of the current path has become an obstacle. ``Replanner.plan_many`` plans a
+batch's due cars at once, their searches split over threads (numba's search frees the GIL).
 """
 
 from __future__ import annotations

@@ -275,6 +275,13 @@ def test_a_bad_config_is_one_line_naming_its_field(kwargs, message):
     assert "\n" not in str(error.value)
 
 
+def test_a_bad_thread_count_for_an_update_is_one_line():
+    maps = LaserCostmaps(CONFIG, 1)
+    with pytest.raises(ValueError, match=r"^costmap threads must be a positive integer, got 0$"):
+        maps.update([0], np.zeros((1, 3)), _wall_scan(1.01, 0.6), ROUND, threads=0)
+    assert not maps.lethal(0).any()  # refused before anything was marked
+
+
 def test_too_many_cars_grids_are_refused_before_allocating():
     with pytest.raises(ValueError, match="costmap cars: 1000 grids of 800 x 800 cells are more"):
         LaserCostmaps(CostmapConfig(), 1000)

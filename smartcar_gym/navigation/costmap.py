@@ -23,8 +23,9 @@ its lengths. ``LaserCostmaps`` holds N such grids, one per car, as costmap_2d's 
   the inflation radius of them: the costs are always the whole grid's inflation, exactly.
 
 Two ways, the same arrays bit for bit (``tests/test_costmap.py``): numpy, and numba's loops
-(the ``fast`` extra) where installed, both in ``costmap_loops.py``. The float work (each beam's
-end cell, its cut, the boxes) is numpy's for both; the loops do integer work only.
+(the ``fast`` extra) where installed, both in ``costmap_loops.py``. The beams' end cells, their
+cut and the boxes are float work: numba's loops do numpy's operations in numpy's order, with
+numpy's own cosines, sines and hypot; clearing, marking and inflating are integer work.
 """
 
 from __future__ import annotations

@@ -1,8 +1,9 @@
-"""The laser costmap's cell work (``navigation/costmap.py``): an update's beams as cells, in
-numpy's floats, and the grids' clearing, marking and inflation from them, in numpy
-(``trace_cells``, ``inflate_numpy``) and in numba's loops (``update_loops``, compiled as
-``compiled_update`` where numba is installed), which do integer work only and give the same
-arrays.
+"""The laser costmap's cell work (``navigation/costmap.py``): an update's beams as cells
+(``beams_to_cells`` in numpy; ``beams_to_cells_compiled``, numba's loops on numpy's cosines,
+sines and hypot, the same float operations in the same order) and the grids' clearing,
+marking and inflation from them, in numpy (``trace_cells``, ``inflate_numpy``) and in numba's
+loops (``update_loops``, compiled as ``compiled_update`` where numba is installed), integer
+work that gives the same arrays.
 """
 
 from __future__ import annotations

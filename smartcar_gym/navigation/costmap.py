@@ -216,9 +216,10 @@ class LaserCostmaps:
         self._marks = np.zeros((n, cells, cells), dtype=np.uint8)
         self._costs = np.zeros((n, cells, cells), dtype=np.uint8)
         self._table = config.cost_table()
-        # the kernel's half width at each row offset |dy| <= r: |dx| <= half[|dy|] (r * r >= d2)
-        r = config.inflation_cells
-        self._half = np.array([math.isqrt(r * r - dy * dy) for dy in range(r + 1)],
+        # the kernel's half width at each row offset |dy| <= r: its offsets are the
+        # (dx, dy) with |dx| <= half[|dy|] (the compiled update stamps it row by row)
+        kdx, kdy, _ = config.kernel()
+        self._half = np.array([kdx[kdy == dy].max() for dy in range(config.inflation_cells + 1)],
                               dtype=np.int64)
         # per car, a box (x_lo, y_lo, x_hi, y_hi, exclusive) holding every cell that has had a
         # cost since its reset: the union of its updates' boxes

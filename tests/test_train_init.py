@@ -93,3 +93,22 @@ def test_init_with_resume_or_without_a_model_is_one_line(source, tmp_path, capsy
     assert exit_info.value.code == 2
     assert "--init" in capsys.readouterr().err
     np.testing.assert_equal((tmp_path / "run" / "config.yaml").exists(), False)
+
+
+def test_a_bare_zip_without_its_normaliser_is_refused_when_the_run_normalises(source, tmp_path,
+                                                                             capsys):
+    """The model alone, outside its run folder: the weights would start on fresh statistics
+    (a fine-tune that fails from its first step), and the pickle beside it is not looked for."""
+    bare = tmp_path / "elsewhere"
+    bare.mkdir()
+    (bare / "model.zip").write_bytes((source / "model.zip").read_bytes())
+    (bare / "vecnormalize.pkl").write_bytes((source / "vecnormalize.pkl").read_bytes())
+    with pytest.raises(SystemExit) as exit_info:
+        cli_train.main(_argv(tmp_path / "run", "--init", str(bare / "model.zip")))
+    assert exit_info.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert "no normaliser comes with this model" in err and "run folder" in err
+    assert not (tmp_path / "run" / "config.yaml").exists()
+    # without normalising, the bare model is fine
+    assert cli_train.main(_argv(tmp_path / "raw", "normalize=False", "--init",
+                                str(bare / "model.zip"))) == 0

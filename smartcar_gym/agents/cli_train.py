@@ -107,8 +107,9 @@ def build_parser() -> argparse.ArgumentParser:
                              "reloaded; step count and normaliser are kept)")
     parser.add_argument("--init", type=Path, default=None, metavar="MODEL",
                         help="a new run starting from this model's weights and normaliser "
-                             "statistics (a model .zip or run folder; a pickle: only one you "
-                             "trust); its network and spaces must be the run's")
+                             "statistics (a run folder or exported policy's folder; a model "
+                             ".zip alone where the run does not normalise; a pickle: only one "
+                             "you trust); its network and spaces must be the run's")
     parser.add_argument("--device", default="cpu")
     parser.add_argument("--torch-threads", type=positive_int_arg, default=1,
                         help="torch CPU threads (default 1: the env workers need the cores)")

@@ -119,6 +119,14 @@ def new_config(args: argparse.Namespace, command: str) -> dict[str, Any]:
         raise HyperparamsError(f"eval_async must be true or false, got "
                                f"{hyperparams['eval_async']!r}")
     init = getattr(args, "init", None)
+    init = None if init is None else init_files(init)
+    if init is not None and init["normalizer"] is None and normalize_kwargs(
+            hyperparams.get("normalize")) is not None:
+        raise HyperparamsError(
+            f"--init {init['model']}: no normaliser comes with this model (none is looked for "
+            "beside a bare .zip: it would be a pickle nobody named), and this run normalises "
+            "observations: its weights would start on fresh statistics. Pass the model's run "
+            "folder or exported policy's folder, which holds its vecnormalize.pkl")
     return {
         "algo": algo,
         "env": env_id,
@@ -142,7 +150,7 @@ def new_config(args: argparse.Namespace, command: str) -> dict[str, Any]:
         "checkpoint_freq": 50_000 if args.checkpoint_freq is None else args.checkpoint_freq,
         "save_replay_buffer": bool(args.save_replay_buffer),
         # the model whose weights and normaliser the run starts from (None: new ones)
-        "init": None if init is None else init_files(init),
+        "init": init,
         "device": args.device,
         "versions": _versions(),
         "command": command,

@@ -11,6 +11,8 @@ import pytest
 import smartcar_gym  # noqa: F401
 from smartcar_gym.navigation.costmap import INSCRIBED
 
+SCALE = 0.18 / 0.43
+
 
 @pytest.fixture(scope="module")
 def laser_env():
@@ -138,3 +140,40 @@ def test_a_policy_of_the_known_map_is_refused_on_the_laser_map_in_one_line(capsy
     assert exit_.value.code == 2
     last = capsys.readouterr().err.strip().splitlines()[-1]
     assert last == f"smartcar-bench barn: error: {expected}"
+
+
+def test_the_costmap_keyword_changes_the_laser_costmaps_fields_and_only_those():
+    """``costmap={...}``: the named fields replace the challenge's scaled ones, the others stay."""
+    changes = {"obstacle_range": 3.0, "raytrace_range": 3.5, "inscribed_radius": 0.125,
+               "inflation_radius": 0.25}
+    envs = [gym.make("SmartCarBARN-v0", engine="planar", map_mode="laser", **kwargs)
+            for kwargs in ({}, {"costmap": changes})]
+    try:
+        challenge, changed = (env.unwrapped.costmap_config for env in envs)
+        assert challenge.obstacle_range == pytest.approx(2.5 * SCALE)
+        assert challenge.inflation_radius == pytest.approx(0.30 * SCALE)
+        assert {name: getattr(changed, name) for name in changes} == changes
+        assert (changed.resolution, changed.size, changed.cost_scaling_factor) == (
+            challenge.resolution, challenge.size, challenge.cost_scaling_factor)
+        envs[1].reset(seed=0, options={"world": 6})
+        assert envs[1].unwrapped.costmaps.config == changed
+    finally:
+        for env in envs:
+            env.close()
+
+
+@pytest.mark.parametrize(("kwargs", "message"), [
+    ({"map_mode": "laser", "costmap": {"range": 3.0}},
+     "costmap: unknown field(s) ['range']; CostmapConfig has resolution, size, obstacle_range"),
+    ({"map_mode": "laser", "costmap": {"inflation_radius": -1}},
+     "costmap inflation_radius must be a positive number, got -1"),
+    ({"map_mode": "laser", "costmap": {"inscribed_radius": 0.3}},
+     "costmap inscribed_radius 0.3 m must not exceed inflation_radius"),
+    ({"costmap": {"obstacle_range": 3.0}},
+     "costmap changes the laser costmap's fields: map_mode='known' has none"),
+    ({"map_mode": "laser", "costmap": [3.0]}, "costmap must be a dict of CostmapConfig fields"),
+])
+def test_a_bad_costmap_keyword_is_one_line(kwargs, message):
+    with pytest.raises((ValueError, TypeError)) as err:
+        gym.make("SmartCarBARN-v0", engine="planar", **kwargs)
+    assert str(err.value).startswith(message) and "\n" not in str(err.value)

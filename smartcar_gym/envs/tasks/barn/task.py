@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from collections.abc import Mapping, Sequence
 from typing import Any
@@ -58,6 +59,26 @@ MAP_MARGIN_M = 0.3  # free map around the cylinders, the start and the goal
 PROTOCOL = "the BARN protocol sets the goal, the arena and the obstacles"
 PROTOCOL_KWARGS = ("goal_range", "goal_tolerance", "arena_size", "obstacles", "obstacle_size",
                    "obstacle_clearance", "obstacle_layout")
+
+
+def costmap_changes(costmap: Mapping[str, float] | None, map_mode: str) -> dict[str, float]:
+    """The ``costmap`` argument: the laser costmap's fields to change (numbers), checked
+    against ``CostmapConfig``'s; an error naming an unknown field, or any with the known map."""
+    if costmap is None:
+        return {}
+    if not isinstance(costmap, Mapping):
+        raise TypeError(f"costmap must be a dict of CostmapConfig fields, got "
+                        f"{type(costmap).__name__}: {costmap!r}")
+    if costmap and map_mode != "laser":
+        raise ValueError(f"costmap changes the laser costmap's fields: map_mode={map_mode!r} "
+                         "has none (pass map_mode='laser')")
+    fields = [f.name for f in dataclasses.fields(CostmapConfig) if f.name != "origin"]
+    unknown = sorted(set(map(str, costmap)) - set(fields))
+    if unknown:
+        raise ValueError(f"costmap: unknown field(s) {unknown}; CostmapConfig has "
+                         f"{', '.join(fields)}")
+    return {str(name): checks.positive_number(f"costmap {name}", value)
+            for name, value in costmap.items()}
 
 
 def waypoint_entry(arena_half_size_m: float) -> Entry:
@@ -141,11 +162,15 @@ class BarnTask(NavTask):
     ``progress="path"`` still measures the progress along the known map's path: a training
     signal from the simulator's truth, as the reward's other terms are; the observation holds
     nothing of it.
+    ``costmap`` (``map_mode="laser"``): a dict of ``CostmapConfig`` fields (m) replacing the
+    challenge's scaled ones, e.g. ``{obstacle_range: 3.0, raytrace_range: 3.5,
+    inscribed_radius: 0.125, inflation_radius: 0.25}`` (the shipped mapless policy's: marking
+    all the laser sees, the car's half width padded by 2 cm).
 
     ## Version History
 
     * v0 (0.5.0): ``map_mode="laser"`` (with ``progress="path"``: the known path's progress
-      as the reward); no step limit but the protocol's timeout (was 1676
+      as the reward); ``costmap``; no step limit but the protocol's timeout (was 1676
       steps); the world file's own split; the task written once for the single and the
       batched envs (``BarnTask``).
     * v0 (0.4.0): initial version (the known map, ``localize``, ``progress``).
@@ -168,7 +193,8 @@ class BarnTask(NavTask):
                  laser: Mapping[str, Any] | LaserConfig | None = None,
                  laser_mount: Sequence[float] | None = None, scan_sectors: int = 36,
                  progress: str = "goal", localize: bool = False,
-                 stop_speed: float | None = None, map_mode: str = "known") -> None:
+                 stop_speed: float | None = None, map_mode: str = "known",
+                 costmap: Mapping[str, float] | None = None) -> None:
         if not (checks.is_finite(lookahead) and lookahead > 0):
             raise ValueError(f"lookahead must be a distance > 0 m, got {lookahead!r}")
         self.worlds = load_worlds(world_file)
@@ -186,6 +212,8 @@ class BarnTask(NavTask):
         if map_mode == "laser" and self.localize:
             raise ValueError("localize=True matches each scan to the known map's cylinders: "
                              "map_mode='laser' has no map (leave localize False)")
+        #: the laser costmap's fields changed from the challenge's scaled ones
+        self.costmap_changes = costmap_changes(costmap, map_mode)
         #: the global paths planned so far, by world
         self.planned_paths: dict[int, np.ndarray] = {}
         # the reaching task's goal and arena come from the protocol, once the car is known
@@ -220,8 +248,9 @@ class BarnTask(NavTask):
         self._beams = beam_geometry(self.laser_config.angles, self.mount)
         #: the laser costmap's settings (``map_mode="laser"``): the challenge's, scaled, with
         #: the car's half width as its inscribed radius
-        self.costmap_config = (CostmapConfig.challenge(self.protocol.scale, self._half_width)
-                               if self.map_mode == "laser" else None)
+        self.costmap_config = (dataclasses.replace(
+            CostmapConfig.challenge(self.protocol.scale, self._half_width),
+            **self.costmap_changes) if self.map_mode == "laser" else None)
 
     def declare(self) -> Observation:
         return self.compose(BARN_OBSERVATION_ORDER,

@@ -177,3 +177,28 @@ def test_a_bad_costmap_keyword_is_one_line(kwargs, message):
     with pytest.raises((ValueError, TypeError)) as err:
         gym.make("SmartCarBARN-v0", engine="planar", **kwargs)
     assert str(err.value).startswith(message) and "\n" not in str(err.value)
+
+
+def test_planner_frequency_0_keeps_the_path_until_a_new_mark_blocks_it():
+    """The env's ``planner_frequency=0`` plans again only when a new mark blocks the path (the
+    default: every step); refused on the known map and below 0 in one line."""
+    counts = []
+    for kwargs in ({}, {"planner_frequency": 0}):
+        env = gym.make("SmartCarBARN-v0", engine="planar", map_mode="laser", **kwargs)
+        try:
+            env.reset(seed=0, options={"world": 6})
+            u, changes = env.unwrapped, 0
+            for _ in range(40):
+                before = u.global_path
+                env.step(np.array([0.6, 0.0], np.float32))
+                changes += u.global_path is not before
+            counts.append(changes)
+        finally:
+            env.close()
+    assert counts[0] >= 30 and 1 <= counts[1] < counts[0] // 3, counts
+    for kwargs, message in (({"planner_frequency": 0}, "planner_frequency is the laser map's"),
+                            ({"planner_frequency": -1, "map_mode": "laser"},
+                             "planner_frequency must be a rate >= 0 Hz")):
+        with pytest.raises(ValueError) as err:
+            gym.make("SmartCarBARN-v0", engine="planar", **kwargs)
+        assert str(err.value).startswith(message) and "\n" not in str(err.value)

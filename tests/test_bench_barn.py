@@ -233,6 +233,9 @@ def _world_file(tmp_path, indices, bad_start=False):
      "--goal-rate: the goal is sent to move_base, which runs with map_mode=laser only"),
     (["--goal-rate", "10", "--pretrained", "barn"],
      "--goal-rate: a classical driver's (move_base's goal); a policy takes its goal once"),
+    (["--env-kwargs", "planner_frequency=0"],
+     "--env-kwargs planner_frequency: a classical driver is move_base, whose planner runs at "
+     "the challenge's rate"),
 ])
 def test_bad_arguments_are_one_line_before_any_run(argv, line, tmp_path, constant, capsys):
     argv = [a.replace("{tmp}", str(tmp_path)) for a in argv]

@@ -228,6 +228,23 @@ def test_the_replanner_plans_at_its_rate_and_at_once_when_its_path_is_blocked():
     assert np.abs(path[:, 1]).max() > 0.3 and not replanner.needs_plan(0, 0.2)
     assert Replanner.challenge(maps, 0.4186, 0.25).period_s == pytest.approx(
         0.4186 / 0.25 / 20.0)  # 20 Hz, times scaled by 1.674
+    assert Replanner.challenge(maps, 0.4186, 0.25, 5.0).period_s == pytest.approx(
+        0.4186 / 0.25 / 5.0)
+
+
+def test_planner_frequency_0_plans_only_when_the_path_is_blocked():
+    """move_base's ``planner_frequency: 0``: no plan for as long as the path stays free."""
+    maps = LaserCostmaps(CONFIG, 1)
+    replanner = Replanner.challenge(maps, 0.4186, 0.25, frequency_hz=0)
+    assert replanner.period_s == math.inf and replanner.needs_plan(0, 0.0)
+    replanner.plan(0, np.zeros(2), np.array([2.0, 0.0]), 0.0)
+    assert not replanner.needs_plan(0, 1e6)
+    maps.update([0], np.zeros((1, 3)), _wall_scan(1.01, 0.3), ROUND)  # across the path
+    assert replanner.needs_plan(0, 1e6)
+    replanner.plan(0, np.zeros(2), np.array([2.0, 0.0]), 1e6)
+    assert not replanner.needs_plan(0, 2e6)
+    with pytest.raises(ValueError, match="planner_frequency must be a positive number"):
+        Replanner.challenge(maps, 1.0, 1.0, frequency_hz=-1.0)
 
 
 @pytest.mark.parametrize("threads", [1, 2])

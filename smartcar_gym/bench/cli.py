@@ -244,6 +244,10 @@ def _driver(args: argparse.Namespace) -> tuple[Any, str, dict[str, Any]]:
             raise DriverError("--goal-rate: the goal is sent to move_base, which runs with "
                               "map_mode=laser only (on the known map the driver has no "
                               "move_base cycle)")
+        if "planner_frequency" in given:
+            raise DriverError("--env-kwargs planner_frequency: a classical driver is move_base, "
+                              "whose planner runs at the challenge's rate (its PLANNING state "
+                              "waits for the next plan); it is a policy's map's setting")
         options = {} if args.goal_rate is None else {"goal_rate_hz": args.goal_rate}
         return (make_driver(name, **options), name,
                 {} if known else {"map_mode": DRIVER_MAP_MODE})

@@ -14,12 +14,15 @@ the box is never cheaper than along its edge).
 
 ``Replanner`` is move_base's planning loop per car: a new plan every ``period_s`` (move_base's
 ``planner_frequency``, 20 Hz in the challenge, times scaled with the world and the speed), and
-at once when a cell of the current path has become an obstacle. ``Replanner.plan_many`` plans a
-batch's due cars at once, their searches split over threads (numba's search frees the GIL).
+at once when a cell of the current path has become an obstacle; with a frequency of 0 (an
+infinite period) only then, as move_base plans with ``planner_frequency: 0``.
+``Replanner.plan_many`` plans a batch's due cars at once, their searches split over threads
+(numba's search frees the GIL).
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -108,24 +111,30 @@ class _Search:
 
 class Replanner:
     """Each car's current global path on its costmap, and when to plan it again:
-    ``needs_plan`` is true with no path, ``period_s`` after the last plan, or at once when a
-    cell of the path past its first has become LETHAL or INSCRIBED (``blocked``)."""
+    ``needs_plan`` is true with no path, ``period_s`` after the last plan (``math.inf``:
+    never), or at once when a cell of the path past its first has become LETHAL or INSCRIBED
+    (``blocked``)."""
 
     def __init__(self, costmaps: LaserCostmaps, period_s: float) -> None:
         self.costmaps = costmaps
-        self.period_s = checks.positive_number("replanner period_s", period_s)
+        self.period_s = (math.inf if period_s == math.inf
+                         else checks.positive_number("replanner period_s", period_s))
         self._paths: list[np.ndarray | None] = [None] * costmaps.n
         self._cells: list[tuple[np.ndarray, np.ndarray]] = [(np.zeros(0, int),) * 2] * costmaps.n
         self._last = np.full(costmaps.n, -np.inf)
 
     @classmethod
-    def challenge(cls, costmaps: LaserCostmaps, scale: float = 1.0, speed_scale: float = 1.0
-                  ) -> Replanner:
-        """The challenge's ``planner_frequency`` (20 Hz) for a world ``scale`` times as big
-        driven ``speed_scale`` times as fast: its period times ``scale / speed_scale``."""
+    def challenge(cls, costmaps: LaserCostmaps, scale: float = 1.0, speed_scale: float = 1.0,
+                  frequency_hz: float = PLANNER_FREQUENCY_HZ) -> Replanner:
+        """move_base's ``planner_frequency`` (the challenge's 20 Hz; 0: only when the path is
+        blocked) for a world ``scale`` times as big driven ``speed_scale`` times as fast: its
+        period times ``scale / speed_scale``."""
         checks.positive_number("replanner scale", scale)
         checks.positive_number("replanner speed_scale", speed_scale)
-        return cls(costmaps, scale / speed_scale / PLANNER_FREQUENCY_HZ)
+        if frequency_hz == 0:
+            return cls(costmaps, math.inf)
+        return cls(costmaps, scale / speed_scale / checks.positive_number(
+            "planner_frequency", frequency_hz))
 
     def reset(self, cars: Sequence[int]) -> None:
         """Forgets the paths of ``cars``."""

@@ -2,11 +2,12 @@
 and its global path planned on it, as the challenge's move_base builds and plans them.
 
 ``LaserMap`` holds N cars' costmaps (``navigation.costmap.LaserCostmaps``, the challenge's
-values scaled) and their replanner (``navigation.costmap_planner.Replanner``, the challenge's
-planner rate scaled); ``start`` clears the listed cars' costmaps and marks their first scans,
-``update`` marks each new scan at the odometry pose (the laser scans at the controller's rate)
-and plans again where the replanner says (its rate, or a new mark on the path), returning
-the cars whose path changed. Until a plan succeeds a car keeps the path it had.
+values scaled) and their replanner (``navigation.costmap_planner.Replanner``, move_base's
+``planner_frequency``, the challenge's 20 Hz by default, scaled); ``start`` clears the listed
+cars' costmaps and marks their first scans, ``update`` marks each new scan at the odometry pose
+(the laser scans at the controller's rate) and plans again where the replanner says (its rate,
+or a new mark on the path), returning the cars whose path changed. Until a plan succeeds a car
+keeps the path it had.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ import numpy as np
 
 from smartcar_gym.envs.state import SCAN, SCAN_TIME, CarState
 from smartcar_gym.navigation.costmap import CostmapConfig, LaserCostmaps
-from smartcar_gym.navigation.costmap_planner import Replanner
+from smartcar_gym.navigation.costmap_planner import PLANNER_FREQUENCY_HZ, Replanner
 from smartcar_gym.sim.clock import NS_PER_S
 
 
@@ -23,13 +24,16 @@ class LaserMap:
     """N cars' laser costmaps and replanner (module docstring): ``config``, the costmaps'
     settings; ``scale`` and ``speed_scale``, the world's and the speed's against the
     challenge's (the planner's rate follows them); ``angles`` and ``mount``, the laser's beams
-    (rad) and its 4 x 4 pose in base_link."""
+    (rad) and its 4 x 4 pose in base_link; ``planner_frequency`` (Hz, before scaling; 0: only
+    when the path is blocked)."""
 
     def __init__(self, config: CostmapConfig, num: int, scale: float, speed_scale: float,
-                 angles: np.ndarray, mount: np.ndarray) -> None:
+                 angles: np.ndarray, mount: np.ndarray,
+                 planner_frequency: float = PLANNER_FREQUENCY_HZ) -> None:
         #: each car's costmap (``costs(car)``, ``lethal(car)``)
         self.costmaps = LaserCostmaps(config, num)
-        self.replanner = Replanner.challenge(self.costmaps, scale, speed_scale)
+        self.replanner = Replanner.challenge(self.costmaps, scale, speed_scale,
+                                             planner_frequency)
         self.angles, self.mount = angles, mount
         self._marked = np.full(num, -1, dtype=np.int64)  # the time of the scan last marked
 

@@ -28,6 +28,7 @@ from smartcar_gym.envs.tasks.nav import NAV_OBSERVATION_ORDER, NavTask
 from smartcar_gym.envs.tasks.obstacles import Obstacle
 from smartcar_gym.model.footprint import car_width, footprint_half_extents
 from smartcar_gym.navigation.costmap import CostmapConfig, LaserCostmaps
+from smartcar_gym.navigation.costmap_planner import PLANNER_FREQUENCY_HZ
 from smartcar_gym.navigation.grid_planner import NoPathError, distance_grid, plan_path
 from smartcar_gym.navigation.localization import (
     IDENTITY,
@@ -165,14 +166,17 @@ class BarnTask(NavTask):
     ``costmap`` (``map_mode="laser"``): a dict of ``CostmapConfig`` fields (m) replacing the
     challenge's scaled ones, e.g. ``{obstacle_range: 3.0, raytrace_range: 3.5,
     inscribed_radius: 0.125, inflation_radius: 0.25}`` (the shipped mapless policy's: marking
-    all the laser sees, the car's half width padded by 2 cm).
+    all the laser sees, the car's half width padded by 2 cm). ``planner_frequency``
+    (``map_mode="laser"``; None: the challenge's 20 Hz, scaled as the other times): move_base's
+    replanning rate; 0 plans only when a new mark blocks the path (the shipped mapless
+    policy's), as move_base with ``planner_frequency: 0``.
 
     ## Version History
 
     * v0 (0.5.0): ``map_mode="laser"`` (with ``progress="path"``: the known path's progress
-      as the reward); ``costmap``; no step limit but the protocol's timeout (was 1676
-      steps); the world file's own split; the task written once for the single and the
-      batched envs (``BarnTask``).
+      as the reward); ``costmap``, ``planner_frequency``; no step limit but the protocol's
+      timeout (was 1676 steps); the world file's own split; the task written once for the
+      single and the batched envs (``BarnTask``).
     * v0 (0.4.0): initial version (the known map, ``localize``, ``progress``).
     """
 
@@ -194,7 +198,8 @@ class BarnTask(NavTask):
                  laser_mount: Sequence[float] | None = None, scan_sectors: int = 36,
                  progress: str = "goal", localize: bool = False,
                  stop_speed: float | None = None, map_mode: str = "known",
-                 costmap: Mapping[str, float] | None = None) -> None:
+                 costmap: Mapping[str, float] | None = None,
+                 planner_frequency: float | None = None) -> None:
         if not (checks.is_finite(lookahead) and lookahead > 0):
             raise ValueError(f"lookahead must be a distance > 0 m, got {lookahead!r}")
         self.worlds = load_worlds(world_file)
@@ -214,6 +219,16 @@ class BarnTask(NavTask):
                              "map_mode='laser' has no map (leave localize False)")
         #: the laser costmap's fields changed from the challenge's scaled ones
         self.costmap_changes = costmap_changes(costmap, map_mode)
+        #: move_base's planner_frequency on the laser map (Hz before scaling; None: the
+        #: challenge's 20; 0: only when the path is blocked)
+        self.planner_frequency = planner_frequency
+        if planner_frequency is not None:
+            if map_mode != "laser":
+                raise ValueError("planner_frequency is the laser map's replanning rate: "
+                                 f"map_mode={map_mode!r} plans once (pass map_mode='laser')")
+            if not (checks.is_finite(planner_frequency) and planner_frequency >= 0):
+                raise ValueError(f"planner_frequency must be a rate >= 0 Hz (0: only when the "
+                                 f"path is blocked), got {planner_frequency!r}")
         #: the global paths planned so far, by world
         self.planned_paths: dict[int, np.ndarray] = {}
         # the reaching task's goal and arena come from the protocol, once the car is known
@@ -281,7 +296,8 @@ class BarnTask(NavTask):
         #: ``map_mode="laser"``: each car's costmap and the planning on it
         self._laser_map = None if self.costmap_config is None else LaserMap(
             self.costmap_config, num, self.protocol.scale,
-            self.car.max_linear / JACKAL_TOP_SPEED_M_S, self.laser_config.angles, self.mount)
+            self.car.max_linear / JACKAL_TOP_SPEED_M_S, self.laser_config.angles, self.mount,
+            PLANNER_FREQUENCY_HZ if self.planner_frequency is None else self.planner_frequency)
 
     # -- what a single env shows of its car ----------------------------------------------------
     @property

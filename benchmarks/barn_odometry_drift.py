@@ -4,12 +4,13 @@ first shipped policy's commands: docs/history.md).
 
     python benchmarks/barn_odometry_drift.py        # about a minute; deterministic
 
-The shipped BARN policy drives the 50 test worlds once on the planar engine; its commands are
-then replayed open-loop, world by world, on an empty floor (SmartCarNav-v0 with one far-away
-pillar, the same controller) on each engine, and with the randomisation presets on the planar
-engine (the draw of sequence i seeded i). Printed per row: how far the odometry ends from the
-true pose (m, mean and largest of the 50 sequences), the heading error at the end (degrees,
-mean of its size) and the heading error's change per step (degrees, rms).
+The shipped known-map BARN policy (``barn-known``) drives the 50 test worlds once on the planar
+engine; its commands are then replayed open-loop, world by world, on an empty floor
+(SmartCarNav-v0 with one far-away pillar, the same controller) on each engine, and with the
+randomisation presets on the planar engine (the draw of sequence i seeded i). Printed per row:
+how far the odometry ends from the true pose (m, mean and largest of the 50 sequences), the
+heading error at the end (degrees, mean of its size) and the heading error's change per step
+(degrees, rms).
 """
 
 from __future__ import annotations
@@ -36,8 +37,8 @@ ROWS = {
 
 
 def policy_commands() -> list[list[np.ndarray]]:
-    """The shipped BARN policy's actions on the 50 test worlds, planar engine."""
-    policy = Policy.load("barn")
+    """The shipped known-map BARN policy's actions on the 50 test worlds, planar engine."""
+    policy = Policy.load("barn-known")
     kwargs = {k: v for k, v in policy.env_kwargs.items()
               if k not in ("max_episode_steps", "engine", "planar_params")}
     env = gym.make("SmartCarBARN-v0", engine="planar", **kwargs)

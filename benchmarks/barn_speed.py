@@ -2,6 +2,7 @@
 
     python benchmarks/barn_speed.py [--driver dwa | --pretrained barn] [--localize | --laser]
         [--cars 100 500] [--rounds 2] [--runs 10] [--out FILE.json] [--base REV]
+        [--base-pretrained NAME]
 
 Each round runs, one after the other, the command a user types for each number of cars:
 ``smartcar-bench barn --driver dwa --engine planar --runs 10 --n-envs N`` (with
@@ -15,7 +16,9 @@ too (a temporary git worktree), interleaved with this checkout in each round, an
 their records run by run. ``--laser`` runs this checkout on the mapless protocol
 (``map_mode=laser``, the LDS-01's 1 cm noise: issue 55's 500 distinct runs) and the base, if
 any, on the known map localized (issue 55's yardstick: at most 1.5 times its time); the records
-then differ by design and the success rates are printed instead. Run it once first if numba's
+then differ by design and the success rates are printed instead. ``--base-pretrained NAME``:
+the base's name for the shipped policy (the known-map policy, ``barn-known`` here, was ``barn``
+before the mapless one took that name). Run it once first if numba's
 cache is cold (the first run after an install compiles, about 20 s more).
 """
 
@@ -50,7 +53,8 @@ def run(cars: int, args: argparse.Namespace, folder: Path, checkout: Path | None
     """One ``smartcar-bench barn`` command (``checkout``: that checkout's package, first on
     the path): its wall and CPU seconds and its records."""
     out = folder / f"cars_{cars}_{'base' if checkout else 'this'}.json"
-    driver = ["--pretrained", args.pretrained] if args.pretrained else ["--driver", args.driver]
+    name = (args.base_pretrained or args.pretrained) if checkout else args.pretrained
+    driver = ["--pretrained", name] if args.pretrained else ["--driver", args.driver]
     argv = [sys.executable, "-m", "smartcar_gym.bench.cli", "barn", *driver, "--engine",
             "planar", "--runs", str(args.runs), "--n-envs", str(cars), "--quiet", "--json",
             str(out)]
@@ -75,6 +79,8 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--driver", default="dwa")
     parser.add_argument("--pretrained", default=None, help="a shipped policy instead of DWA")
+    parser.add_argument("--base-pretrained", default=None, metavar="NAME",
+                        help="the base's name for that policy (default: --pretrained's)")
     mode = parser.add_mutually_exclusive_group()
     mode.add_argument("--localize", action="store_true")
     mode.add_argument("--laser", action="store_true",

@@ -123,20 +123,24 @@ def test_dwa_follows_each_new_plan_of_the_laser_costmap(laser_env):
     assert len(plans) > 1 and info["pose"][0] > 0.1  # planned again as it drove on
 
 
-def test_a_policy_of_the_known_map_is_refused_on_the_laser_map_in_one_line(capsys):
+@pytest.mark.parametrize(("name", "trained", "other"), [("barn-known", "known", "laser"),
+                                                       ("barn", "laser", "known")])
+def test_a_policy_of_one_map_mode_is_refused_in_the_other_in_one_line(name, trained, other,
+                                                                      capsys):
     pytest.importorskip("stable_baselines3", reason="the shipped policy needs the train extra")
     from smartcar_gym.agents.policies import Policy, PolicyError
     from smartcar_gym.bench import cli as bench_cli
 
-    expected = ("the policy was trained with map_mode='known' (its waypoint from that map's "
-                "path) and cannot run with map_mode='laser': pass a policy trained for it")
+    expected = (f"the policy was trained with map_mode={trained!r} (its waypoint from that "
+                f"map's path) and cannot run with map_mode={other!r}: pass a policy trained "
+                "for it")
     with pytest.raises(PolicyError) as err:
-        Policy.load("barn", env_kwargs={"map_mode": "laser"})
+        Policy.load(name, env_kwargs={"map_mode": other})
     assert str(err.value) == expected
-    assert Policy.load("barn", env_kwargs={"map_mode": "known"}).env_kwargs["map_mode"] == "known"
+    assert Policy.load(name, env_kwargs={"map_mode": trained}).env_kwargs["map_mode"] == trained
     with pytest.raises(SystemExit) as exit_:
-        bench_cli.main(["barn", "--pretrained", "barn", "--worlds", "0", "--engine", "planar",
-                        "--env-kwargs", "map_mode=laser"])
+        bench_cli.main(["barn", "--pretrained", name, "--worlds", "0", "--engine", "planar",
+                        "--env-kwargs", f"map_mode={other}"])
     assert exit_.value.code == 2
     last = capsys.readouterr().err.strip().splitlines()[-1]
     assert last == f"smartcar-bench barn: error: {expected}"

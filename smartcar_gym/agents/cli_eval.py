@@ -91,8 +91,9 @@ def build_parser() -> argparse.ArgumentParser:
                         choices=tuple(PRETRAINED_POLICIES), help="a policy shipped with the "
                         "package: default (the one --pretrained alone names), robust "
                         "(trained with randomize=default), nav (SAC on SmartCarNav-v0), ros "
-                        "(SmartCarArrive-v0), mujoco (trained with engine=mujoco) or barn (PPO "
-                        "on SmartCarBARN-v0; smartcar-bench barn runs its benchmark)")
+                        "(SmartCarArrive-v0), mujoco (trained with engine=mujoco), barn (PPO "
+                        "on SmartCarBARN-v0 without a map; smartcar-bench barn runs its "
+                        "benchmark) or barn-known (the same on the known map)")
     source.add_argument("--random", action="store_true", help="uniform random actions, seeded "
                         "with --seed (a baseline)")
     parser.add_argument("--algo", choices=ALGOS, help="algorithm of --model (default: from the "

@@ -37,9 +37,10 @@ PRETRAINED_MODEL = "policy.zip"
 #: ``robust`` was trained with ``randomize="default"`` (docs/sim2real.md), ``ros`` on
 #: SmartCarArrive-v0 to drive to 2D Nav Goals and stop there (docs/ros.md),
 #: ``mujoco`` with ``engine="mujoco"`` (docs/engines.md), ``barn`` on SmartCarBARN-v0's
-#: training worlds on the planar engine (docs/barn.md)
+#: training worlds on the planar engine without a map (``map_mode="laser"``), ``barn-known``
+#: there on the known map (docs/barn.md)
 PRETRAINED_POLICIES = {"default": "", "robust": "robust", "nav": "nav", "ros": "ros",
-                       "mujoco": "mujoco", "barn": "barn"}
+                       "mujoco": "mujoco", "barn": "barn", "barn-known": "barn-known"}
 # What smartcar_gym.agents.export writes in provenance.json (the keys that identify it).
 PROVENANCE_KEYS = ("algo", "env", "source", "evaluation", "exported")
 # Places of a model (ModelFiles.place).

@@ -304,13 +304,17 @@ def test_policy_drives_to_a_nav_goal_and_stops(ros, tmp_path):
             "pose": {"position": {"x": 1.0, "y": 0.5}, "orientation": {"w": 1.0}}}
     with nodes(ros, tmp_path, ["bringup", "--speed", "4"],
                ["policy", "--pretrained"]) as (bringup, policy):
+        # the policy node loads torch and its model before it subscribes: on a loaded machine
+        # (two busy loops beside the suite) that took more than the probe's default 30 s to
+        # connect, and the goal went to nobody
         data = probe(ros, {
             "record": {"/base_pose_ground_truth": "nav_msgs/Odometry",
                        "/odom": "nav_msgs/Odometry", "/cmd_vel": "geometry_msgs/Twist"},
             "wait_for": ["/clock", "/cmd_vel"], "duration": 60, "until_rosout": "reached",
+            "connect_timeout": 90,
             "publish": [{"after": 0.5, "topic": "/move_base_simple/goal",
                          "type": "geometry_msgs/PoseStamped", "msg": goal}],
-        }, timeout=120)
+        }, timeout=180)
         # then a goal in another frame than odometry's: dropped, the car stays stopped
         wrong = {**goal, "header": {"frame_id": "map"}}
         refused = probe(ros, {

@@ -12,12 +12,50 @@ keeps the path it had.
 
 from __future__ import annotations
 
+import dataclasses
+from collections.abc import Mapping
+
 import numpy as np
 
+from smartcar_gym import checks
 from smartcar_gym.envs.state import SCAN, SCAN_TIME, CarState
 from smartcar_gym.navigation.costmap import CostmapConfig, LaserCostmaps
 from smartcar_gym.navigation.costmap_planner import PLANNER_FREQUENCY_HZ, Replanner
 from smartcar_gym.sim.clock import NS_PER_S
+
+
+def costmap_changes(costmap: Mapping[str, float] | None, map_mode: str) -> dict[str, float]:
+    """The ``costmap`` argument: the laser costmap's fields to change (numbers), checked
+    against ``CostmapConfig``'s; an error naming an unknown field, or any with the known map."""
+    if costmap is None:
+        return {}
+    if not isinstance(costmap, Mapping):
+        raise TypeError(f"costmap must be a dict of CostmapConfig fields, got "
+                        f"{type(costmap).__name__}: {costmap!r}")
+    if costmap and map_mode != "laser":
+        raise ValueError(f"costmap changes the laser costmap's fields: map_mode={map_mode!r} "
+                         "has none (pass map_mode='laser')")
+    fields = [f.name for f in dataclasses.fields(CostmapConfig) if f.name != "origin"]
+    unknown = sorted(set(map(str, costmap)) - set(fields))
+    if unknown:
+        raise ValueError(f"costmap: unknown field(s) {unknown}; CostmapConfig has "
+                         f"{', '.join(fields)}")
+    return {str(name): checks.positive_number(f"costmap {name}", value)
+            for name, value in costmap.items()}
+
+
+def checked_planner_frequency(frequency: float | None, map_mode: str) -> float | None:
+    """The ``planner_frequency`` argument (Hz before scaling; None: the challenge's; 0: only
+    when the path is blocked); an error for the known map or a rate below 0."""
+    if frequency is None:
+        return None
+    if map_mode != "laser":
+        raise ValueError("planner_frequency is the laser map's replanning rate: "
+                         f"map_mode={map_mode!r} plans once (pass map_mode='laser')")
+    if not (checks.is_finite(frequency) and frequency >= 0):
+        raise ValueError(f"planner_frequency must be a rate >= 0 Hz (0: only when the path is "
+                         f"blocked), got {frequency!r}")
+    return frequency
 
 
 class LaserMap:

@@ -13,7 +13,11 @@ from smartcar_gym import checks
 from smartcar_gym.envs.observation import Entry, Observation
 from smartcar_gym.envs.sensors.scan import LaserConfig, scan_entry
 from smartcar_gym.envs.state import SCAN, SCAN_TIME
-from smartcar_gym.envs.tasks.barn.laser_map import LaserMap
+from smartcar_gym.envs.tasks.barn.laser_map import (
+    LaserMap,
+    checked_planner_frequency,
+    costmap_changes,
+)
 from smartcar_gym.envs.tasks.barn.protocol import (
     COLLISION,
     FAILURE,
@@ -60,26 +64,6 @@ MAP_MARGIN_M = 0.3  # free map around the cylinders, the start and the goal
 PROTOCOL = "the BARN protocol sets the goal, the arena and the obstacles"
 PROTOCOL_KWARGS = ("goal_range", "goal_tolerance", "arena_size", "obstacles", "obstacle_size",
                    "obstacle_clearance", "obstacle_layout")
-
-
-def costmap_changes(costmap: Mapping[str, float] | None, map_mode: str) -> dict[str, float]:
-    """The ``costmap`` argument: the laser costmap's fields to change (numbers), checked
-    against ``CostmapConfig``'s; an error naming an unknown field, or any with the known map."""
-    if costmap is None:
-        return {}
-    if not isinstance(costmap, Mapping):
-        raise TypeError(f"costmap must be a dict of CostmapConfig fields, got "
-                        f"{type(costmap).__name__}: {costmap!r}")
-    if costmap and map_mode != "laser":
-        raise ValueError(f"costmap changes the laser costmap's fields: map_mode={map_mode!r} "
-                         "has none (pass map_mode='laser')")
-    fields = [f.name for f in dataclasses.fields(CostmapConfig) if f.name != "origin"]
-    unknown = sorted(set(map(str, costmap)) - set(fields))
-    if unknown:
-        raise ValueError(f"costmap: unknown field(s) {unknown}; CostmapConfig has "
-                         f"{', '.join(fields)}")
-    return {str(name): checks.positive_number(f"costmap {name}", value)
-            for name, value in costmap.items()}
 
 
 def waypoint_entry(arena_half_size_m: float) -> Entry:
@@ -221,14 +205,7 @@ class BarnTask(NavTask):
         self.costmap_changes = costmap_changes(costmap, map_mode)
         #: move_base's planner_frequency on the laser map (Hz before scaling; None: the
         #: challenge's 20; 0: only when the path is blocked)
-        self.planner_frequency = planner_frequency
-        if planner_frequency is not None:
-            if map_mode != "laser":
-                raise ValueError("planner_frequency is the laser map's replanning rate: "
-                                 f"map_mode={map_mode!r} plans once (pass map_mode='laser')")
-            if not (checks.is_finite(planner_frequency) and planner_frequency >= 0):
-                raise ValueError(f"planner_frequency must be a rate >= 0 Hz (0: only when the "
-                                 f"path is blocked), got {planner_frequency!r}")
+        self.planner_frequency = checked_planner_frequency(planner_frequency, map_mode)
         #: the global paths planned so far, by world
         self.planned_paths: dict[int, np.ndarray] = {}
         # the reaching task's goal and arena come from the protocol, once the car is known

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
@@ -37,6 +38,15 @@ from smartcar_gym.parallel import run_chunks
 NEUTRAL_COST = 50  # navfn.h: COST_NEUTRAL, the cost of a free cell
 COST_FACTOR = 0.8  # navfn.h: COST_FACTOR, per unit of the costmap's cost
 PLANNER_FREQUENCY_HZ = 20.0  # the challenge's move_base_params.yaml: planner_frequency
+
+
+def check_planner_frequency(frequency_hz: Any) -> float:
+    """``frequency_hz`` as move_base's ``planner_frequency`` (Hz, >= 0; 0: plan only when the
+    path is blocked); ValueError otherwise."""
+    if not (checks.is_finite(frequency_hz) and frequency_hz >= 0):
+        raise ValueError(f"planner_frequency must be a rate >= 0 Hz (0: only when the path is "
+                         f"blocked), got {frequency_hz!r}")
+    return float(frequency_hz)
 
 
 def navfn_costs(costs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -131,10 +141,9 @@ class Replanner:
         period times ``scale / speed_scale``."""
         checks.positive_number("replanner scale", scale)
         checks.positive_number("replanner speed_scale", speed_scale)
-        if frequency_hz == 0:
+        if check_planner_frequency(frequency_hz) == 0:
             return cls(costmaps, math.inf)
-        return cls(costmaps, scale / speed_scale / checks.positive_number(
-            "planner_frequency", frequency_hz))
+        return cls(costmaps, scale / speed_scale / frequency_hz)
 
     def reset(self, cars: Sequence[int]) -> None:
         """Forgets the paths of ``cars``."""

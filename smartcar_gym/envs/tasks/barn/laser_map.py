@@ -20,7 +20,11 @@ import numpy as np
 from smartcar_gym import checks
 from smartcar_gym.envs.state import SCAN, SCAN_TIME, CarState
 from smartcar_gym.navigation.costmap import CostmapConfig, LaserCostmaps
-from smartcar_gym.navigation.costmap_planner import PLANNER_FREQUENCY_HZ, Replanner
+from smartcar_gym.navigation.costmap_planner import (
+    PLANNER_FREQUENCY_HZ,
+    Replanner,
+    check_planner_frequency,
+)
 from smartcar_gym.sim.clock import NS_PER_S
 
 
@@ -44,18 +48,16 @@ def costmap_changes(costmap: Mapping[str, float] | None, map_mode: str) -> dict[
             for name, value in costmap.items()}
 
 
-def checked_planner_frequency(frequency: float | None, map_mode: str) -> float | None:
-    """The ``planner_frequency`` argument (Hz before scaling; None: the challenge's; 0: only
-    when the path is blocked); an error for the known map or a rate below 0."""
+def checked_planner_frequency(frequency: float | None, map_mode: str) -> float:
+    """The ``planner_frequency`` argument as the rate to plan at (Hz before scaling; None: the
+    challenge's 20; 0: only when the path is blocked); an error for the known map or a rate
+    below 0."""
     if frequency is None:
-        return None
+        return PLANNER_FREQUENCY_HZ
     if map_mode != "laser":
         raise ValueError("planner_frequency is the laser map's replanning rate: "
                          f"map_mode={map_mode!r} plans once (pass map_mode='laser')")
-    if not (checks.is_finite(frequency) and frequency >= 0):
-        raise ValueError(f"planner_frequency must be a rate >= 0 Hz (0: only when the path is "
-                         f"blocked), got {frequency!r}")
-    return frequency
+    return check_planner_frequency(frequency)
 
 
 class LaserMap:

@@ -32,7 +32,6 @@ from smartcar_gym.envs.tasks.nav import NAV_OBSERVATION_ORDER, NavTask
 from smartcar_gym.envs.tasks.obstacles import Obstacle
 from smartcar_gym.model.footprint import car_width, footprint_half_extents
 from smartcar_gym.navigation.costmap import CostmapConfig, LaserCostmaps
-from smartcar_gym.navigation.costmap_planner import PLANNER_FREQUENCY_HZ
 from smartcar_gym.navigation.grid_planner import NoPathError, distance_grid, plan_path
 from smartcar_gym.navigation.localization import (
     IDENTITY,
@@ -203,8 +202,8 @@ class BarnTask(NavTask):
                              "map_mode='laser' has no map (leave localize False)")
         #: the laser costmap's fields changed from the challenge's scaled ones
         self.costmap_changes = costmap_changes(costmap, map_mode)
-        #: move_base's planner_frequency on the laser map (Hz before scaling; None: the
-        #: challenge's 20; 0: only when the path is blocked)
+        #: move_base's planner_frequency on the laser map (Hz before scaling; the challenge's
+        #: 20 unless given; 0: only when the path is blocked)
         self.planner_frequency = checked_planner_frequency(planner_frequency, map_mode)
         #: the global paths planned so far, by world
         self.planned_paths: dict[int, np.ndarray] = {}
@@ -274,7 +273,7 @@ class BarnTask(NavTask):
         self._laser_map = None if self.costmap_config is None else LaserMap(
             self.costmap_config, num, self.protocol.scale,
             self.car.max_linear / JACKAL_TOP_SPEED_M_S, self.laser_config.angles, self.mount,
-            PLANNER_FREQUENCY_HZ if self.planner_frequency is None else self.planner_frequency)
+            self.planner_frequency)
 
     # -- what a single env shows of its car ----------------------------------------------------
     @property

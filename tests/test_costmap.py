@@ -9,6 +9,7 @@ radius 0.30 m (6 cells), cost_scaling_factor 10 / m, inscribed radius 0.12 m.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -102,8 +103,11 @@ def test_a_return_beyond_obstacle_range_clears_but_does_not_mark(compiled):
 
 
 @pytest.mark.skipif(not COMPILED, reason="numba (the fast extra) is not installed")
-def test_numba_and_numpy_give_the_same_grids_bit_for_bit():
-    config = CostmapConfig.challenge(0.4186, inscribed_radius=0.105)
+@pytest.mark.parametrize("changes", [{}, {"inscribed_radius": 0.125, "inflation_radius": 0.25,
+                                          "obstacle_range": 3.0, "raytrace_range": 3.5}],
+                         ids=["challenge", "mapless-policy"])
+def test_numba_and_numpy_give_the_same_grids_bit_for_bit(changes):
+    config = replace(CostmapConfig.challenge(0.4186, inscribed_radius=0.105), **changes)
     ways = [LaserCostmaps(config, 6, compiled=c, threads=t) for c, t in ((False, 1), (True, 2))]
     rng = np.random.default_rng(5)
     for _ in range(12):
@@ -134,6 +138,13 @@ def test_numba_and_numpy_give_the_same_grids_bit_for_bit():
     inflate_numpy(marks, whole, np.array([0, 0, config.cells, config.cells]),
                   config.inflation_cells, config.cost_table())
     assert np.array_equal(whole, ways[0].costs(5))
+    # a reset clears a grid (within its bounds: outside them nothing was ever set)
+    for maps in ways:
+        maps.reset([0, 5])
+        for car in (0, 5):
+            assert not maps.costs(car).any() and not maps.lethal(car).any()
+            assert maps.bounds(car)[0] >= maps.bounds(car)[2]
+        assert maps.costs(3).any()
 
 
 @pytest.mark.skipif(not COMPILED, reason="numba (the fast extra) is not installed")
@@ -302,3 +313,17 @@ def test_a_bad_thread_count_for_an_update_is_one_line():
 def test_too_many_cars_grids_are_refused_before_allocating():
     with pytest.raises(ValueError, match="costmap cars: 1000 grids of 800 x 800 cells are more"):
         LaserCostmaps(CostmapConfig(), 1000)
+
+
+def test_the_cost_never_rises_with_the_distance():
+    # the compiled update stamps a run of lethal cells as one (costmap_loops.update_loops):
+    # exact only while the cost does not rise with the distance, for any config
+    rng = np.random.default_rng(3)
+    for _ in range(50):
+        inflation = rng.uniform(0.05, 1.0)
+        config = CostmapConfig(resolution=rng.uniform(0.01, 0.1), size=8.0,
+                               inflation_radius=inflation,
+                               inscribed_radius=rng.uniform(0.0, inflation),
+                               cost_scaling_factor=rng.uniform(0.1, 50.0))
+        table = config.cost_table().astype(int)
+        assert table[0] == LETHAL and np.all(np.diff(table) <= 0)

@@ -243,8 +243,10 @@ class LaserCostmaps:
     def reset(self, cars: Sequence[int] | np.ndarray) -> None:
         """Clears the grids of ``cars``: nothing seen."""
         idx = self._cars(cars)
-        self._marks[idx] = FREE
-        self._costs[idx] = FREE
+        for car in idx.tolist():  # every cell outside a car's bounds is FREE already
+            x_lo, y_lo, x_hi, y_hi = self._bounds[car].tolist()
+            self._marks[car, y_lo:y_hi, x_lo:x_hi] = FREE
+            self._costs[car, y_lo:y_hi, x_lo:x_hi] = FREE
         self._bounds[idx] = (self.config.cells, self.config.cells, 0, 0)
 
     def update(self, cars: Sequence[int] | np.ndarray, poses: np.ndarray, ranges: np.ndarray,

@@ -25,7 +25,10 @@ a ``PlanarCar``: the flat sequences the equations of motion take (``dynamics``):
 
 from __future__ import annotations
 
+import functools
+from collections.abc import Mapping
 from dataclasses import dataclass, field
+from types import MappingProxyType
 
 import numpy as np
 
@@ -52,6 +55,18 @@ class LinkState:
     friction: float
 
 
+@functools.lru_cache(maxsize=16)
+def parsed(text: str, source: str
+           ) -> tuple[UrdfRobot, Mapping[str, float], Mapping[str, np.ndarray]]:
+    """A URDF's parse (frozen), its links' frictions and frames (read-only), kept for the
+    next body loaded from the same text: an env spawns its robot again every episode."""
+    robot = parse_urdf(text, source)
+    frames = link_frames(robot)
+    for frame in frames.values():
+        frame.flags.writeable = False
+    return robot, MappingProxyType(link_frictions(text, source)), MappingProxyType(frames)
+
+
 @dataclass
 class RobotTables:
     """A URDF at zero joint angles: links by index (``BASE`` = -1, else the joint's index),
@@ -64,10 +79,9 @@ class RobotTables:
 
     @classmethod
     def from_text(cls, text: str, source: str) -> RobotTables:
-        robot = parse_urdf(text, source)
-        frictions = link_frictions(text, source)
+        robot, frictions, frames = parsed(text, source)
         names = list(robot.joints)
-        tables = cls(robot, names, link_frames(robot))
+        tables = cls(robot, names, dict(frames))
         for index in [BASE, *range(len(names))]:
             link = robot.links[tables.link_name(index)]
             inertia = (np.zeros((3, 3)) if link.inertial is None

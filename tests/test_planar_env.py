@@ -454,3 +454,25 @@ def test_a_robot_other_than_the_shipped_one_starts_from_neutral_values() -> None
                                          r".*planar_pybullet.yaml\)"):
         gym.make("SmartCar-v0", engine="planar", model=AXLEBOT, controller_config=AXLEBOT_YAML,
                  planar_params="pybullet")
+
+
+def test_a_urdfs_parse_is_kept_and_each_body_gets_its_own_links():
+    # every reset spawns the car again: the parse is kept (model.parsed), the mutable part not
+    from smartcar_gym.model import load_model
+    from smartcar_gym.model.errors import ModelError
+    from smartcar_gym.sim.contracts import BASE
+    from smartcar_gym.sim.planar.model import RobotTables
+
+    text = load_model().urdf
+    first, second = (RobotTables.from_text(text, "smartcar.urdf") for _ in range(2))
+    assert first.robot is second.robot  # parsed once
+    first.links[BASE].friction = 0.123  # what set_friction does (a variation)
+    assert second.links[BASE].friction != 0.123
+    assert second.links[BASE].mass == first.links[BASE].mass > 0
+    frame = next(iter(first.frames.values()))
+    with pytest.raises(ValueError, match="read-only"):
+        frame[0, 3] = 1.0
+    # a URDF that does not parse is refused each time, never kept
+    for _ in range(2):
+        with pytest.raises(ModelError, match="bad.urdf:1: XML syntax error"):
+            RobotTables.from_text("<robot name='x'><link", "bad.urdf")

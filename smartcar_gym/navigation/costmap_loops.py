@@ -369,6 +369,7 @@ def update_loops(cars, x0, y0, ok, x1, y1, end, trace, mx, my, mark, r, half, ta
                         if c > costs[g, y, x]:
                             costs[g, y, x] = c
 
+
 compiled_update = compiled_beams = compiled_cut = None
 if COMPILED:
     compiled_update = numba.njit(cache=True, nogil=True)(update_loops)

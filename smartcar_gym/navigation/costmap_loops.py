@@ -285,13 +285,16 @@ def update_loops(cars, x0, y0, ok, x1, y1, end, trace, mx, my, mark, r, half, ta
     with ``|dx| <= half[|dy|]`` (the kernel of ``CostmapConfig.kernel``, rows clipped to the
     box). Elsewhere the costs, the whole grid's inflation before, still are.
 
-    The lethal cells are stamped a run at a time: a row's consecutive lethal cells ``a..b``
-    give a cell ``dx`` columns beyond the run's nearer end (0 within it) and ``dy`` rows off
-    the cost ``table[dx * dx + dy * dy]``, the most of the run's cells' own stamps because
-    ``table`` never rises with the distance (``CostmapConfig.cost_table``). A run costs its
-    kernel's rows once, not once per cell (runs of 2.4 cells on average in the BARN worlds
-    with the laser's noise: the update about a third faster)."""
+    A row's lethal cells are stamped a cluster at a time (cells each within ``2r + 1`` columns
+    of the last: no other lethal cell of the row is within ``r`` of the cluster's reach). A
+    cell ``dy`` rows off and ``dx`` columns from the cluster's nearest lethal cell (``near``)
+    gets ``table[dx * dx + dy * dy]``: the most of the cluster's cells' own stamps because
+    ``table`` never rises with the distance (``CostmapConfig.cost_table``). So a cluster costs
+    its kernel's rows once, not once per cell, and the rows ``dy`` above and below it share
+    their costs (the update a third faster than a run at a time, and the runs a third faster
+    than a cell at a time, on BARN updates with the laser's noise)."""
     ny, nx = marks.shape[1], marks.shape[2]
+    near = np.empty(nx, dtype=np.int64)
     for k in range(cars.shape[0]):
         g = cars[k]
         # the box of the cells whose mark changed (x_lo, y_lo, x_hi, y_hi, inclusive)
@@ -345,30 +348,44 @@ def update_loops(cars, x0, y0, ok, x1, y1, end, trace, mx, my, mark, r, half, ta
                 if marks[g, sy_, sx_] != 254:
                     sx_ += 1
                     continue
-                a = sx_  # a run of lethal cells, a..b
-                while sx_ + 1 < x_end and marks[g, sy_, sx_ + 1] == 254:
-                    sx_ += 1
-                b = sx_
+                first = last = sx_  # a cluster: lethal cells each within 2r + 1 of the last
                 sx_ += 1
-                for y in range(max(sy_ - r, y_lo), min(sy_ + r + 1, y_hi)):
-                    dy = y - sy_
-                    w = half[abs(dy)]
-                    dy2 = dy * dy
-                    lo, hi = max(a - w, x_lo), min(b + w + 1, x_hi)
-                    mid_lo, mid_hi = max(a, lo), min(b + 1, hi)
-                    for x in range(lo, mid_lo):  # left of the run
-                        c = table[(a - x) * (a - x) + dy2]
-                        if c > costs[g, y, x]:
-                            costs[g, y, x] = c
-                    c = table[dy2]  # above or below the run (or on it)
-                    for x in range(mid_lo, mid_hi):
-                        if c > costs[g, y, x]:
-                            costs[g, y, x] = c
-                    for x in range(max(mid_hi, lo), hi):  # right of it
-                        c = table[(x - b) * (x - b) + dy2]
-                        if c > costs[g, y, x]:
-                            costs[g, y, x] = c
-
+                while sx_ < x_end and sx_ <= last + 2 * r + 1:
+                    if marks[g, sy_, sx_] == 254:
+                        last = sx_
+                    sx_ += 1
+                lo, hi = max(first - r, x_lo), min(last + r + 1, x_hi)
+                if lo >= hi:
+                    continue
+                # near[x]: the columns from x to the cluster's nearest lethal cell
+                seen = -(r + 2)
+                for x in range(min(first, lo), hi):
+                    if x <= last and marks[g, sy_, x] == 254:
+                        seen = x
+                    if x >= lo:
+                        near[x] = x - seen
+                seen = nx + r + 2
+                for x in range(max(last, hi - 1), lo - 1, -1):
+                    if x >= first and marks[g, sy_, x] == 254:
+                        seen = x
+                    if x < hi and seen - x < near[x]:
+                        near[x] = seen - x
+                for d in range(r + 1):  # the rows d above and below: the same costs
+                    up, down = sy_ - d, sy_ + d
+                    up_ok = y_lo <= up < y_hi
+                    down_ok = d > 0 and y_lo <= down < y_hi
+                    if not (up_ok or down_ok):
+                        continue
+                    w = half[d]
+                    d2 = d * d
+                    for x in range(max(first - w, lo), min(last + w + 1, hi)):
+                        e = near[x]
+                        if e <= w:
+                            c = table[e * e + d2]
+                            if up_ok and c > costs[g, up, x]:
+                                costs[g, up, x] = c
+                            if down_ok and c > costs[g, down, x]:
+                                costs[g, down, x] = c
 
 compiled_update = compiled_beams = compiled_cut = None
 if COMPILED:

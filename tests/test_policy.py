@@ -15,7 +15,7 @@ from importlib import resources
 import numpy as np
 import pytest
 
-from smartcar_gym.agents.models import PRETRAINED_POLICIES
+from smartcar_gym.agents.models import PRETRAINED_POLICIES, ActingOnly, load_model
 from smartcar_gym.envs.policy_settings import policy_settings
 from smartcar_gym.policy import (
     ObsNormalizer,
@@ -95,6 +95,41 @@ def test_deterministic_act_is_repeatable_and_sampling_is_seeded(shipped):
     np.testing.assert_array_equal(samples[0], samples[1])
     assert not np.array_equal(samples[0][0], samples[0][1])
     assert not np.array_equal(samples[0][0], mean)
+
+
+@pytest.mark.parametrize("name", ["default", "barn"])
+def test_a_policy_loaded_to_act_acts_as_the_whole_model_and_cannot_train(shipped, name):
+    policy = shipped[name]
+    whole = load_model(policy.model_path, policy.algo)
+    obs = np.random.default_rng(0).standard_normal(
+        (64, *policy.observation_space.shape)).astype(np.float32)
+    for deterministic in (True, False):
+        actions = []
+        for model in (policy.model, whole):
+            model.set_random_seed(5)
+            actions.append(model.predict(obs, deterministic=deterministic)[0])
+        assert actions[0].tobytes() == actions[1].tobytes()
+    assert isinstance(policy.model.policy.optimizer, ActingOnly)
+    for call in (policy.model.policy.optimizer.step, policy.model.policy.optimizer.state_dict):
+        with pytest.raises(RuntimeError,
+                           match=r"loaded only to act .*models\.load_model\(path, algo\)"):
+            call()
+    assert type(whole.policy.optimizer).__name__ == "Adam"
+
+
+def test_loading_a_policy_to_act_does_not_import_torchs_compiler():
+    """A torch optimizer's first parameter group imports torch._dynamo (about a second)."""
+    code = textwrap.dedent("""
+        import sys
+        import numpy as np
+        from smartcar_gym.policy import Policy
+        policy = Policy.load("barn")
+        policy.act(np.zeros(policy.observation_space.shape, dtype=np.float32))
+        print("torch._dynamo" in sys.modules)
+    """)
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                            timeout=120)
+    assert result.stdout.strip() == "False", result.stderr
 
 
 def test_settings_are_the_ros_policy_settings_of_the_env(shipped):

@@ -237,12 +237,49 @@ def pretrained_files(name: str = "default") -> Iterator[Path]:
 _NO_BUFFER = {"buffer_size": 1, "replay_buffer_class": None, "replay_buffer_kwargs": {}}
 
 
-def load_model(path: str | os.PathLike, algo: str, device: str = "cpu") -> Any:
+class ActingOnly:
+    """The optimizer of a model loaded only to act (``load_model(..., act=True)``): none.
+
+    Stable-Baselines3 builds a policy with its optimizer, and a torch optimizer's first
+    parameter group imports ``torch._dynamo``: about a second of every evaluation's start, for
+    an optimizer that never steps. This one holds nothing, takes (and drops) the saved state,
+    and refuses what only training does, with the way to load the model for training."""
+
+    def __init__(self, params: Any, *args: Any, **kwargs: Any) -> None:
+        pass
+
+    def load_state_dict(self, state: Any, **kwargs: Any) -> None:
+        pass
+
+    def _refuse(self, *args: Any, **kwargs: Any) -> Any:
+        raise RuntimeError("this model was loaded only to act (smartcar_gym.policy.Policy.load): "
+                           "it has no optimizer to train or save; load it with "
+                           "smartcar_gym.agents.models.load_model(path, algo) to train it")
+
+    step = zero_grad = state_dict = _refuse
+
+
+def load_model(path: str | os.PathLike, algo: str, device: str = "cpu",
+               act: bool = False) -> Any:
     """Load an SB3 model zip with the class for ``algo`` (a pickle: only from a trusted source),
-    for its policy: an off-policy model comes without its replay buffer."""
+    for its policy: an off-policy model comes without its replay buffer. ``act``: only to act
+    (``predict``), without its optimizer (``ActingOnly``: a second less to load; the same
+    network, the same actions to the bit)."""
     from smartcar_gym.agents.hyperparams import algo_class
 
-    return algo_class(algo).load(str(path), device=device, custom_objects=_NO_BUFFER)
+    custom = dict(_NO_BUFFER)
+    if act:
+        custom["policy_kwargs"] = {**_saved_policy_kwargs(path), "optimizer_class": ActingOnly}
+    return algo_class(algo).load(str(path), device=device, custom_objects=custom)
+
+
+def _saved_policy_kwargs(path: str | os.PathLike) -> dict[str, Any]:
+    """The ``policy_kwargs`` a model zip was saved with (SB3's own decoding of its "data")."""
+    from stable_baselines3.common.save_util import json_to_data
+
+    with zipfile.ZipFile(path) as archive:
+        saved = json.loads(archive.read("data")).get("policy_kwargs") or {}
+    return dict(json_to_data(json.dumps({"policy_kwargs": saved}))["policy_kwargs"])
 
 
 # The module of each algorithm's policy classes, as recorded in a saved model's "data".

@@ -71,7 +71,9 @@ class Policy:
     """A model with its normaliser and the env it acts in (see ``smartcar_gym.policy``).
 
     Attributes:
-        model: the SB3 model (or anything with SB3's ``predict(obs, deterministic=...)``).
+        model: the SB3 model (or anything with SB3's ``predict(obs, deterministic=...)``);
+            ``load`` loads it only to act, without its optimizer (``models.ActingOnly``:
+            a second less to start; ``models.load_model`` loads one to train).
         normalizer: the observation statistics applied before ``predict`` (None: raw obs).
         algo: ``"ppo"``, ``"sac"``, ``"td3"`` (None when not known).
         env_id, env_kwargs: the env the policy acts in: the run's, with ``load``'s overrides.
@@ -343,7 +345,7 @@ def _load_model(path: Path, algo: str, device: str) -> Any:
         raise PolicyError(f"{path} holds a {saved.upper()} model, not {algo.upper()}: pass "
                           f"--algo {saved}")
     try:
-        return load_model(path, algo, device=device)
+        return load_model(path, algo, device=device, act=True)
     except Exception as err:  # a file from anywhere: whatever fails, the file is the cause
         raise PolicyError(f"--model: cannot load {path} as a {algo.upper()} model: "
                           f"{type(err).__name__}: {err}") from err

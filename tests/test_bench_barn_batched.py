@@ -46,3 +46,31 @@ def test_the_command_runs_batched_where_the_engine_batches(tmp_path, capsys):
     assert "| dwa | 1 | 1.000 |" in capsys.readouterr().out
     data = json.loads(out_json.read_text())
     assert data["vectorization"] == "batched" and data["engine"] == "planar"
+
+
+def test_worker_processes_give_one_processs_records_in_the_order_of_the_jobs(tmp_path,
+                                                                           capsys):
+    """Two processes, each on a car of its own, take every other job: the records (with the
+    laser's noise, so every run differs) are one process's to the bit, in the jobs' order."""
+    argv = ["barn", "--engine", "planar", "--worlds", "0", "6", "--runs", "2", "--quiet",
+            "--env-kwargs", "laser={noise_std_m: 0.01}", "--json"]
+    assert main([*argv, str(tmp_path / "one.json"), "--n-envs", "2"]) == 0
+    assert main([*argv, str(tmp_path / "two.json"), "--workers", "2"]) == 0
+    one, two = (json.loads((tmp_path / f"{n}.json").read_text()) for n in ("one", "two"))
+    assert [(r["world"], r["run"]) for r in two["records"]] == [
+        (w, k) for w in (0, 6) for k in (0, 1)]
+    assert two["records"] == one["records"]
+    assert len({r["time_s"] for r in one["records"]}) == 4  # the runs differ
+    assert capsys.readouterr().out.count("| dwa | 4 |") == 2
+
+
+def test_a_workers_refusal_is_the_same_one_line(capsys):
+    pytest.importorskip("stable_baselines3")
+    with pytest.raises(SystemExit) as exit_:
+        main(["barn", "--engine", "planar", "--pretrained", "nav", "--worlds", "0", "6",
+              "--workers", "2"])
+    assert exit_.value.code == 2
+    assert capsys.readouterr().err.strip().splitlines()[-1] == (
+        "smartcar-bench barn: error: pretrained:nav takes observations of shape (57,) (it was "
+        "trained on SmartCarNav-v0) but SmartCarBARN-v0 gives (59,): train a policy on "
+        "SmartCarBARN-v0")

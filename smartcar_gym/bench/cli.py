@@ -16,15 +16,21 @@ timeout, the mean time of the successful runs and the mean score on both scales
 (exit status 1 when one is missed).
 The ``--n-envs`` cars are the id's vector env: one batched env where the engine batches
 (planar, MuJoCo: ``SmartCarBatchVectorEnv``), elsewhere a loop of single envs; the runs go
-through the episode runner (``bench.runs``).
+through the episode runner (``bench.runs``). ``--workers W`` shares the runs among W
+processes, each with its own driver and ``--n-envs`` cars (the same records: a run depends
+on its world and seed alone); pybullet steps one car at a time in a process, so there it
+takes every core.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import multiprocessing
 import sys
 from collections.abc import Sequence
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -42,7 +48,7 @@ from smartcar_gym.agents.env_factory import EnvSetupError, check_env
 from smartcar_gym.agents.vec_envs import make_batched_env
 from smartcar_gym.bench.drivers import DRIVERS, DriverError, PolicyDriver, make_driver
 from smartcar_gym.bench.report import plot_runs, summarize, table
-from smartcar_gym.bench.runs import BarnRunError, RunRecord, barn_jobs, run_barn
+from smartcar_gym.bench.runs import BarnJob, BarnRunError, RunRecord, barn_jobs, run_barn
 from smartcar_gym.envs.vector import SmartCarBatchVectorEnv
 from smartcar_gym.envs.vector.view import CarView
 from smartcar_gym.sim.engines import DEFAULT_ENGINE, add_engine_argument, on_engine
@@ -79,6 +85,10 @@ def build_parser() -> argparse.ArgumentParser:
     barn.add_argument("--n-envs", type=positive_int_arg, default=1,
                       help="cars stepped side by side (one driver call for all; one "
                            "batched env where the engine batches; at most one per run)")
+    barn.add_argument("--workers", type=positive_int_arg, default=1, metavar="W",
+                      help="processes sharing the runs, each on --n-envs cars of its own "
+                           "(the same records; pybullet, which steps one car at a time in a "
+                           "process: one a core; default 1)")
     barn.add_argument("--seed", type=non_negative_int_arg, default=0,
                       help="run k of a world is reset with seed + k (default 0)")
     barn.add_argument("--env-kwargs", nargs="+", default=[], metavar="KEY=VALUE",
@@ -125,35 +135,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         kwargs = _env_kwargs(args, trained_with)
         check_env(ENV_ID, kwargs)  # a bad --env-kwargs: one line naming it
         jobs = barn_jobs(chosen, args.runs, args.seed)
-        envs = make_batched_env(ENV_ID, min(args.n_envs, len(jobs)), kwargs)  # no idle cars
     except (BarnWorldError, DriverError, EnvSetupError) as err:
         parser.error(str(err))
-    batched = isinstance(envs.unwrapped, SmartCarBatchVectorEnv)
-    failed = None
+    plotted = set() if args.plot is None else set(args.plot_worlds or chosen[:4])
     try:
-        cars = CarView(envs)
-        if isinstance(driver, PolicyDriver):
-            try:
-                driver.check(ENV_ID, envs.single_observation_space)
-            except DriverError as err:
-                parser.error(str(err))
-        try:
-            _plan_worlds(cars, chosen)
-        except BarnWorldError as err:
-            parser.error(str(err))
-        plotted = set() if args.plot is None else set(args.plot_worlds or chosen[:4])
-        try:
-            records = run_barn(envs, driver, jobs,
-                               keep=lambda job: job.world in plotted and job.run == 0,
-                               report=None if args.quiet else _report)
-        except BarnRunError as err:  # the runs so far are kept
-            records, failed = err.records, str(err)
-        paths = {}  # the global paths every car's task planned, by world
-        for task in cars.tasks():
-            paths.update(task.planned_paths)
-        scale = cars.task.protocol.scale
-    finally:
-        envs.close()
+        if args.workers > 1 and len(jobs) > 1:
+            ran = _in_workers(args, kwargs, chosen, jobs, plotted)
+        else:
+            ran = _run(driver, args.n_envs, kwargs, chosen, jobs, plotted, args.quiet)
+    except (BarnWorldError, DriverError, EnvSetupError) as err:
+        parser.error(str(err))
+    records, failed, batched = ran.records, ran.failed, ran.batched
     summary = summarize(records)
     marks = check_marks(summary, args)
     engine = args.engine or DEFAULT_ENGINE
@@ -167,7 +159,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                    "runs_per_world": args.runs, "seed": args.seed,
                    "env_kwargs": {k: v for k, v in kwargs.items() if k != "world_file"},
                    "worlds": list(chosen),
-                   "scale": scale, "marks": marks,
+                   "scale": ran.scale, "marks": marks,
                    "passed": failed is None and all(m["held"] for m in marks), **summary,
                    **({} if failed is None else {"error": failed}),
                    "records": [r.to_dict() for r in records]}
@@ -180,13 +172,80 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.plot is not None:
         dashed = ("the known map's path, not given to the car" if kwargs.get("map_mode") ==
                   "laser" else "the global path")
-        plot_runs(records, worlds, scale, args.plot,
+        plot_runs(records, worlds, ran.scale, args.plot,
                   f"{name} on {engine}: {summary['success_rate']:.0%} success (dashed: "
-                  f"{dashed})", paths)
+                  f"{dashed})", ran.paths)
         print(f"wrote {args.plot}")
     for mark in marks:
         print(f"smartcar-bench: {mark['line']}", file=sys.stderr)
     return 0 if all(m["held"] for m in marks) else 1
+
+
+@dataclass
+class Ran:
+    """What the runs gave: every record in the order of the jobs (those before a failure),
+    the failure's line (None: none), the global paths planned (by world), the protocol's
+    scale and whether the cars were one batched env."""
+
+    records: list[RunRecord]
+    failed: str | None
+    paths: dict[int, Any]
+    scale: float
+    batched: bool
+
+
+def _run(driver: Any, n_envs: int, kwargs: dict[str, Any], chosen: Sequence[int],
+         jobs: Sequence[BarnJob], plotted: set[int], quiet: bool) -> Ran:
+    """``jobs`` run by ``driver`` on ``n_envs`` cars (at most one a job): DriverError for a
+    policy of another observation space, BarnWorldError for a world without a way."""
+    envs = make_batched_env(ENV_ID, min(n_envs, len(jobs)), kwargs)  # no idle cars
+    try:
+        cars = CarView(envs)
+        if isinstance(driver, PolicyDriver):
+            driver.check(ENV_ID, envs.single_observation_space)
+        _plan_worlds(cars, chosen)
+        failed = None
+        try:
+            records = run_barn(envs, driver, jobs,
+                               keep=lambda job: job.world in plotted and job.run == 0,
+                               report=None if quiet else _report)
+        except BarnRunError as err:  # the runs so far are kept
+            records, failed = err.records, str(err)
+        paths = {}  # the global paths every car's task planned, by world
+        for task in cars.tasks():
+            paths.update(task.planned_paths)
+        return Ran(records, failed, paths, cars.task.protocol.scale,
+                   isinstance(envs.unwrapped, SmartCarBatchVectorEnv))
+    finally:
+        envs.close()
+
+
+def _in_workers(args: argparse.Namespace, kwargs: dict[str, Any], chosen: Sequence[int],
+                jobs: Sequence[BarnJob], plotted: set[int]) -> Ran:
+    """``_run`` in ``--workers`` processes, worker w taking every w-th job on cars of its
+    own: a run depends on its job alone (its world and seed), so the records are one
+    process's, to the bit; they come back in the order of the jobs."""
+    workers = min(args.workers, len(jobs))
+    options = {k: v for k, v in vars(args).items() if k != "command_parser"}
+    shards = [list(jobs[w::workers]) for w in range(workers)]
+    context = multiprocessing.get_context("spawn")  # no copy of this process's threads
+    with ProcessPoolExecutor(workers, mp_context=context) as pool:
+        parts = list(pool.map(_shard, [options] * workers, [kwargs] * workers,
+                              [chosen] * workers, shards, [plotted] * workers))
+    order = {job: k for k, job in enumerate(jobs)}
+    records = sorted((r for part in parts for r in part.records),
+                     key=lambda r: order[BarnJob(r.world, r.run, r.seed)])
+    failed = next((part.failed for part in parts if part.failed is not None), None)
+    paths = {world: path for part in parts for world, path in part.paths.items()}
+    return Ran(records, failed, paths, parts[0].scale, parts[0].batched)
+
+
+def _shard(options: dict[str, Any], kwargs: dict[str, Any], chosen: Sequence[int],
+           jobs: Sequence[BarnJob], plotted: set[int]) -> Ran:
+    """A worker's share of the runs (``_in_workers``): its own driver and cars."""
+    args = argparse.Namespace(**options)
+    driver = _driver(args)[0]
+    return _run(driver, args.n_envs, kwargs, chosen, jobs, plotted, args.quiet)
 
 
 def _plot_error(path: Path) -> str | None:

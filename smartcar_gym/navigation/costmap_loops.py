@@ -291,8 +291,8 @@ def update_loops(cars, x0, y0, ok, x1, y1, end, trace, mx, my, mark, r, half, ta
     gets ``table[dx * dx + dy * dy]``: the most of the cluster's cells' own stamps because
     ``table`` never rises with the distance (``CostmapConfig.cost_table``). So a cluster costs
     its kernel's rows once, not once per cell, and the rows ``dy`` above and below it share
-    their costs (the update a third faster than a run at a time, and the runs a third faster
-    than a cell at a time, on BARN updates with the laser's noise)."""
+    their costs (on updates replayed from BARN runs with the laser's noise: 1.55 ms instead of
+    a run at a time's 2.2, and 3.6 a cell at a time, with the mapless policy's costmap)."""
     ny, nx = marks.shape[1], marks.shape[2]
     near = np.empty(nx, dtype=np.int64)
     for k in range(cars.shape[0]):

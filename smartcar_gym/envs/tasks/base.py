@@ -207,6 +207,11 @@ class Task:
         for name in self.per_car:
             getattr(self, name)[car] = getattr(builder, name)[0]
 
+    def only_build(self) -> None:
+        """This task now serves a batch's builder: its episodes are copied (``take``) and
+        begun again by the batch's own task, so what only a run needs may go (a laser map's
+        grids and planning). By default nothing goes."""
+
     # -- reset ---------------------------------------------------------------------------------
     def check_options(self, options: Any, vector: bool) -> list[dict[str, Any]]:
         """``reset``'s options checked (before anything is touched), one dict per car:

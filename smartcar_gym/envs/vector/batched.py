@@ -126,6 +126,8 @@ class SmartCarBatchVectorEnv(CarsVectorEnv):
         self.builder = template if self.task.builds_worlds else None
         if self.builder is None:
             template.close()  # every car is a copy of its world
+        else:
+            template.task.only_build()
 
     @staticmethod
     def why_not(env_id: str, kwargs: dict[str, Any]) -> str | None:

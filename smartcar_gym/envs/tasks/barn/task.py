@@ -275,6 +275,13 @@ class BarnTask(NavTask):
             self.car.max_linear / JACKAL_TOP_SPEED_M_S, self.laser_config.angles, self.mount,
             self.planner_frequency)
 
+    def only_build(self) -> None:
+        """A builder's begin marks no scan and plans nothing: the batch's own ``begin`` does
+        (its ``global_paths`` row is the straight line or the known map's path, as ``build``
+        left it, which the batch's first plan replaces; a failed one keeps that line as
+        here)."""
+        self._laser_map = None
+
     # -- what a single env shows of its car ----------------------------------------------------
     @property
     def costmaps(self) -> LaserCostmaps | None:

@@ -90,6 +90,8 @@ def test_barn_batch_equals_n_single_envs_bit_for_bit(engine, mode, timeout, prog
             if map_mode == "laser":  # the costmaps too, and the path came from them
                 assert np.array_equal(u.costmaps.costs(i), env.unwrapped.costmaps.costs(0))
                 assert env.unwrapped.costmaps.lethal(0).any()
+        # the batch's builder only builds: its task keeps no laser map of its own
+        assert u.builder.task.costmaps is None
     finally:
         batched.close()
         single.close()

@@ -183,9 +183,9 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 @dataclass
 class Ran:
-    """What the runs gave: every record in the order of the jobs (those before a failure),
-    the failure's line (None: none), the global paths planned (by world), the protocol's
-    scale and whether the cars were one batched env."""
+    """What the runs gave: every record in the order of the jobs (where a run failed, those
+    that had ended), the failure's line (None: none), the global paths planned (by world),
+    the protocol's scale and whether the cars were one batched env."""
 
     records: list[RunRecord]
     failed: str | None

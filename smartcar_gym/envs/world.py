@@ -93,9 +93,7 @@ class World:
         self._forget()
 
     def _forget(self) -> None:
-        """No world held: no simulator, robot, markers, laser or obstacle bodies."""
-        self.sim = self.robot = self.markers = self.laser = self.scan_markers = None
-        self.bodies = []
+        self.__dict__.update(_no_world())
 
     @contextmanager
     def exclusive(self, call: str) -> Iterator[None]:
@@ -123,8 +121,7 @@ class World:
     def detached(self) -> World:
         """A copy with the settings and none of the world (an env's copy opens its own)."""
         copy = World.__new__(World)
-        copy.__setstate__(self.__getstate__())
-        copy._forget()
+        copy.__setstate__({**self.__getstate__(), **_no_world()})
         return copy
 
     # -- an episode ----------------------------------------------------------------------------
@@ -196,3 +193,10 @@ class World:
         """The odometry's pose on the render's trail."""
         odom = self.robot.odometry
         self.markers.add_pose(odom.x, odom.y, odom.theta)
+
+
+def _no_world() -> dict[str, Any]:
+    """A world's fields when it holds none: no simulator, robot, markers, laser or obstacle
+    bodies."""
+    return {"sim": None, "robot": None, "markers": None, "laser": None, "scan_markers": None,
+            "bodies": []}

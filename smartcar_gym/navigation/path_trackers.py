@@ -144,7 +144,8 @@ class PathTrackers:
 
 # -- the compiled passes --------------------------------------------------------------------
 def _advance(path, arc, size, index, i, x, y, window):
-    """``PathTracker._advance`` of robot ``i`` at (x, y): moves ``index[i]``; the distance."""
+    """``PathTracker.waypoint``'s advance for robot ``i`` at (x, y): moves ``index[i]``; the
+    distance."""
     m = size[i]
     limit = arc[i, index[i]] + window
     end = np.searchsorted(arc[i, :m], limit, side="right")

@@ -61,7 +61,7 @@ class SmartCarSimVectorEnv(CarsVectorEnv):
     It is not ``SmartCarBatchVectorEnv`` with a kinematic car batch, because it is not the same
     thing: there are no events and no clock to step between them (the car follows the
     commanded twist over the whole period, then the controller fires once, as
-    ``SmartCarRobot._move_kinematically``), no engine (no world to copy, reset or step), the
+    ``SmartCarRobot`` moves in sim mode), no engine (no world to copy, reset or step), the
     controller is the kinematic mode's (no boards, no motors), and the pose is pybullet's
     float32 body's, not an engine's. What both share, the vector conventions below and the
     task, is their common base ``CarsVectorEnv``.
@@ -155,7 +155,7 @@ class SmartCarSimVectorEnv(CarsVectorEnv):
 
     def _run(self, linear_x: np.ndarray, angular_z: np.ndarray) -> None:
         """One controller period for every car: the twist commanded now, the body moved with
-        it (``SmartCarRobot._move_kinematically``), then the controller fires."""
+        it (as ``SmartCarRobot`` in sim mode), then the controller fires."""
         steps = self.state.steps
         self.base.cmd_vel(linear_x, angular_z,
                           (steps * self.period_ns).astype(np.float64) / NS_PER_S)

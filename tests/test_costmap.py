@@ -316,8 +316,9 @@ def test_too_many_cars_grids_are_refused_before_allocating():
 
 
 def test_the_cost_never_rises_with_the_distance():
-    # the compiled update stamps a run of lethal cells as one (costmap_loops.update_loops):
-    # exact only while the cost does not rise with the distance, for any config
+    # the compiled update stamps a cluster of lethal cells as one, from each cell's nearest
+    # (costmap_loops.update_loops): exact only while the cost does not rise with the distance,
+    # for any config
     rng = np.random.default_rng(3)
     for _ in range(50):
         inflation = rng.uniform(0.05, 1.0)

@@ -6,7 +6,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from smartcar_gym.envs.state import CarState
+from smartcar_gym.envs.state import CarState, car_values
 
 
 class StubCars:
@@ -36,3 +36,15 @@ class StubCars:
 
     def place_obstacles(self, car: int, obstacles: object, pillars: bool) -> None:
         raise AssertionError("the stub cars take no obstacles")
+
+
+class OneCar(StubCars):
+    """One car whose step hooks get its values as a single env hands them (``car_values``:
+    Python numbers and rows), not one-row arrays."""
+
+    def __init__(self, wheels: int = 4, seed: int = 0) -> None:
+        super().__init__(1, wheels, seed)
+
+    @staticmethod
+    def values(array: np.ndarray):
+        return car_values(array)

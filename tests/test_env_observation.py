@@ -12,7 +12,7 @@ import pytest
 
 import smartcar_gym  # noqa: F401
 from smartcar_gym.envs.observation import Entry, Observation
-from smartcar_gym.envs.state import CarState
+from smartcar_gym.envs.state import CarState, car_values
 from smartcar_gym.envs.tasks.reach import ReachTask
 
 
@@ -68,8 +68,8 @@ def test_the_builder_reads_what_the_robot_knows(env):
     state.previous_action[0] = [0.6, -0.4]
     built = env.task.observe(SimpleNamespace(state=state, values=lambda array: array))
     assert built.shape == (1, 21) and built[0].tobytes() == obs.tobytes()
-    # on the car's values (numpy scalars and rows, as the single env runs it): the same bits
-    one = env.task.observe(SimpleNamespace(state=state, values=lambda array: array[0]))
+    # on the car's values (Python numbers and rows, as the single env runs it): the same bits
+    one = env.task.observe(SimpleNamespace(state=state, values=car_values))
     assert one.shape == (21,) and one.tobytes() == obs.tobytes()
     dx, dy = env.goal[0] - odom.x, env.goal[1] - odom.y
     ahead = math.cos(odom.theta) * dx + math.sin(odom.theta) * dy

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from smartcar_gym.envs.tasks.reach import ReachTask
+from tests.stub_cars import OneCar
 from tests.stub_cars import StubCars as Cars
 
 
@@ -22,7 +23,8 @@ def score(task: ReachTask, cars: Cars, position, up_z, goal, action, previous):
     state.up_z[:] = up_z
     state.goal[:] = goal
     task.distance[:] = previous
-    return task.score(cars, np.asarray(action, dtype=np.float64).reshape(-1, 2))
+    action = np.asarray(action, dtype=np.float64)
+    return task.score(cars, action if isinstance(cars, OneCar) else action.reshape(-1, 2))
 
 
 def test_goal_sampling_respects_range_and_is_seeded():
@@ -88,9 +90,15 @@ def test_a_batch_scores_each_car_as_the_hand_formula_and_its_single_car_bit_for_
     batch = attached(ReachTask(goal_tolerance=0.1, arena_size=5.0), n)
     reward, success, failure = score(batch, Cars(n), position, up_z, goal, action, previous)
     single, cars = attached(ReachTask(goal_tolerance=0.1, arena_size=5.0), 1), Cars(1)
+    on_values, car = attached(ReachTask(goal_tolerance=0.1, arena_size=5.0), 1), OneCar()
     for i in range(n):
         r, s, f = score(single, cars, position[i:i + 1], up_z[i], goal[i], action[i],
                         previous[i])
+        # the single env's way: the car's values as Python numbers, the same bits
+        one = score(on_values, car, position[i:i + 1], up_z[i], goal[i], action[i].reshape(2),
+                    previous[i])
+        assert [type(v) for v in one] == [float, bool, bool]
+        assert one == (reward[i], success[i], failure[i])
         (px, py), (gx, gy), (a0, a1) = position[i], goal[i], action[i]
         distance = math.sqrt((px - gx) * (px - gx) + (py - gy) * (py - gy))
         won = distance < 0.1
@@ -99,7 +107,7 @@ def test_a_batch_scores_each_car_as_the_hand_formula_and_its_single_car_bit_for_
                 + 10.0 * won - 10.0 * lost)
         assert (float(r[0]), bool(s[0]), bool(f[0])) == (reward[i], success[i], failure[i])
         assert (float(reward[i]), bool(success[i]), bool(failure[i])) == (want, won, lost)
-        assert batch.distance[i] == single.distance[0] == distance
+        assert batch.distance[i] == single.distance[0] == on_values.distance[0] == distance
     cases = int(success.sum() + 2 * failure.sum())
     assert success.sum() > 30 and failure.sum() > 30 and cases > 100  # both exercised
 
@@ -160,3 +168,33 @@ def test_without_stop_speed_the_arrival_arguments_change_nothing():
     other = arrive(task, Cars(1), 0.5, (0.3, 0.1), 0.7, (2.0, 2.0), 1.0)
     assert all(np.array_equal(a, b) for a, b in zip(base, other, strict=True))
     assert task.odometry_error[0] == 1.0  # untouched: no drift is measured
+
+
+def test_arriving_and_info_on_a_cars_values_match_the_batch_bit_for_bit():
+    """``stop_speed``'s terms and ``info`` on one car's values (Python numbers, as a single env
+    runs them) equal the batch's row for each of 500 random cars."""
+    rng = np.random.default_rng(11)
+    n = 500
+    position = rng.uniform(-0.12, 0.12, (n, 2))
+    odometry = position + rng.normal(0.0, 0.03, (n, 2))
+    speed = rng.choice([0.0, 0.005, 0.3], n)
+    previous, previous_error = rng.uniform(0, 0.2, n), rng.uniform(0, 0.05, n)
+    theta = rng.uniform(-20, 20, n)
+    batch, cars = attached(ReachTask(stop_speed=0.01), n), Cars(n)
+    cars.state.speed[:], cars.state.odometry[:, :2], cars.state.odometry[:, 2] = (
+        speed, odometry, theta)
+    batch.odometry_error[:] = previous_error
+    scored = score(batch, cars, position, 1.0, (0.0, 0.0), np.zeros((n, 2)), previous)
+    info = batch.info(cars, scored[1])
+    one, car = attached(ReachTask(stop_speed=0.01), 1), OneCar()
+    for i in range(n):
+        car.state.speed[0], car.state.odometry[0, :2], car.state.odometry[0, 2] = (
+            speed[i], odometry[i], theta[i])
+        one.odometry_error[0] = previous_error[i]
+        got = score(one, car, position[i:i + 1], 1.0, (0.0, 0.0), [0.0, 0.0], previous[i])
+        assert got == tuple(v[i] for v in scored)
+        assert one.odometry_error[0] == batch.odometry_error[i]
+        for key, value in one.info(car, got[1]).items():
+            assert np.array_equal(value, info[key][i]), key
+            assert np.shape(value) == np.shape(info[key][i])
+    assert 20 < scored[1].sum() < n - 20  # arrivals and not

@@ -34,7 +34,7 @@ def wrap_angles(theta: np.ndarray) -> np.ndarray:
     (Sterbenz). A remainder of exactly half a turn (the IEEE tie, which rounds the quotient to
     even) is left to ``math.remainder`` itself.
     """
-    if np.ndim(theta) == 0:  # one number: math.remainder's
+    if isinstance(theta, float) or np.ndim(theta) == 0:  # one number: math.remainder's
         return math.remainder(theta, TWO_PI)
     theta = np.asarray(theta, dtype=np.float64)
     if theta.size <= SMALL:  # math.remainder itself: cheaper than numpy's calls on a few
@@ -52,12 +52,16 @@ def planar_norm(dx: np.ndarray, dy: np.ndarray) -> np.ndarray:
     """``sqrt(dx * dx + dy * dy)`` of each pair (arrays, or numbers for one car): the bits of
     ``math.sqrt(dx * dx + dy * dy)`` on each pair of floats (``np.hypot`` and ``math.hypot``
     disagree in the last bit)."""
+    if isinstance(dx, float):  # one car's numbers: the same IEEE square root, without numpy's call
+        return math.sqrt(dx * dx + dy * dy)
     return np.sqrt(dx * dx + dy * dy)
 
 
 def exact_hypot(dx: np.ndarray, dy: np.ndarray) -> np.ndarray:
     """``math.hypot`` of each pair, to its bit (``np.hypot`` is libm's, which differs): for
     the few values a task takes it of (``stop_speed``'s distances). Numbers give a number."""
+    if isinstance(dx, float):
+        return math.hypot(dx, dy)
     out = np.array([math.hypot(a, b) for a, b in zip(np.ravel(dx).tolist(),
                                                     np.ravel(dy).tolist(), strict=True)])
     return out.reshape(np.shape(dx))[()]

@@ -68,14 +68,15 @@ class Observation:
                 if len(columns[key]) != size:
                     raise ValueError(f"observation entry {key!r} gave {len(columns[key])} "
                                      f"columns for its {size} names")
+        # each float64 value rounded to float32 once, as it is copied
         try:  # every column an (N,) array (or every value a number): one copy
-            table = np.array(values, dtype=np.float64)
+            table = np.array(values, dtype=np.float32)
         except ValueError:  # numbers among arrays: each broadcast over the cars
             table = None
         if table is None:
             n = max(np.size(v) for v in values)
-            table = np.array([np.broadcast_to(v, (n,)) for v in values], dtype=np.float64)
-        obs = table.T.astype(np.float32, order="C")
+            table = np.array([np.broadcast_to(v, (n,)) for v in values], dtype=np.float32)
+        obs = table if table.ndim == 1 else np.ascontiguousarray(table.T)
         return np.minimum(np.maximum(obs, self.low, out=obs), self.high, out=obs)
 
     @classmethod

@@ -34,7 +34,7 @@ from smartcar_gym.envs.settings import (
     render_modes,
     split_keywords,
 )
-from smartcar_gym.envs.state import CarState
+from smartcar_gym.envs.state import CarState, car_values
 from smartcar_gym.envs.tasks.base import CarSettings, Task, runs_on_values
 from smartcar_gym.envs.tasks.registry import get_task
 from smartcar_gym.envs.world import World
@@ -278,7 +278,7 @@ class SmartCarEnv(gym.Env):
         return self.np_random
 
     def values(self, array: np.ndarray) -> Any:
-        return array[0] if self._on_values else array
+        return car_values(array) if self._on_values else array
 
     def clearances(self, cars: np.ndarray, max_distance_m: float) -> np.ndarray:
         return np.array([self.world.clearance(max_distance_m)])
@@ -400,8 +400,12 @@ class SmartCarEnv(gym.Env):
         return self._car(obs)
 
     def _info(self, success: np.ndarray) -> dict[str, Any]:
-        info = {key: _scalar(self._car(value))
-                for key, value in self.task.info(self, success).items()}
+        values = self.task.info(self, success)
+        if not self._on_values:
+            values = {key: value[0] for key, value in values.items()}
+        # numbers as Python's, arrays as they are
+        info = {key: value.item() if isinstance(value, np.generic) else value
+                for key, value in values.items()}
         if self.draw is not None:
             info["randomization"] = self.draw.info
         return info

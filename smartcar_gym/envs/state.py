@@ -100,3 +100,20 @@ class CarState:
         names = states[0].readings if states else {}
         return cls(**values, readings={k: np.concatenate([s.readings[k] for s in states])
                                        for k in names})
+
+
+def car_values(array: np.ndarray) -> Any:
+    """Car 0's value of a per-car array, as a single env hands it to ``one_or_many`` hooks: a
+    Python number of an (N,) array, a numpy row of an (N, k) one."""
+    return array.item(0) if array.ndim == 1 else array[0]
+
+
+def split(value: Any) -> Any:
+    """The k columns of a per-car (N, k) field as ``Cars.values`` gives it: k (N,) arrays, or
+    one car's k numbers (Python floats) from its row."""
+    return value.tolist() if value.ndim == 1 else value.T
+
+
+def copied(value: Any) -> Any:
+    """A hook's value to hand out (``info``): an array's copy; one car's number as it is."""
+    return value.copy() if isinstance(value, np.ndarray) else value

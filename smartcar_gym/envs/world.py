@@ -10,8 +10,6 @@ from __future__ import annotations
 
 import math
 import threading
-from collections.abc import Iterator
-from contextlib import contextmanager
 from typing import Any
 
 import numpy as np
@@ -95,19 +93,15 @@ class World:
     def _forget(self) -> None:
         self.__dict__.update(_no_world())
 
-    @contextmanager
-    def exclusive(self, call: str) -> Iterator[None]:
-        """One thread at a time in the env's ``call``: a second one gets a clear error, not a
-        corrupted world."""
+    def exclusive(self, call: str) -> _Held:
+        """One thread at a time in the env's ``call`` (``with world.exclusive("step"):``): a
+        second one gets a clear error, not a corrupted world."""
         if not self._lock.acquire(blocking=False):
             raise RuntimeError(
                 f"SmartCarEnv.{call}() called while another thread is inside this env: an env "
                 "is one simulated world and is not thread-safe; give each thread its own env "
                 "(gym.make_vec with vectorization_mode='async' runs envs in parallel)")
-        try:
-            yield
-        finally:
-            self._lock.release()
+        return _Held(self._lock)
 
     def __getstate__(self) -> dict[str, Any]:
         state = self.__dict__.copy()
@@ -200,3 +194,19 @@ def _no_world() -> dict[str, Any]:
     bodies."""
     return {"sim": None, "robot": None, "markers": None, "laser": None, "scan_markers": None,
             "bodies": []}
+
+
+class _Held:
+    """A lock ``World.exclusive`` has taken, released when its ``with`` block ends (a plain
+    context manager: a generator's costs a microsecond a step)."""
+
+    __slots__ = ("lock",)
+
+    def __init__(self, lock: threading.Lock) -> None:
+        self.lock = lock
+
+    def __enter__(self) -> None:
+        return None
+
+    def __exit__(self, *exc: object) -> None:
+        self.lock.release()

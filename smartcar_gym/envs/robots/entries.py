@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from smartcar_gym.envs.observation import Entry
+from smartcar_gym.envs.state import split
 
 MAX_SPEED_M_S = 5.0  # odometry twist bounds: far above the car's 0.84 m/s
 MAX_TURN_RAD_S = 50.0
@@ -63,14 +64,16 @@ def robot_columns(cars: Any, cos: np.ndarray, sin: np.ndarray) -> dict[str, Any]
     (``tasks.base.Cars``; ``cos``, ``sin``: ``heading`` of its odometry; a 2-D value holds
     one column a row; one car's values give numbers and rows)."""
     state, values = cars.state, cars.values
-    x, y, _, v, w = values(state.odometry).T
-    wrapped = (values(state.wheel_position) + math.pi) % TWO_PI - math.pi
+    x, y, _, v, w = split(values(state.odometry))
+    wrapped = values(state.wheel_position) + math.pi  # then in place: (p + pi) % 2 pi - pi
+    np.remainder(wrapped, TWO_PI, out=wrapped)
+    wrapped -= math.pi
     return {
         "odom_position": (x, y),
         "odom_heading": (cos, sin),
         "odom_linear": (v,),
         "odom_angular": (w,),
-        "wheel_positions": wrapped.T,
-        "wheel_velocities": values(state.wheel_velocity).T,
-        "previous_action": values(state.previous_action).T,
+        "wheel_positions": split(wrapped),
+        "wheel_velocities": split(values(state.wheel_velocity)),
+        "previous_action": split(values(state.previous_action)),
     }

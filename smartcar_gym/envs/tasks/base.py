@@ -23,12 +23,13 @@ registered by name (``envs.tasks.registry``), each with the ids made from it.
 
 The step hooks read the cars' per-car arrays (the state's, and the task's own) through
 ``Cars.values``. A hook written so that it works on what that gives whether it is arrays over
-the cars or one car's values (numpy scalars, and a row for a 2-D field: index columns with
-``[..., k]``, reduce with ``axis=-1``, write the task's arrays with ``a[...] = value``) says so
-with ``@one_or_many``; a single env whose task's step hooks all say so runs them on its car's
-values, in about two thirds of the time they take on one-row arrays (numpy's cost per call).
-Otherwise every hook sees one-row arrays in a single env: a task may be written over arrays
-alone.
+the cars or one car's values (Python numbers of an (N,) field, a numpy row of an (N, k) one:
+unpack its columns with ``split``, reduce a row with ``axis=-1``, write the task's arrays with
+``a[...] = value``, copy with ``copied``) says so with ``@one_or_many``; a single env whose
+task's step hooks all say so runs them on its car's values, in about a third of the time they
+take on one-row arrays (numpy's cost per call). Otherwise every hook sees one-row arrays in a
+single env: a task may be written over arrays alone. Either way the numbers are the same bit
+for bit: Python's and numpy's float arithmetic and square root are IEEE's.
 """
 
 from __future__ import annotations
@@ -109,8 +110,8 @@ class Cars(Protocol):
 
     def values(self, array: np.ndarray) -> Any:
         """A per-car array (the state's or the task's) as the step hooks see it: the array,
-        or in a single env whose task ``runs_on_values`` its one car's value (row 0: a numpy
-        scalar of an (N,) array, a row of an (N, k) one)."""
+        or in a single env whose task ``runs_on_values`` its one car's value (row 0: a Python
+        number of an (N,) array, a numpy row of an (N, k) one)."""
 
     def clearances(self, cars: np.ndarray, max_distance_m: float) -> np.ndarray:
         """(K,): each listed car's ground-truth distance (m) to its nearest obstacle, at most

@@ -21,6 +21,7 @@ from smartcar_gym.envs.robots.entries import (
     robot_columns,
     robot_entries,
 )
+from smartcar_gym.envs.state import copied, split
 from smartcar_gym.envs.tasks.base import Cars, Score, Task, one_or_many
 
 FLIP_UP_Z = 0.5  # base_link's z axis tilted more than 60 degrees: flipped over
@@ -180,8 +181,8 @@ class ReachTask(Task):
         state = cars.state
         odometry = cars.values(state.odometry)
         cos, sin = heading(odometry)
-        x, y = odometry[..., 0], odometry[..., 1]
-        goal_x, goal_y = cars.values(state.goal).T
+        x, y = split(odometry)[:2]
+        goal_x, goal_y = split(cars.values(state.goal))
         gx, gy = goal_x - x, goal_y - y
         return {**robot_columns(cars, cos, sin),
                 "goal_base": (cos * gx + sin * gy, -sin * gx + cos * gy),
@@ -256,8 +257,8 @@ class ReachTask(Task):
         """Progress, time and action costs, the success bonus and the failure penalty (and
         ``stop_speed``'s arrival terms) from each car's true position."""
         state, values = cars.state, cars.values
-        x, y, _ = values(state.pose).T
-        goal_x, goal_y = values(state.goal).T
+        x, y, _ = split(values(state.pose))
+        goal_x, goal_y = split(values(state.goal))
         distance = planar_norm(x - goal_x, y - goal_y)
         success = distance < self.goal_tolerance_m
         arrival = None
@@ -265,7 +266,7 @@ class ReachTask(Task):
             success, arrival = self._arrival(cars, x, y, success)
         half = self.arena_half_size_m
         failure = (values(state.up_z) < FLIP_UP_Z) | (abs(x) > half) | (abs(y) > half)
-        linear, angular = action.T
+        linear, angular = split(action)
         self.terms = {"progress": self.progress_weight * (values(self.distance) - distance),
                       "time": -self.time_cost,
                       "action": -(self.action_cost * (linear * linear + angular * angular)),
@@ -288,13 +289,12 @@ class ReachTask(Task):
                  success: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``stop_speed``: success at rest and by odometry too, and the arrival cost."""
         state, values = cars.state, cars.values
-        odometry, goal = values(state.odometry), values(state.goal)
-        ox, oy = odometry[..., 0], odometry[..., 1]
+        ox, oy = split(values(state.odometry))[:2]
+        goal_x, goal_y = split(values(state.goal))
         odometry_error = exact_hypot(ox - px, oy - py)
-        inside = success & (exact_hypot(ox - goal[..., 0], oy - goal[..., 1])
-                            < self.goal_tolerance_m)
-        speed = np.abs(values(state.speed))
-        arrival = (self.speed_cost * speed * inside.astype(np.float64)
+        inside = success & (exact_hypot(ox - goal_x, oy - goal_y) < self.goal_tolerance_m)
+        speed = abs(values(state.speed))
+        arrival = (self.speed_cost * speed * inside
                    + self.odometry_cost * (odometry_error - values(self.odometry_error)))
         self.odometry_error[...] = odometry_error
         return inside & (speed < self.stop_speed_m_s), arrival
@@ -315,13 +315,14 @@ class ReachTask(Task):
         odometry, pose = values(state.odometry), values(state.pose)
         odom_pose = odometry[..., :3].copy()
         odom_pose[..., 2] = wrap_angles(odom_pose[..., 2])
+        ox, oy = split(odometry)[:2]
+        px, py, _ = split(pose)
         return {
-            "is_success": success.copy(),
-            "distance": values(self.distance).copy(),
+            "is_success": copied(success),
+            "distance": copied(values(self.distance)),
             "pose": pose.copy(),
             "odom_pose": odom_pose,
-            "odom_error": planar_norm(odometry[..., 0] - pose[..., 0],
-                                      odometry[..., 1] - pose[..., 1]),
+            "odom_error": planar_norm(ox - px, oy - py),
         }
 
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from itertools import chain
 from typing import Any
 
 import numpy as np
@@ -62,7 +63,7 @@ class Observation:
         number per name, over the N cars, or a (names, N) array): (N, D) float32, each value
         rounded once, clipped into the bounds. Numbers alone (one car's values: a number per
         name, or a (names,) array) give that car's (D,)."""
-        values = [value for key in self._keys for value in columns[key]]
+        values = list(chain.from_iterable(map(columns.__getitem__, self._keys)))
         if len(values) != len(self.names):
             for key, size in self._sizes:
                 if len(columns[key]) != size:

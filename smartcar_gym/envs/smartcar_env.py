@@ -265,6 +265,8 @@ class SmartCarEnv(gym.Env):
         self.state = CarState.zeros(1, len(self.task.car.wheel_joints), self.task.readings())
         #: the step hooks run on the car's values (numbers), not one-row arrays
         self._on_values = runs_on_values(self.task)
+        #: ``Cars.values``, chosen once (a step calls it about fifteen times)
+        self.values = car_values if self._on_values else _as_is
         self.observation = self.task.observation()
         #: the observation's space, and what each value is (per key of a Dict space)
         self.observation_space, self.observation_names = space_and_names(self.observation)
@@ -276,9 +278,6 @@ class SmartCarEnv(gym.Env):
     # -- what the task sees (``tasks.base.Cars``) ------------------------------------------------
     def rng(self, car: int) -> np.random.Generator:
         return self.np_random
-
-    def values(self, array: np.ndarray) -> Any:
-        return car_values(array) if self._on_values else array
 
     def clearances(self, cars: np.ndarray, max_distance_m: float) -> np.ndarray:
         return np.array([self.world.clearance(max_distance_m)])
@@ -418,3 +417,8 @@ reserve_keywords("SmartCarEnv", own_keywords(SmartCarEnv.__init__))
 def _scalar(value: Any) -> Any:
     """A car's value as the single env gives it: numbers as Python's, arrays as they are."""
     return value.item() if isinstance(value, np.generic) else value
+
+
+def _as_is(array: np.ndarray) -> np.ndarray:
+    """A per-car array as a task written over arrays sees it in a single env: itself."""
+    return array

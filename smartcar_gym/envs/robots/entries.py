@@ -65,15 +65,14 @@ def robot_columns(cars: Any, cos: np.ndarray, sin: np.ndarray) -> dict[str, Any]
     one column a row; one car's values give numbers and rows)."""
     state, values = cars.state, cars.values
     x, y, _, v, w = split(values(state.odometry))
-    wrapped = values(state.wheel_position) + math.pi  # then in place: (p + pi) % 2 pi - pi
-    np.remainder(wrapped, TWO_PI, out=wrapped)
-    wrapped -= math.pi
     return {
         "odom_position": (x, y),
         "odom_heading": (cos, sin),
         "odom_linear": (v,),
         "odom_angular": (w,),
-        "wheel_positions": split(wrapped),
+        # Python's float % and numpy's are both fmod with the divisor's sign: the same bits
+        "wheel_positions": [(p + math.pi) % TWO_PI - math.pi
+                            for p in split(values(state.wheel_position))],
         "wheel_velocities": split(values(state.wheel_velocity)),
         "previous_action": split(values(state.previous_action)),
     }

@@ -23,13 +23,15 @@ registered by name (``envs.tasks.registry``), each with the ids made from it.
 
 The step hooks read the cars' per-car arrays (the state's, and the task's own) through
 ``Cars.values``. A hook written so that it works on what that gives whether it is arrays over
-the cars or one car's values (Python numbers of an (N,) field, a numpy row of an (N, k) one:
-unpack its columns with ``split``, reduce a row with ``axis=-1``, write the task's arrays with
-``a[...] = value``, copy with ``copied``) says so with ``@one_or_many``; a single env whose
-task's step hooks all say so runs them on its car's values, in about a third of the time they
-take on one-row arrays (numpy's cost per call). Otherwise every hook sees one-row arrays in a
-single env: a task may be written over arrays alone. Either way the numbers are the same bit
-for bit: Python's and numpy's float arithmetic and square root are IEEE's.
+the cars or one car's values (``envs.state.car_values``: Python numbers of an (N,) field, a
+numpy row of an (N, k) one; unpack a row's columns with ``envs.state.split``, reduce it with
+``axis=-1``, write the task's arrays with ``a[...] = value``, copy what ``info`` hands out with
+``envs.state.copied``) says so with ``@one_or_many``; a single env whose task's step hooks all
+say so runs them on its car's values, in about a third of the time they take on one-row arrays
+(numpy's cost per call). Otherwise every hook sees one-row arrays in a single env: a task may
+be written over arrays alone. Either way the numbers are the same bit for bit: Python's and
+numpy's float arithmetic and square root are IEEE's (where numpy's function is not libm's,
+``np.hypot``, a hook calls numpy's on numbers too).
 """
 
 from __future__ import annotations

@@ -313,10 +313,10 @@ class ReachTask(Task):
         """Success, the distance, the true and odometry poses and their gap."""
         state, values = cars.state, cars.values
         odometry, pose = values(state.odometry), values(state.pose)
-        odom_pose = odometry[..., :3].copy()
-        odom_pose[..., 2] = wrap_angles(odom_pose[..., 2])
-        ox, oy = split(odometry)[:2]
+        ox, oy, theta = split(odometry)[:3]
         px, py, _ = split(pose)
+        odom_pose = odometry[..., :3].copy()
+        odom_pose[..., 2] = wrap_angles(theta)
         return {
             "is_success": copied(success),
             "distance": copied(values(self.distance)),

@@ -280,7 +280,7 @@ def test_a_world_failing_mid_run_keeps_the_runs_before_it(tmp_path, constant, mo
                                                           capsys):
     from smartcar_gym.bench import cli
 
-    monkeypatch.setattr(cli, "_plan_worlds", lambda cars, chosen: None)  # as if unchecked
+    monkeypatch.setattr(cli, "_plan_worlds", lambda *args: None)  # as if unchecked
     worlds, out_json = _world_file(tmp_path, [0], bad_start=True), tmp_path / "out.json"
     # the known map: a reset plans the world's path on it (without the map, from the laser)
     code, out, err = _run(["barn", "--engine", "planar", "--world-file", str(worlds),
@@ -302,3 +302,36 @@ def test_every_run_ends_with_an_outcome_whatever_the_top_speed(tmp_path, constan
                          "max_linear=0.25", "--json", str(out_json)], capsys)
     assert code == 0 and "world   0 run 0: timeout after 3349 steps" in err
     assert [r["outcome"] for r in json.loads(out_json.read_text())["records"]] == ["timeout"]
+
+
+def test_the_worlds_planned_over_threads_are_the_sequential_plans(tmp_path):
+    """``_plan_worlds`` over two threads plans every chosen world as one thread does, to the
+    bit, shares them with every task, and names the first chosen world without a way."""
+    from types import SimpleNamespace
+
+    import gymnasium as gym
+
+    from smartcar_gym.bench import cli
+    from smartcar_gym.worlds.barn import BarnWorldError
+
+    worlds = _world_file(tmp_path, [0, 1, 2], bad_start=True)  # world 3: no way
+    envs = [gym.make("SmartCarBARN-v0", engine="planar", world_file=str(worlds))
+            for _ in range(3)]
+    try:
+        tasks = [env.unwrapped.task for env in envs]
+        one = SimpleNamespace(tasks=lambda: tasks[:1])
+        cli._plan_worlds(one, [2, 0, 1], threads=1)
+        sequential = dict(tasks[0].planned_paths)
+        tasks[0].planned_paths.clear()
+        two = SimpleNamespace(tasks=lambda: tasks[1:])
+        cli._plan_worlds(two, [2, 0, 1], threads=2)
+        assert sorted(tasks[1].planned_paths) == [0, 1, 2] == sorted(sequential)
+        for index, path in sequential.items():
+            assert np.array_equal(tasks[1].planned_paths[index], path)
+            assert tasks[2].planned_paths[index] is tasks[1].planned_paths[index]
+        tasks[1].planned_paths.clear()
+        with pytest.raises(BarnWorldError, match=f"^BARN world 3 of {worlds} has no way"):
+            cli._plan_worlds(two, [0, 3, 1, 2], threads=2)
+    finally:
+        for env in envs:
+            env.close()

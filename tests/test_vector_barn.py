@@ -56,6 +56,12 @@ def test_barn_batch_equals_n_single_envs_bit_for_bit(engine, mode, timeout, prog
     single = make(engine, mode, "sync", max_episode_steps=24 if timeout is None else 60,
                   progress=progress, map_mode=map_mode)
     assert isinstance(batched, SmartCarBatchVectorEnv)
+    builder = batched.unwrapped.builder.task
+
+    def begun(*args):  # the batch's task begins each car; its builder's never does
+        raise AssertionError("the builder's task began a car")
+
+    monkeypatch.setattr(builder, "begin", begun)
     try:
         got, want = rollout(batched, 60, 3), rollout(single, 60, 3)
         assert np.array_equal(got[0][0], want[0][0])
@@ -91,7 +97,7 @@ def test_barn_batch_equals_n_single_envs_bit_for_bit(engine, mode, timeout, prog
                 assert np.array_equal(u.costmaps.costs(i), env.unwrapped.costmaps.costs(0))
                 assert env.unwrapped.costmaps.lethal(0).any()
         # the batch's builder only builds: its task keeps no laser map of its own
-        assert u.builder.task.costmaps is None
+        assert u.builder.task.costmaps is None and u.builder.task.builds_only
     finally:
         batched.close()
         single.close()

@@ -51,6 +51,7 @@ from smartcar_gym.bench.report import plot_runs, summarize, table
 from smartcar_gym.bench.runs import BarnJob, BarnRunError, RunRecord, barn_jobs, run_barn
 from smartcar_gym.envs.vector import SmartCarBatchVectorEnv
 from smartcar_gym.envs.vector.view import CarView
+from smartcar_gym.parallel import run_chunks
 from smartcar_gym.sim.engines import DEFAULT_ENGINE, add_engine_argument, on_engine
 from smartcar_gym.worlds.barn import BarnWorldError, load_worlds
 
@@ -203,7 +204,7 @@ def _run(driver: Any, n_envs: int, kwargs: dict[str, Any], chosen: Sequence[int]
         cars = CarView(envs)
         if isinstance(driver, PolicyDriver):
             driver.check(ENV_ID, envs.single_observation_space)
-        _plan_worlds(cars, chosen)
+        _plan_worlds(cars, chosen, getattr(envs.unwrapped, "threads", 1))
         failed = None
         try:
             records = run_barn(envs, driver, jobs,
@@ -280,12 +281,18 @@ def _check_worlds_chosen(args: argparse.Namespace, chosen: Sequence[int]) -> Non
                                 "test worlds)")
 
 
-def _plan_worlds(cars: CarView, chosen: Sequence[int]) -> None:
+def _plan_worlds(cars: CarView, chosen: Sequence[int], threads: int = 1) -> None:
     """Every chosen world's global path, planned before the first run (BarnWorldError, one
-    line, for a world without a way for this car); every task of the cars shares them."""
-    tasks = cars.tasks()
-    for index in chosen:
-        tasks[0].plan(index)
+    line, for the first chosen world without a way for this car); every task of the cars
+    shares them. The worlds are planned over the batch's ``threads`` (scipy's KD-tree and
+    Dijkstra free the GIL): each world's path is its own, whichever thread plans it."""
+    tasks, worlds = cars.tasks(), list(chosen)
+
+    def plan(start: int, stop: int) -> None:
+        for k in range(start, stop):
+            tasks[0].plan(worlds[k])
+
+    run_chunks(plan, len(worlds), threads, min_chunk=1)
     for task in tasks[1:]:
         task.planned_paths.update(tasks[0].planned_paths)
 

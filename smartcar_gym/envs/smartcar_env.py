@@ -329,7 +329,8 @@ class SmartCarEnv(gym.Env):
                     world.attach_laser(*laser, np.random.default_rng(
                         self.np_random.integers(2**63)))
                 world.read(state, task.needs_speed)
-                task.begin(self, _ONE)
+                if not task.builds_only:  # a batch's builder: the batch's task begins the car
+                    task.begin(self, _ONE)
                 if world.markers is not None:
                     world.markers.create(self.goal)
                     world.mark_odometry()
@@ -402,9 +403,7 @@ class SmartCarEnv(gym.Env):
         values = self.task.info(self, success)
         if not self._on_values:
             values = {key: value[0] for key, value in values.items()}
-        # numbers as Python's, arrays as they are
-        info = {key: value.item() if isinstance(value, np.generic) else value
-                for key, value in values.items()}
+        info = {key: _scalar(value) for key, value in values.items()}
         if self.draw is not None:
             info["randomization"] = self.draw.info
         return info

@@ -152,6 +152,8 @@ class Task:
 
     #: the id the task runs as, in its messages (set by the env)
     label = "the task"
+    #: a batch's builder's task (``only_build``): its env's reset builds and begins nothing
+    builds_only = False
     #: the car it runs on (``bind``)
     car: CarSettings
     #: how many cars it runs on (``attach``)
@@ -212,8 +214,9 @@ class Task:
 
     def only_build(self) -> None:
         """This task now serves a batch's builder: its episodes are copied (``take``) and
-        begun again by the batch's own task, so what only a run needs may go (a laser map's
-        grids and planning). By default nothing goes."""
+        begun by the batch's own task, so its env's reset skips ``begin`` (``builds_only``)
+        and what only a run needs may go (a laser map's grids and planning)."""
+        self.builds_only = True
 
     # -- reset ---------------------------------------------------------------------------------
     def check_options(self, options: Any, vector: bool) -> list[dict[str, Any]]:

@@ -276,10 +276,11 @@ class BarnTask(NavTask):
             self.planner_frequency)
 
     def only_build(self) -> None:
-        """A builder's begin marks no scan and plans nothing: the batch's own ``begin`` does
-        (its ``global_paths`` row is the straight line or the known map's path, as ``build``
-        left it, which the batch's first plan replaces; a failed one keeps that line as
-        here)."""
+        """A builder keeps no laser map: the batch's own ``begin`` marks the first scan and
+        plans (its ``global_paths`` row is the straight line or the known map's path, as
+        ``build`` left it, which the batch's first plan replaces; a failed one keeps that line
+        as a single env's does)."""
+        super().only_build()
         self._laser_map = None
 
     # -- what a single env shows of its car ----------------------------------------------------

@@ -400,10 +400,8 @@ class SmartCarEnv(gym.Env):
         return self._car(obs)
 
     def _info(self, success: np.ndarray) -> dict[str, Any]:
-        values = self.task.info(self, success)
-        if not self._on_values:
-            values = {key: value[0] for key, value in values.items()}
-        info = {key: _scalar(value) for key, value in values.items()}
+        info = {key: _scalar(self._car(value))
+                for key, value in self.task.info(self, success).items()}
         if self.draw is not None:
             info["randomization"] = self.draw.info
         return info

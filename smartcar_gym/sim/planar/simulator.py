@@ -52,12 +52,6 @@ Vec3 = tuple[float, float, float]
 Quat = tuple[float, float, float, float]
 
 
-def _numbers(values: Any) -> Any:
-    """A slice of the body's state as Python floats (an array's, with numba) or as it is (a
-    list's): arithmetic on them is the same IEEE arithmetic, without numpy's per-scalar cost."""
-    return values.tolist() if type(values) is np.ndarray else values
-
-
 def yaw_quaternion(c: float, s: float) -> Quat:
     """The (x, y, z, w) quaternion of a turn about z whose cos and sin are ``c``, ``s``."""
     if c > -0.5:
@@ -240,10 +234,7 @@ class PlanarBody:
         if found is None:
             return self._fixed_q.get(j, (0.0, 0.0))
         g, sign = found
-        state = self.state  # an array with numba (its numbers read as Python's), else a list
-        if type(state) is np.ndarray:
-            return sign * state.item(ANGLE + g), sign * state.item(self._speed_row + g)
-        return sign * state[ANGLE + g], sign * state[self._speed_row + g]
+        return sign * self.state[ANGLE + g], sign * self.state[self._speed_row + g]
 
     def joint_states(self, joints: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
         """Positions (rad) and velocities (rad/s) of joints given by index."""
@@ -273,7 +264,7 @@ class PlanarBody:
     def link_pose(self) -> tuple[Vec3, Quat]:
         """Position and (x, y, z, w) orientation of the base link's frame in the world."""
         self.compiled()
-        x, y, c, s = _numbers(self.state[POSE])
+        x, y, c, s = self.state[POSE]
         cx, cy = self.com[0], self.com[1]
         return (x - (c * cx - s * cy), y - (s * cx + c * cy), self.height), yaw_quaternion(c, s)
 

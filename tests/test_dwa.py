@@ -146,6 +146,31 @@ def test_a_scan_clears_the_marked_cells_its_beams_pass_through():
             assert np.allclose(near[0, :counts[0]], left), (compiled, clearing)
 
 
+def test_a_scan_clears_the_marked_points_inside_the_padded_footprint():
+    """costmap_2d's footprint_clearing_enabled: after a scan is marked, the points inside the
+    footprint rectangle at the scan's pose are forgotten (for good: the next scan marks them
+    again only if it sees them), those outside it kept; the rectangle turns with the robot."""
+    angles = np.linspace(-np.pi, np.pi, 360, endpoint=False)
+    ranges = np.full((1, 360), np.inf)
+    ranges[0, 180], ranges[0, 270] = 0.14, 0.3  # 0.14 m ahead, 0.3 m to the left
+    pose = np.array([[1.0, 2.0, np.pi / 2]])  # facing +y: the returns at (1, 2.14), (0.7, 2)
+    for compiled in (False, True) if COMPILED else (False,):
+        layers = ObstacleLayers(1, compiled=compiled)
+        near, counts = layers.update([0], ranges, angles, np.eye(4), pose, 1.0, (0.15, 0.12))
+        assert np.allclose(near[0, :counts[0]], [[0.0, 0.3]])  # the one ahead is inside
+        assert np.allclose(layers.points_of(0), [[0.7, 2.0]])
+        # the same scan facing +x: the forgotten (1, 2.14) would now lie outside the rectangle
+        # (0.14 m to the side, beyond 0.12) but stays forgotten; this scan's return 0.14 m
+        # ahead, (1.14, 2), is inside; (1, 2.3) is kept and (0.7, 2) is behind
+        near, counts = layers.update([0], ranges, angles, np.eye(4), pose - [0, 0, np.pi / 2],
+                                     1.0, (0.15, 0.12))
+        assert np.allclose(np.sort(near[0, :counts[0]], axis=0), [[-0.3, 0.0], [0.0, 0.3]],
+                           atol=1e-9)
+        assert np.allclose(np.sort(layers.points_of(0), axis=0), [[0.7, 2.0], [1.0, 2.3]])
+        with pytest.raises(ValueError, match="footprint half extents must be > 0 m"):
+            layers.update([0], ranges, angles, np.eye(4), pose, 1.0, (0.15, 0.0))
+
+
 @pytest.mark.skipif(not COMPILED, reason="numba (the fast extra) is off or not installed")
 def test_the_compiled_footprint_check_holds_on_a_dense_memory():
     """Hundreds of points around the robot, as a car stuck among pillars has: the compiled
@@ -177,11 +202,12 @@ def test_the_compiled_footprint_check_holds_on_a_dense_memory():
     assert np.array_equal(got[2], poses[:, :, -1, :2])
 
 
-@pytest.mark.parametrize("clearing", [True, False])
-def test_the_obstacle_layers_are_the_memories_bit_for_bit(clearing):
-    """N robots' layers cleared and marked from scans, compiled (in one thread or split over
-    two) or as a row of ObstacleMemory: the same points near each robot, in the same order,
-    step after step (and after a clear)."""
+@pytest.mark.parametrize("clearing, footprint", [(True, None), (False, None),
+                                                 (True, (0.15, 0.12)), (False, (0.15, 0.12))])
+def test_the_obstacle_layers_are_the_memories_bit_for_bit(clearing, footprint):
+    """N robots' layers cleared and marked from scans (and their footprints cleared), compiled
+    (in one thread or split over two) or as a row of ObstacleMemory: the same points near each
+    robot, in the same order, step after step (and after a clear)."""
     rng = np.random.default_rng(3)
     angles = np.linspace(-np.pi, np.pi, 90, endpoint=False)
     mount = np.eye(4)
@@ -203,12 +229,16 @@ def test_the_obstacle_layers_are_the_memories_bit_for_bit(clearing):
         if step == 6:
             for each in (layers, plain, *compiled):
                 each.clear(1)
-        near, counts = layers.update(slots, ranges, angles, mount, poses, 0.6)
+        near, counts = layers.update(slots, ranges, angles, mount, poses, 0.6, footprint)
         plain.update(slots, ranges, angles, mount, poses, 0.6)
         for k, i in enumerate(slots):  # each is its memory's near points
             memory = layers.memories[i]
             assert np.array_equal(near[k, :counts[k]], memory.near(poses[k], 0.6))
             assert (near[k, counts[k]:] == 1e3).all()
+            if footprint is not None:  # none left inside the footprint
+                inside = ((np.abs(near[k, :counts[k], 0]) < footprint[0])
+                          & (np.abs(near[k, :counts[k], 1]) < footprint[1]))
+                assert not inside.any()
             # clearing only forgets: never more cells than a layer that does not clear
             kept = len(plain.memories[i].points)
             assert len(memory.points) <= kept
@@ -216,11 +246,11 @@ def test_the_obstacle_layers_are_the_memories_bit_for_bit(clearing):
         assert counts.min() > 0
         padded |= bool((counts < near.shape[1]).any())
         for each in compiled:
-            near_c, counts_c = each.update(slots, ranges, angles, mount, poses, 0.6)
+            near_c, counts_c = each.update(slots, ranges, angles, mount, poses, 0.6, footprint)
             assert np.array_equal(counts, counts_c) and np.array_equal(near, near_c)
             for i in range(9):
                 assert np.array_equal(layers.points_of(i), each.points_of(i))
-    assert padded and cleared == clearing
+    assert padded and cleared == (clearing or footprint is not None)
     # by hand: one return straight ahead of a laser 0.05 m ahead of base_link at the origin
     single = ObstacleLayers(1, compiled=False)
     ranges = np.full((1, 90), np.inf)
@@ -330,3 +360,49 @@ def test_the_compiled_driver_drives_as_numpys_bit_for_bit():
             env.close()
     assert np.array_equal(actions[False], actions[True])
     assert np.abs(actions[True][-10:, :, 0]).max() > 0.1  # they drive
+
+
+def _inside_footprint(driver: DWADriver, pose: np.ndarray) -> int:
+    """How many of the driver's marked points lie inside its padded footprint at ``pose``."""
+    c = driver.planner.config
+    d = driver.layers.points_of(0) - pose[:2]
+    lx = np.cos(pose[2]) * d[:, 0] + np.sin(pose[2]) * d[:, 1]
+    ly = -np.sin(pose[2]) * d[:, 0] + np.cos(pose[2]) * d[:, 1]
+    return int(((np.abs(lx) < c.half_length + c.footprint_padding)
+                & (np.abs(ly) < c.half_width + c.footprint_padding)).sum())
+
+
+def test_on_the_laser_map_the_driver_clears_its_footprint_as_move_base():
+    """costmap_2d's footprint_clearing_enabled (true by default; the challenge leaves it): on
+    the laser map the driver's obstacle layer never holds a point inside the padded footprint
+    once a scan is marked, so the rollouts' first pose is always free. Without it, world 48's
+    car comes to hold points there (its pillars within the 4.2 cm padding) and stops; on the
+    known map the option changes nothing."""
+    inside = {}
+    for clearing in (True, False):
+        env = gym.make("SmartCarBARN-v0", engine="planar", map_mode="laser")
+        env.reset(seed=0, options={"world": 48})
+        driver, cars = DWADriver(footprint_clearing=clearing), CarView([env])
+        driver.reset(cars)
+        counts = []
+        for _ in range(220):
+            action = driver.act(cars)
+            counts.append(_inside_footprint(driver, env.unwrapped.state.odometry[0, :3]))
+            env.step(action[0])
+        env.close()
+        inside[clearing] = np.array(counts)
+    assert inside[True].max() == 0
+    assert inside[False].max() > 0
+    envs = [gym.make("SmartCarBARN-v0", engine="planar") for _ in range(2)]
+    drivers = [DWADriver(), DWADriver(footprint_clearing=False)]
+    views = [CarView([env]) for env in envs]
+    for env, driver, cars in zip(envs, drivers, views, strict=True):
+        env.reset(seed=0, options={"world": 48})
+        driver.reset(cars)
+    for _ in range(200):
+        actions = [d.act(c) for d, c in zip(drivers, views, strict=True)]
+        assert np.array_equal(actions[0], actions[1])
+        for env, action in zip(envs, actions, strict=True):
+            env.step(action[0])
+    for env in envs:
+        env.close()

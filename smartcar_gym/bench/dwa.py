@@ -91,7 +91,10 @@ class DWADriver:
     ``map_mode="laser"``, move_base's recovery behaviours (``navigation.recovery``; None:
     ``RecoveryConfig.challenge`` for the cars' car, False: none); on the known map never;
     ``goal_rate_hz``: with them, the goal sent again at this rate, as the challenge's launch
-    sends it (``CHALLENGE_GOAL_RATE_HZ``: then no behaviour runs), None: once.
+    sends it (``CHALLENGE_GOAL_RATE_HZ``: then no behaviour runs), None: once;
+    ``footprint_clearing``: with ``map_mode="laser"``, each scan's marks inside the padded
+    footprint forgotten (costmap_2d's ``footprint_clearing_enabled``, true by default and not
+    set by the challenge; ``obstacles.ObstacleLayers``); on the known map never.
 
     With ``map_mode="laser"`` the driver is the challenge's move_base in full: besides the
     recoveries, TrajectoryPlanner's choice of in-place turns, its oscillation flags and its
@@ -108,7 +111,7 @@ class DWADriver:
     def __init__(self, config: DWAConfig | None = None, compensate_turns: bool = True,
                  compiled: bool | None = None, threads: int | None = None,
                  clearing: bool = True, recoveries: RecoveryConfig | bool | None = None,
-                 goal_rate_hz: float | None = None) -> None:
+                 goal_rate_hz: float | None = None, footprint_clearing: bool = True) -> None:
         if goal_rate_hz is not None and not (
                 isinstance(goal_rate_hz, int | float) and math.isfinite(goal_rate_hz)
                 and goal_rate_hz > 0):
@@ -119,6 +122,7 @@ class DWADriver:
         self.goal_rate_hz = goal_rate_hz
         self.compensate_turns = compensate_turns
         self.clearing = clearing
+        self.footprint_clearing = footprint_clearing
         self.compiled = compiled  # the obstacle layers and the planner: None, numba if there
         #: the compiled footprint check's robots split over these (None: every core); the same
         #: answers
@@ -203,16 +207,20 @@ class DWADriver:
         poses, velocity = odometry[:, :3].astype(float), odometry[:, 3:5].astype(float)
         config_laser, mount = cars.task.laser
         new_plan = np.zeros(len(slots), dtype=bool)
-        if getattr(cars.task, "map_mode", "known") == "laser":  # each new plan, as it comes
+        laser = getattr(cars.task, "map_mode", "known") == "laser"
+        if laser:  # each new plan, as it comes
             paths = cars.per_car("global_paths")
             for k, i in enumerate(slots):
                 if paths[i] is not self.following[i]:
                     new_plan[k] = True
                     self.trackers.start(i, paths[i])
                     self.following[i] = paths[i]
+        padded = (config.half_length + config.footprint_padding,
+                  config.half_width + config.footprint_padding)
         obstacles, counts = self.layers.update(
             slots, np.array(state.readings[SCAN][slots], dtype=float), config_laser.angles,
-            mount, poses, config.reach_m)
+            mount, poses, config.reach_m,
+            footprint=padded if laser and self.footprint_clearing else None)
         if getattr(cars.task, "localize", False):  # the path from the pose on the map
             map_poses = cars.per_car("map_poses")
             poses = np.array([map_poses[i] for i in slots], dtype=float).reshape(-1, 3)

@@ -8,8 +8,12 @@ cell), so that an obstacle stays in the map when it comes closer than the laser'
 default, as the challenge's Jackal sets it) each scan first clears the marked cells its beams
 pass through: a marked point whose nearest beam returns farther than the point's distance plus
 a cell, within half a cell of the beam's line. A beam that returns nothing (``+inf``, as
-costmap_2d's ``inf_is_valid: false``) or too close (``-inf``) clears nothing. Two ways, the
-same points bit for bit (``tests/test_dwa.py``):
+costmap_2d's ``inf_is_valid: false``) or too close (``-inf``) clears nothing. With a
+``footprint`` (costmap_2d's ``footprint_clearing_enabled``, true by default and not set by the
+challenge) the marked points inside the robot's padded footprint at the scan's pose are
+forgotten after the scan is marked, as ``ObstacleLayer::updateCosts`` sets the footprint's
+cells FREE before the planner reads the costmap. Two ways, the same points bit for bit
+(``tests/test_dwa.py``):
 
 * ``ObstacleMemory``: one robot's layer in numpy (sorted cell keys);
 * ``ObstacleLayers``: N robots' layers; with numba (the ``fast`` extra) in arrays, each
@@ -154,6 +158,14 @@ class ObstacleMemory:
                                    pose, self.cell_m)
             self.keys, self.points, self.seen = self.keys[keep], self.points[keep], self.seen[keep]
 
+    def clear_footprint(self, pose: np.ndarray, half_x: float, half_y: float) -> None:
+        """Forget the marked points inside the footprint rectangle of half extents ``half_x``,
+        ``half_y`` (padding in) about ``pose`` (x, y, theta) in odom."""
+        if len(self.keys):
+            points = to_base(self.points, pose)
+            keep = ~((np.abs(points[:, 0]) < half_x) & (np.abs(points[:, 1]) < half_y))
+            self.keys, self.points, self.seen = self.keys[keep], self.points[keep], self.seen[keep]
+
     def near(self, pose: np.ndarray, reach_m: float) -> np.ndarray:
         """The marked points within ``reach_m`` of ``pose`` (x, y, theta), in its base frame."""
         points = to_base(self.points, pose)
@@ -163,8 +175,9 @@ class ObstacleMemory:
 class ObstacleLayers:
     """N robots' obstacle layers: ``clear(i)`` when robot i starts again, then per step
     ``update(slots, ranges, poses, ...)``, which clears what each listed robot's scan passes
-    through (``clearing``), marks the scan and returns the points near it (padded, with their
-    counts) as ``ObstacleMemory`` does."""
+    through (``clearing``), marks the scan, forgets the points inside the robot's footprint
+    (``footprint``) and returns the points near it (padded, with their counts) as
+    ``ObstacleMemory`` does."""
 
     def __init__(self, num: int, scans: int = SCANS, cell_m: float = CELL_M,
                  compiled: bool | None = None, clearing: bool = True, threads: int = 1) -> None:
@@ -197,13 +210,19 @@ class ObstacleLayers:
         self.size[i] = self.count[i] = 0
 
     def update(self, slots: Sequence[int], ranges: np.ndarray, angles: np.ndarray,
-               mount: np.ndarray, poses: np.ndarray, reach_m: float
+               mount: np.ndarray, poses: np.ndarray, reach_m: float,
+               footprint: tuple[float, float] | None = None
                ) -> tuple[np.ndarray, np.ndarray]:
         """Clear (``clearing``) and mark with the scans ``ranges`` (K, B) of robots ``slots``
         (beam ``angles``, the laser at ``mount`` in base_link) taken at ``poses`` (K, 3) in
-        odom; the points of each within ``reach_m`` in its base frame, ``(K, max P, 2)``
-        padded ``FAR_M`` away, and P (K,)."""
+        odom, then forget the points inside each robot's ``footprint`` there (its half extents
+        with the padding, base frame; None: none forgotten); the points of each within
+        ``reach_m`` in its base frame, ``(K, max P, 2)`` padded ``FAR_M`` away, and P (K,)."""
         poses = np.asarray(poses, dtype=float)
+        if footprint is not None:
+            half_x, half_y = (float(h) for h in footprint)
+            if not (half_x > 0.0 and half_y > 0.0):
+                raise ValueError(f"footprint half extents must be > 0 m, got {footprint!r}")
         if not self.compiled:
             near = []
             for k, i in enumerate(slots):
@@ -211,6 +230,8 @@ class ObstacleLayers:
                 if self.clearing:
                     memory.clear_through(ranges[k], angles, mount, poses[k])
                 memory.add(to_odom(scan_points(ranges[k], angles, mount), poses[k]))
+                if footprint is not None:
+                    memory.clear_footprint(poses[k], half_x, half_y)
                 near.append(memory.near(poses[k], reach_m))
             return pad(near), np.array([len(p) for p in near], dtype=np.int64)
         slots = np.asarray(slots, dtype=np.int64)
@@ -231,7 +252,8 @@ class ObstacleLayers:
             _compiled_update(slots[a:b], ranges[a:b], beam_cos, beam_sin, frame, poses[a:b],
                              cos[a:b], sin[a:b], self.keys, self.points, self.seen, self.size,
                              self.count, self.scans, self.cell_m, reach_m, self._near[a:b],
-                             counts[a:b], self.clearing, first, step, round_)
+                             counts[a:b], self.clearing, first, step, round_,
+                             footprint is not None, *(footprint or (0.0, 0.0)))
 
         run_chunks(work, len(slots), self.threads)
         near = self._near[:len(slots), :max(1, int(counts.max(initial=0)))].copy()
@@ -247,9 +269,9 @@ class ObstacleLayers:
 
 def _update_loops(slots, ranges, beam_cos, beam_sin, frame, poses, cos, sin, keys, points,
                   seen, size, count, scans, cell_m, reach, near, counts, clearing, first, step,
-                  round_):
-    """``ObstacleMemory.clear_through`` (with ``clearing``), ``add`` and ``near`` for each
-    robot of ``slots`` (see ``update``)."""
+                  round_, footprint, half_x, half_y):
+    """``ObstacleMemory.clear_through`` (with ``clearing``), ``add``, ``clear_footprint``
+    (with ``footprint``) and ``near`` for each robot of ``slots`` (see ``update``)."""
     b = ranges.shape[1]
     m00, m01, m03, m10, m11, m13 = frame[0], frame[1], frame[2], frame[3], frame[4], frame[5]
     new_x = np.empty(b)
@@ -320,18 +342,22 @@ def _update_loops(slots, ranges, beam_cos, beam_sin, frame, poses, cos, sin, key
                 merged_key[out], merged_seen[out] = key, last
                 merged_pt[out, 0], merged_pt[out, 1] = x, y
                 out += 1
-        size[i] = out
         n = 0
+        kept = 0
         for e in range(out):
-            keys[i, e], seen[i, e] = merged_key[e], merged_seen[e]
-            points[i, e, 0], points[i, e, 1] = merged_pt[e, 0], merged_pt[e, 1]
-            # near: to_base, within reach
+            # to_base: clear_footprint's test, then near's
             dx, dy = merged_pt[e, 0] - px, merged_pt[e, 1] - py
             lx = c * dx + s * dy
             ly = -s * dx + c * dy
+            if footprint and abs(lx) < half_x and abs(ly) < half_y:
+                continue
+            keys[i, kept], seen[i, kept] = merged_key[e], merged_seen[e]
+            points[i, kept, 0], points[i, kept, 1] = merged_pt[e, 0], merged_pt[e, 1]
+            kept += 1
             if lx * lx + ly * ly < reach2:  # numpy's ** 2 is a product
                 near[k, n, 0], near[k, n, 1] = lx, ly
                 n += 1
+        size[i] = kept
         counts[k] = n
 
 

@@ -192,8 +192,7 @@ class DWADriver:
         return RecoveryConfig.challenge(
             scale=car_width(car.robot_model) / JACKAL_WIDTH_M,
             speed_scale=car.max_linear / JACKAL_TOP_SPEED_M_S,
-            circumscribed_m=float(np.hypot(c.half_length + c.footprint_padding,
-                                           c.half_width + c.footprint_padding)),
+            circumscribed_m=float(np.hypot(*c.padded)),
             goal_rate_hz=self.goal_rate_hz)
 
     def act(self, cars: CarView, obs: Any = None,
@@ -215,12 +214,10 @@ class DWADriver:
                     new_plan[k] = True
                     self.trackers.start(i, paths[i])
                     self.following[i] = paths[i]
-        padded = (config.half_length + config.footprint_padding,
-                  config.half_width + config.footprint_padding)
         obstacles, counts = self.layers.update(
             slots, np.array(state.readings[SCAN][slots], dtype=float), config_laser.angles,
             mount, poses, config.reach_m,
-            footprint=padded if laser and self.footprint_clearing else None)
+            footprint=config.padded if laser and self.footprint_clearing else None)
         if getattr(cars.task, "localize", False):  # the path from the pose on the map
             map_poses = cars.per_car("map_poses")
             poses = np.array([map_poses[i] for i in slots], dtype=float).reshape(-1, 3)
@@ -283,10 +280,8 @@ class DWADriver:
         poses = np.zeros((1, 1, len(theta), 3))
         poses[..., 2] = theta
         valid, _ = footprint_check(poses, np.cos(theta)[None, None], np.sin(theta)[None, None],
-                                   obstacles[None], np.array([count]),
-                                   c.half_length + c.footprint_padding,
-                                   c.half_width + c.footprint_padding, self.planner.cutoff_m,
-                                   compiled=self.compiled)
+                                   obstacles[None], np.array([count]), *c.padded,
+                                   self.planner.cutoff_m, compiled=self.compiled)
         return bool(valid[0, 0])
 
     @staticmethod

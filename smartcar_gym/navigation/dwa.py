@@ -97,6 +97,11 @@ class DWAConfig:
         return config
 
     @property
+    def padded(self) -> tuple[float, float]:
+        """The footprint rectangle's half extents with the padding (m): along x, along y."""
+        return self.half_length + self.footprint_padding, self.half_width + self.footprint_padding
+
+    @property
     def reach_m(self) -> float:
         """How far from base_link a rollout's footprint can reach."""
         return (max(self.max_vel_x, abs(self.escape_vel)) * self.sim_time
@@ -133,8 +138,7 @@ class DWAPlanner:
         self.threads = threads  # the compiled check's robots split over these
         c = config
         # beyond this, a point neither touches a footprint nor costs (inflation_cost's 0)
-        self.cutoff_m = max(c.inflation_radius, math.hypot(c.half_length + c.footprint_padding,
-                                                           c.half_width + c.footprint_padding)
+        self.cutoff_m = max(c.inflation_radius, math.hypot(*c.padded)
                             ) * (1.0 + 1e-9)
 
     def window(self, velocity: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -203,7 +207,7 @@ class DWAPlanner:
         (N, C, 2). Compiled, the window's rollouts are made inside the check
         (``window_check``), the same numbers without the (N, C, T) arrays."""
         c = self.config
-        half_x, half_y = c.half_length + c.footprint_padding, c.half_width + c.footprint_padding
+        half_x, half_y = c.padded
         if not (FOOTPRINT_COMPILED if self.compiled is None else self.compiled):
             poses, cos, sin = self._rollouts(vs, ws)  # (N, C, T, 3), (N, C, T) twice
             valid, nearest = footprint_check(poses, cos, sin, obstacles, counts, half_x,

@@ -219,10 +219,9 @@ class ObstacleLayers:
         with the padding, base frame; None: none forgotten); the points of each within
         ``reach_m`` in its base frame, ``(K, max P, 2)`` padded ``FAR_M`` away, and P (K,)."""
         poses = np.asarray(poses, dtype=float)
-        if footprint is not None:
-            half_x, half_y = (float(h) for h in footprint)
-            if not (half_x > 0.0 and half_y > 0.0):
-                raise ValueError(f"footprint half extents must be > 0 m, got {footprint!r}")
+        half_x, half_y = (0.0, 0.0) if footprint is None else (float(h) for h in footprint)
+        if footprint is not None and not (half_x > 0.0 and half_y > 0.0):
+            raise ValueError(f"footprint half extents must be > 0 m, got {footprint!r}")
         if not self.compiled:
             near = []
             for k, i in enumerate(slots):
@@ -253,7 +252,7 @@ class ObstacleLayers:
                              cos[a:b], sin[a:b], self.keys, self.points, self.seen, self.size,
                              self.count, self.scans, self.cell_m, reach_m, self._near[a:b],
                              counts[a:b], self.clearing, first, step, round_,
-                             footprint is not None, *(footprint or (0.0, 0.0)))
+                             footprint is not None, half_x, half_y)
 
         run_chunks(work, len(slots), self.threads)
         near = self._near[:len(slots), :max(1, int(counts.max(initial=0)))].copy()

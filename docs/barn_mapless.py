@@ -21,9 +21,10 @@ thin green outlines (unknown to the car), the global path (orange), the one a st
 World 48: of the 50 test worlds (one run each, seed 0) it is the success whose path moves
 furthest: the first scan sees the cylinders ahead and the path runs below them; at 6.9 s the
 marks of the cluster close that way and the path jumps 0.88 m above it (the car, already
-heading down, turns back); at 19.7 s, more of the world seen, the path moves 0.33 m down
-behind the cluster, and the car reaches the goal at 50 s. It is also the world where the
-driver with move_base's recoveries alone timed out (docs/barn.md, Recoveries).
+heading down, turns back); at 25.8 s, more of the world seen, the path moves 0.29 m down
+behind the cluster, and the car reaches the goal at 41.7 s. It is also the world where the
+driver with move_base's recoveries alone timed out, before its obstacle layer cleared the
+footprint (docs/barn.md, Recoveries).
 """
 
 from __future__ import annotations

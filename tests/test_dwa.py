@@ -377,7 +377,7 @@ def test_on_the_laser_map_the_driver_clears_its_footprint_as_move_base():
     the laser map the driver's obstacle layer never holds a point inside the padded footprint
     once a scan is marked, so the rollouts' first pose is always free. Without it, world 48's
     car comes to hold points there (its pillars within the 4.2 cm padding) and stops; on the
-    known map the option changes nothing."""
+    known map the option changes nothing (tests/test_recovery.py)."""
     inside = {}
     for clearing in (True, False):
         env = gym.make("SmartCarBARN-v0", engine="planar", map_mode="laser")
@@ -393,16 +393,3 @@ def test_on_the_laser_map_the_driver_clears_its_footprint_as_move_base():
         inside[clearing] = np.array(counts)
     assert inside[True].max() == 0
     assert inside[False].max() > 0
-    envs = [gym.make("SmartCarBARN-v0", engine="planar") for _ in range(2)]
-    drivers = [DWADriver(), DWADriver(footprint_clearing=False)]
-    views = [CarView([env]) for env in envs]
-    for env, driver, cars in zip(envs, drivers, views, strict=True):
-        env.reset(seed=0, options={"world": 48})
-        driver.reset(cars)
-    for _ in range(200):
-        actions = [d.act(c) for d, c in zip(drivers, views, strict=True)]
-        assert np.array_equal(actions[0], actions[1])
-        for env, action in zip(envs, actions, strict=True):
-            env.step(action[0])
-    for env in envs:
-        env.close()

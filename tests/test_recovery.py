@@ -183,21 +183,32 @@ def test_a_rotation_recovery_turns_one_full_turn_then_hands_back():
 
 
 def test_on_the_known_map_the_driver_never_recovers_and_acts_as_without_recoveries():
+    """Nor does it clear its footprint there: the same actions with neither, past the step
+    where world 228's car first holds marks inside its padded footprint (about 258), which
+    stay (tests/test_dwa.py for the laser map)."""
     from smartcar_gym.bench.dwa import DWADriver
     from smartcar_gym.envs.vector.view import CarView
 
-    envs = [gym.make("SmartCarBARN-v0", engine="planar") for _ in range(2)]
+    envs = [gym.make("SmartCarBARN-v0", engine="planar") for _ in range(3)]
     for env in envs:
-        env.reset(seed=0, options={"world": 48})
-    drivers = [DWADriver(), DWADriver(recoveries=False)]
+        env.reset(seed=0, options={"world": 228})
+    drivers = [DWADriver(), DWADriver(recoveries=False), DWADriver(footprint_clearing=False)]
     views = [CarView([env]) for env in envs]
     for driver, cars in zip(drivers, views, strict=True):
         driver.reset(cars)
-    for _ in range(30):
+    half_x, half_y = drivers[0].planner.config.padded
+    held = 0
+    for _ in range(280):
         actions = [d.act(c) for d, c in zip(drivers, views, strict=True)]
-        assert np.array_equal(actions[0], actions[1])
+        assert np.array_equal(actions[0], actions[1]) and np.array_equal(actions[0], actions[2])
+        x, y, theta = envs[0].unwrapped.state.odometry[0, :3]
+        d = drivers[0].layers.points_of(0) - (x, y)
+        along = math.cos(theta) * d[:, 0] + math.sin(theta) * d[:, 1]
+        across = -math.sin(theta) * d[:, 0] + math.cos(theta) * d[:, 1]
+        held += int(((np.abs(along) < half_x) & (np.abs(across) < half_y)).any())
         for env, action in zip(envs, actions, strict=True):
             env.step(action[0])
+    assert held > 0
     assert drivers[0].recoveries is None
     for env in envs:
         env.close()

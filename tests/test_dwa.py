@@ -6,6 +6,7 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 import pytest
+from dwa_marks import marks_inside_footprint
 
 import smartcar_gym  # noqa: F401
 from smartcar_gym.bench.dwa import DWADriver, turn_command
@@ -362,16 +363,6 @@ def test_the_compiled_driver_drives_as_numpys_bit_for_bit():
     assert np.abs(actions[True][-10:, :, 0]).max() > 0.1  # they drive
 
 
-def _inside_footprint(driver: DWADriver, pose: np.ndarray) -> int:
-    """How many of the driver's marked points lie inside its padded footprint at ``pose``."""
-    c = driver.planner.config
-    d = driver.layers.points_of(0) - pose[:2]
-    lx = np.cos(pose[2]) * d[:, 0] + np.sin(pose[2]) * d[:, 1]
-    ly = -np.sin(pose[2]) * d[:, 0] + np.cos(pose[2]) * d[:, 1]
-    return int(((np.abs(lx) < c.half_length + c.footprint_padding)
-                & (np.abs(ly) < c.half_width + c.footprint_padding)).sum())
-
-
 def test_on_the_laser_map_the_driver_clears_its_footprint_as_move_base():
     """costmap_2d's footprint_clearing_enabled (true by default; the challenge leaves it): on
     the laser map the driver's obstacle layer never holds a point inside the padded footprint
@@ -387,7 +378,7 @@ def test_on_the_laser_map_the_driver_clears_its_footprint_as_move_base():
         counts = []
         for _ in range(220):
             action = driver.act(cars)
-            counts.append(_inside_footprint(driver, env.unwrapped.state.odometry[0, :3]))
+            counts.append(marks_inside_footprint(driver, env.unwrapped.state.odometry[0, :3]))
             env.step(action[0])
         env.close()
         inside[clearing] = np.array(counts)

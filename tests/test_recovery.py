@@ -186,6 +186,8 @@ def test_on_the_known_map_the_driver_never_recovers_and_acts_as_without_recoveri
     """Nor does it clear its footprint there: the same actions with neither, past the step
     where world 228's car first holds marks inside its padded footprint (about 258), which
     stay (tests/test_dwa.py for the laser map)."""
+    from dwa_marks import marks_inside_footprint
+
     from smartcar_gym.bench.dwa import DWADriver
     from smartcar_gym.envs.vector.view import CarView
 
@@ -196,16 +198,11 @@ def test_on_the_known_map_the_driver_never_recovers_and_acts_as_without_recoveri
     views = [CarView([env]) for env in envs]
     for driver, cars in zip(drivers, views, strict=True):
         driver.reset(cars)
-    half_x, half_y = drivers[0].planner.config.padded
     held = 0
     for _ in range(280):
         actions = [d.act(c) for d, c in zip(drivers, views, strict=True)]
         assert np.array_equal(actions[0], actions[1]) and np.array_equal(actions[0], actions[2])
-        x, y, theta = envs[0].unwrapped.state.odometry[0, :3]
-        d = drivers[0].layers.points_of(0) - (x, y)
-        along = math.cos(theta) * d[:, 0] + math.sin(theta) * d[:, 1]
-        across = -math.sin(theta) * d[:, 0] + math.cos(theta) * d[:, 1]
-        held += int(((np.abs(along) < half_x) & (np.abs(across) < half_y)).any())
+        held += marks_inside_footprint(drivers[0], envs[0].unwrapped.state.odometry[0, :3])
         for env, action in zip(envs, actions, strict=True):
             env.step(action[0])
     assert held > 0

@@ -1,7 +1,7 @@
 """Wall time of ``smartcar-bench barn`` on the planar batch: the issue's 500 runs in 60 s.
 
     python benchmarks/barn_speed.py [--driver dwa | --pretrained barn] [--localize | --laser]
-        [--cars 100 500] [--rounds 2] [--runs 10] [--out FILE.json] [--base REV]
+        [--cars 100 500] [--rounds 2] [--runs 10] [--workers W] [--out FILE.json] [--base REV]
         [--base-pretrained NAME]
 
 Each round runs, one after the other, the command a user types for each number of cars:
@@ -16,10 +16,12 @@ too (a temporary git worktree), interleaved with this checkout in each round, an
 their records run by run. ``--laser`` runs this checkout on the mapless protocol
 (``map_mode=laser``, the LDS-01's 1 cm noise: issue 55's 500 distinct runs) and the base, if
 any, on the known map localized (issue 55's yardstick: at most 1.5 times its time); the records
-then differ by design and the success rates are printed instead. ``--base-pretrained NAME``:
-the base's name for the shipped policy (the known-map policy, ``barn-known`` here, was ``barn``
-before the mapless one took that name). Run it once first if numba's
-cache is cold (the first run after an install compiles, about 20 s more).
+then differ by design and the success rates are printed instead. ``--workers W``: this
+checkout's command shares its cars among W processes (``--workers W --n-envs cars/W``: the
+same cars in all, each process on the CPUs / W); the base, which has no ``--workers``, runs
+in one. ``--base-pretrained NAME``: the base's name for the shipped policy (the known-map
+policy, ``barn-known`` here, was ``barn`` before the mapless one took that name). Run it once
+first if numba's cache is cold (the first run after an install compiles, about 20 s more).
 """
 
 from __future__ import annotations
@@ -55,9 +57,12 @@ def run(cars: int, args: argparse.Namespace, folder: Path, checkout: Path | None
     out = folder / f"cars_{cars}_{'base' if checkout else 'this'}.json"
     name = (args.base_pretrained or args.pretrained) if checkout else args.pretrained
     driver = ["--pretrained", name] if args.pretrained else ["--driver", args.driver]
+    # --workers: this checkout's cars shared among W processes (the base runs them in one)
+    workers = 1 if checkout else args.workers
+    split = ["--workers", str(workers)] if workers > 1 else []
     argv = [sys.executable, "-m", "smartcar_gym.bench.cli", "barn", *driver, "--engine",
-            "planar", "--runs", str(args.runs), "--n-envs", str(cars), "--quiet", "--json",
-            str(out)]
+            "planar", "--runs", str(args.runs), "--n-envs", str(max(1, cars // workers)),
+            *split, "--quiet", "--json", str(out)]
     kwargs = env_kwargs(args, checkout is not None)
     if kwargs:
         argv += ["--env-kwargs", *kwargs]
@@ -88,6 +93,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--cars", type=int, nargs="+", default=[100, 500])
     parser.add_argument("--rounds", type=int, default=2)
     parser.add_argument("--runs", type=int, default=10, help="runs per test world")
+    parser.add_argument("--workers", type=int, default=1, metavar="W",
+                        help="this checkout's command in W processes of cars / W cars each "
+                             "(smartcar-bench barn --workers; the base runs in one)")
     parser.add_argument("--out", type=Path, default=None)
     parser.add_argument("--base", default=None,
                         help="a commit to measure too, interleaved (its records must be the "

@@ -74,3 +74,19 @@ def test_a_workers_refusal_is_the_same_one_line(capsys):
         "smartcar-bench barn: error: pretrained:nav takes observations of shape (57,) (it was "
         "trained on SmartCarNav-v0) but SmartCarBARN-v0 gives (59,): train a policy on "
         "SmartCarBARN-v0")
+
+
+def test_each_worker_takes_its_share_of_the_cores(monkeypatch):
+    """``--workers 2`` on 4 CPUs: each worker's vector env and DWA driver run their compiled
+    loops on 2 threads (4 would wait on one another)."""
+    from smartcar_gym.bench import cli
+
+    seen = {}
+    monkeypatch.setattr(cli.os, "cpu_count", lambda: 4)
+    monkeypatch.setattr(cli, "_run", lambda driver, n, kwargs, *rest: seen.update(
+        driver=driver, kwargs=kwargs))
+    options = {"model": None, "pretrained": None, "driver": "dwa", "env_kwargs": [],
+               "goal_rate": None, "workers": 2, "n_envs": 1, "quiet": True}
+    cli._shard(options, {"map_mode": "laser"}, [0], [], set())
+    assert seen["kwargs"] == {"map_mode": "laser", "num_threads": 2}
+    assert isinstance(seen["driver"], DWADriver) and seen["driver"].threads == 2

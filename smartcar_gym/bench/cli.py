@@ -18,8 +18,9 @@ The ``--n-envs`` cars are the id's vector env: one batched env where the engine 
 (planar, MuJoCo: ``SmartCarBatchVectorEnv``), elsewhere a loop of single envs; the runs go
 through the episode runner (``bench.runs``). ``--workers W`` shares the runs among W
 processes, each with its own driver and ``--n-envs`` cars (the same records: a run depends
-on its world and seed alone); pybullet steps one car at a time in a process, so there it
-takes every core.
+on its world and seed alone) and its share of the cores for the compiled loops (``num_threads``
+of the CPUs / W); pybullet steps one car at a time in a process, so there it takes every core,
+and the planar batch's Python between its compiled loops runs on W cores instead of one.
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ from __future__ import annotations
 import argparse
 import json
 import multiprocessing
+import os
 import sys
 from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
@@ -88,8 +90,8 @@ def build_parser() -> argparse.ArgumentParser:
                            "batched env where the engine batches; at most one per run)")
     barn.add_argument("--workers", type=positive_int_arg, default=1, metavar="W",
                       help="processes sharing the runs, each on --n-envs cars of its own "
-                           "(the same records; pybullet, which steps one car at a time in a "
-                           "process: one a core; default 1)")
+                           "and the CPUs / W threads (the same records; pybullet, which steps "
+                           "one car at a time in a process: one a core; default 1)")
     barn.add_argument("--seed", type=non_negative_int_arg, default=0,
                       help="run k of a world is reset with seed + k (default 0)")
     barn.add_argument("--env-kwargs", nargs="+", default=[], metavar="KEY=VALUE",
@@ -245,8 +247,12 @@ def _shard(options: dict[str, Any], kwargs: dict[str, Any], chosen: Sequence[int
            jobs: Sequence[BarnJob], plotted: set[int]) -> Ran:
     """A worker's share of the runs (``_in_workers``): its own driver and cars."""
     args = argparse.Namespace(**options)
-    driver = _driver(args)[0]
-    return _run(driver, args.n_envs, kwargs, chosen, jobs, plotted, args.quiet)
+    # the worker's share of the cores for the vector env's and the driver's compiled loops
+    # (more threads than cores only wait on one another; the same records whatever the count)
+    share = max(1, (os.cpu_count() or 1) // args.workers)
+    driver = _driver(args, threads=share)[0]
+    return _run(driver, args.n_envs, {**kwargs, "num_threads": share}, chosen, jobs, plotted,
+                args.quiet)
 
 
 def _plot_error(path: Path) -> str | None:
@@ -297,11 +303,13 @@ def _plan_worlds(cars: CarView, chosen: Sequence[int], threads: int = 1) -> None
         task.planned_paths.update(tasks[0].planned_paths)
 
 
-def _driver(args: argparse.Namespace) -> tuple[Any, str, dict[str, Any]]:
+def _driver(args: argparse.Namespace, threads: int | None = None
+            ) -> tuple[Any, str, dict[str, Any]]:
     """The driver the arguments name, its name in the table, and the env kwargs it runs with
     unless ``--env-kwargs`` says otherwise: a policy's, those it was trained with (a policy
     of SmartCarBARN-v0); a classical driver's, the challenge's protocol (``map_mode`` laser:
-    no map), or the known map when ``localize`` is given (it matches scans to that map)."""
+    no map), or the known map when ``localize`` is given (it matches scans to that map).
+    ``threads``: a classical driver's for its compiled loops (None: one per CPU)."""
     if args.model is None and args.pretrained is None:
         name, given = args.driver or "dwa", dict(args.env_kwargs)
         known = "localize" in given
@@ -314,7 +322,9 @@ def _driver(args: argparse.Namespace) -> tuple[Any, str, dict[str, Any]]:
             raise DriverError("--env-kwargs planner_frequency: a classical driver is move_base, "
                               "whose planner runs at the challenge's rate (its PLANNING state "
                               "waits for the next plan); it is a policy's map's setting")
-        options = {} if args.goal_rate is None else {"goal_rate_hz": args.goal_rate}
+        options: dict[str, Any] = {"threads": threads}
+        if args.goal_rate is not None:
+            options["goal_rate_hz"] = args.goal_rate
         return (make_driver(name, **options), name,
                 {} if known else {"map_mode": DRIVER_MAP_MODE})
     if args.goal_rate is not None:

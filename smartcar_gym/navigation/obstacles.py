@@ -35,6 +35,7 @@ try:
 except ImportError:  # the fast extra is not installed
     numba = None
 
+from smartcar_gym.navigation.beams import beam_of, doubt_band
 from smartcar_gym.navigation.footprint import FAR_M
 from smartcar_gym.parallel import run_chunks
 
@@ -251,7 +252,7 @@ class ObstacleLayers:
             _compiled_update(slots[a:b], ranges[a:b], beam_cos, beam_sin, frame, poses[a:b],
                              cos[a:b], sin[a:b], self.keys, self.points, self.seen, self.size,
                              self.count, self.scans, self.cell_m, reach_m, self._near[a:b],
-                             counts[a:b], self.clearing, first, step, round_,
+                             counts[a:b], self.clearing, first, step, doubt_band(step), round_,
                              footprint is not None, half_x, half_y)
 
         run_chunks(work, len(slots), self.threads)
@@ -268,9 +269,11 @@ class ObstacleLayers:
 
 def _update_loops(slots, ranges, beam_cos, beam_sin, frame, poses, cos, sin, keys, points,
                   seen, size, count, scans, cell_m, reach, near, counts, clearing, first, step,
-                  round_, footprint, half_x, half_y):
+                  band, round_, footprint, half_x, half_y):
     """``ObstacleMemory.clear_through`` (with ``clearing``), ``add``, ``clear_footprint``
-    (with ``footprint``) and ``near`` for each robot of ``slots`` (see ``update``)."""
+    (with ``footprint``) and ``near`` for each robot of ``slots`` (see ``update``); each
+    point's beam by ``beams.beam_of`` (numpy's ``rint`` of the ``arctan2`` formula, to the
+    bit, its angle doubted within ``band`` beams of a half-way point)."""
     b = ranges.shape[1]
     m00, m01, m03, m10, m11, m13 = frame[0], frame[1], frame[2], frame[3], frame[4], frame[5]
     new_x = np.empty(b)
@@ -293,9 +296,10 @@ def _update_loops(slots, ranges, beam_cos, beam_sin, frame, poses, cos, sin, key
                 by = -s * dx + c * dy - m13
                 lx = m00 * bx + m10 * by
                 ly = m01 * bx + m11 * by
-                j = np.int64(np.rint((math.atan2(ly, lx) - first) / step))
+                j = beam_of(lx, ly, first, step, band)
                 through = round_ or (j >= 0 and j < b)
-                j = j % b
+                if not 0 <= j < b:  # the beam's index modulo b (an integer division)
+                    j = j % b
                 r = ranges[k, j]
                 along = lx * beam_cos[j] + ly * beam_sin[j]
                 across = ly * beam_cos[j] - lx * beam_sin[j]

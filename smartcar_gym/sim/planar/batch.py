@@ -19,6 +19,7 @@ import numpy as np
 
 from smartcar_gym.parallel import run_chunks
 from smartcar_gym.sim.planar import dynamics
+from smartcar_gym.sim.planar.body import PlanarBody
 from smartcar_gym.sim.planar.dynamics import new_scratch, substep_arrays
 from smartcar_gym.sim.planar.layout import (
     ANGLE,
@@ -35,7 +36,6 @@ from smartcar_gym.sim.planar.layout import (
     speed_row,
 )
 from smartcar_gym.sim.planar.model import PlanarCar
-from smartcar_gym.sim.planar.simulator import PlanarBody
 
 #: cars per chunk below which splitting the dynamics over threads costs more than it saves (a
 #: car's substeps take about a microsecond; a split and a thread's wake-up cost more). Measured

@@ -20,7 +20,8 @@ from smartcar_gym.sim.planar.projection import outline, placed_shapes
 from smartcar_gym.sim.planar.shapes import CIRCLE
 
 if TYPE_CHECKING:
-    from smartcar_gym.sim.planar.simulator import PlanarBody, PlanarSimulator
+    from smartcar_gym.sim.planar.body import PlanarBody
+    from smartcar_gym.sim.planar.simulator import PlanarSimulator
 
 GROUND = np.array([238, 238, 238], dtype=np.uint8)
 GRID = np.array([205, 214, 228], dtype=np.uint8)

@@ -23,7 +23,8 @@ from smartcar_gym.sim.planar.shapes import BOX, CIRCLE, OBSTACLE_HEIGHT_M, Shape
 from smartcar_gym.sim.rays import RayHits
 
 if TYPE_CHECKING:
-    from smartcar_gym.sim.planar.simulator import PlanarBody, PlanarSimulator, PlanarStatic
+    from smartcar_gym.sim.planar.body import PlanarBody, PlanarStatic
+    from smartcar_gym.sim.planar.simulator import PlanarSimulator
 
 
 def obstacle_shapes(statics: list[PlanarStatic]) -> Shapes2D:

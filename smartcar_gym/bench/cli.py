@@ -309,7 +309,8 @@ def _driver(args: argparse.Namespace, threads: int | None = None
     unless ``--env-kwargs`` says otherwise: a policy's, those it was trained with (a policy
     of SmartCarBARN-v0); a classical driver's, the challenge's protocol (``map_mode`` laser:
     no map), or the known map when ``localize`` is given (it matches scans to that map).
-    ``threads``: a classical driver's for its compiled loops (None: one per CPU)."""
+    ``threads``: a classical driver's for its compiled loops (None: its default, one per
+    CPU)."""
     if args.model is None and args.pretrained is None:
         name, given = args.driver or "dwa", dict(args.env_kwargs)
         known = "localize" in given
@@ -322,7 +323,7 @@ def _driver(args: argparse.Namespace, threads: int | None = None
             raise DriverError("--env-kwargs planner_frequency: a classical driver is move_base, "
                               "whose planner runs at the challenge's rate (its PLANNING state "
                               "waits for the next plan); it is a policy's map's setting")
-        options: dict[str, Any] = {"threads": threads}
+        options: dict[str, Any] = {} if threads is None else {"threads": threads}
         if args.goal_rate is not None:
             options["goal_rate_hz"] = args.goal_rate
         return (make_driver(name, **options), name,

@@ -109,22 +109,24 @@ def test_a_car_in_floats_is_a_column_of_the_arrays_bit_for_bit() -> None:
 
 @pytest.mark.skipif(not dynamics.COMPILED, reason="numba (the fast extra) is not installed")
 def test_numbas_loop_is_the_same_function_bit_for_bit() -> None:
+    """``run_car``, the single env's compiled loop (the batch's is ``lanes``:
+    ``tests/test_planar_lanes.py``)."""
     rng = np.random.default_rng(1)
     n = 16
     states = random_states(rng, n)
     drive = np.abs(rng.normal(size=(4, n))) * 0.1
     dt = rng.uniform(0.001, 0.03, n)
     steps = rng.integers(0, 5, n)
-    compiled = states.copy()
-    dynamics.run_cars(compiled, np.repeat(np.array(car())[None, :], n, axis=0),
-                 np.repeat(np.array(CONTACTS)[None, :, :], n, axis=0),
-                 np.array(GROUPS, dtype=np.int64), drive, dt, steps)
     for i in range(n):
+        compiled = states[:, i].copy()
+        dynamics.run_car(compiled, np.array(car()), np.array(CONTACTS),
+                         np.array(GROUPS, dtype=np.int64), drive[:, i].copy(), float(dt[i]),
+                         int(steps[i]))
         one = states[:, i].tolist()
         for _ in range(steps[i]):
             substep(one, car(), CONTACTS, GROUPS, drive[:, i].tolist(), float(dt[i]),
                     new_scratch(2))
-        assert one == compiled[:, i].tolist(), f"car {i}"
+        assert one == compiled.tolist(), f"car {i}"
 
 
 def test_a_car_at_rest_without_torque_stays_exactly_at_rest() -> None:
@@ -328,15 +330,19 @@ def test_contacts_that_cannot_carry_the_body_are_refused(points, com, message) -
 @pytest.mark.skipif(not dynamics.COMPILED, reason="the threads split numba's loops (fast extra)")
 def test_the_batch_gives_the_same_bits_on_one_thread_or_two(monkeypatch) -> None:
     """The planar batched env splits its cars over threads (``num_threads``): the physics
-    (``PlanarBatch.threads``) and the boards and controllers (``BatchedArbotix.threads``; here
-    in chunks of 8 cars). Each car is stepped alone, so any split gives the same state, bit
-    for bit, through 300 random steps of 64 cars with per-car substeps and autoresets."""
+    (``PlanarBatch.threads``, here in chunks of one block of cars) and the boards and
+    controllers (``BatchedArbotix.threads``; here in chunks of 8 cars). Each car is stepped
+    alone, so any split gives the same state, bit for bit, through 300 random steps of 64 cars
+    with per-car substeps and autoresets."""
     import gymnasium as gym
 
     import smartcar_gym  # noqa: F401
     from smartcar_gym.controller import compiled
+    from smartcar_gym.sim.planar import batch as planar_batch
+    from smartcar_gym.sim.planar import lanes
 
     monkeypatch.setattr(compiled, "MIN_CHUNK_CARS", 8)
+    monkeypatch.setattr(planar_batch, "MIN_CHUNK_CARS", lanes.LANES)  # a block a chunk
 
     def rollout(threads: int) -> list[np.ndarray]:
         env = gym.make_vec("SmartCar-v0", num_envs=64, vectorization_mode="vector_entry_point",

@@ -4,9 +4,10 @@ Each car is a column: its state ``(S, N)``, its parameters ``(P, N)`` and contac
 ``(K, NC, N)`` in ``dynamics``' layout (every car has the template's wheel groups and contacts;
 the values may differ per car), its motors' drive ``(2G, N)``. ``step`` gives every listed car
 its own number of substeps of its own length, as its single env's clock would: numba's
-loop (``dynamics.run_cars``, which reads the parameters laid out by car: ``rows``; the cars
-split over ``threads`` threads) when installed, else ``dynamics.substep_arrays`` over the
-cars still stepping (their columns taken out and put back). A car of the batch is the same
+loop in lanes (``lanes.run_blocks``, 16 cars at once in the CPU's vector registers, reading
+the parameters laid out by block: ``blocks``; the blocks split over ``threads`` threads) when
+installed, else ``dynamics.substep_arrays`` over the cars still stepping (their columns taken
+out and put back). A car of the batch is the same
 car as ``PlanarBody`` steps alone, bit for bit.
 """
 
@@ -18,7 +19,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from smartcar_gym.parallel import run_chunks
-from smartcar_gym.sim.planar import dynamics
+from smartcar_gym.sim.planar import dynamics, lanes
 from smartcar_gym.sim.planar.body import PlanarBody
 from smartcar_gym.sim.planar.dynamics import new_scratch, substep_arrays
 from smartcar_gym.sim.planar.layout import (
@@ -38,7 +39,7 @@ from smartcar_gym.sim.planar.layout import (
 from smartcar_gym.sim.planar.model import PlanarCar
 
 #: cars per chunk below which splitting the dynamics over threads costs more than it saves (a
-#: car's substeps take about a microsecond; a split and a thread's wake-up cost more). Measured
+#: car's substeps take under a microsecond; a split and a thread's wake-up cost more). Measured
 #: on 2 threads, interleaved, ms a batch step: 16 cars 0.84-0.97 split in 4 against 0.51-0.55
 #: unsplit; 1,024 cars 5.34 split in 2 against 5.15; 2,048 cars 9.84 against 11.13; 4,096
 #: cars 13.95 against 16.33. The boards split from the same size (``controller.compiled``).
@@ -68,7 +69,7 @@ class PlanarBatch:
         self.contacts = _columns(np.array(model.contacts, dtype=np.float64).reshape(-1, NC),
                                  self.n)
         self.drive = _columns(np.zeros(drive_size(self.ng)), self.n)
-        self._rows: tuple[np.ndarray, np.ndarray] | None = None
+        self._blocks: np.ndarray | None = None
 
     # -- cars ----------------------------------------------------------------------------------
     def reset(self, idx: np.ndarray, state: np.ndarray | None = None) -> None:
@@ -89,15 +90,15 @@ class PlanarBatch:
         self.com_x[idx], self.com_y[idx] = float(model.com[0]), float(model.com[1])
         if height is not None:
             self.height[idx] = float(height)
-        self._rows = None
+        self._blocks = None
 
-    def rows(self) -> tuple[np.ndarray, np.ndarray]:
-        """``car`` and ``contacts`` laid out by car, ``(N, P)`` and ``(N, K, NC)``, for numba's
-        loop; made again after ``set_model`` (the only writer of ``car`` and ``contacts``)."""
-        if self._rows is None:
-            self._rows = (np.ascontiguousarray(self.car.T),
-                          np.ascontiguousarray(self.contacts.transpose(2, 0, 1)))
-        return self._rows
+    def blocks(self) -> np.ndarray:
+        """``car`` and ``contacts`` laid out by block of cars for numba's loop
+        (``lanes.blocked``); made again after ``set_model`` (the only writer of ``car`` and
+        ``contacts``)."""
+        if self._blocks is None:
+            self._blocks = lanes.blocked(self.car, self.contacts)
+        return self._blocks
 
     def step(self, cars: np.ndarray, nstep: np.ndarray, dt: np.ndarray) -> None:
         """Car ``cars[k]``: ``nstep[k]`` substeps of ``dt[k]`` s."""
@@ -107,14 +108,13 @@ class PlanarBatch:
             n_all = np.zeros(self.n, dtype=np.int64)
             dt_all = np.zeros(self.n)
             n_all[cars], dt_all[cars] = nstep, dt
-            car_rows, contact_rows = self.rows()
+            blocks = self.blocks()
             state, drive, groups = self.state, self.drive, self.contact_groups
 
-            def work(a: int, b: int) -> None:  # a slice of the cars (the loop frees the GIL)
-                dynamics.run_cars(state[:, a:b], car_rows[a:b], contact_rows[a:b], groups,
-                                  drive[:, a:b], dt_all[a:b], n_all[a:b])
+            def work(a: int, b: int) -> None:  # a range of blocks (the loop frees the GIL)
+                lanes.run_blocks(state, blocks, groups, drive, dt_all, n_all, a, b)
 
-            run_chunks(work, self.n, self.threads, MIN_CHUNK_CARS)
+            run_chunks(work, len(blocks), self.threads, MIN_CHUNK_CARS // lanes.LANES)
             return
         cars, nstep = np.asarray(cars), np.asarray(nstep)
         dt = np.asarray(dt, dtype=np.float64)

@@ -64,8 +64,9 @@ turning moves it outward, and so do wheels braking and spinning forward in a tur
 ``drive``, indexed by the names ``layout`` defines (a table of each, with units), the same
 whether they hold floats (a Python list: one car), ``(N,)`` arrays (rows of an ``(S, N)``
 array: N cars at once in numpy) or float64 scalars (one car's row in the compiled loops,
-``run_car`` and ``run_cars`` where ``COMPILED``: numba installed and ``SMARTCAR_GYM_NUMBA``
-not ``0``); ``groups``: each contact's wheel group (-1: sliding), shared by all cars.
+``run_car`` where ``COMPILED``: numba installed and ``SMARTCAR_GYM_NUMBA`` not ``0``; the
+batch's compiled loop is ``lanes``, the same arithmetic over blocks of cars); ``groups``: each
+contact's wheel group (-1: sliding), shared by all cars.
 """
 
 from __future__ import annotations
@@ -409,30 +410,8 @@ if COMPILED:
         scratch = np.zeros((SCRATCH_ROWS, group_count(car.shape[0])))
         for _ in range(n):
             _compiled_substep(state, car, contacts, groups, drive, dt, scratch)
-
-    @numba.njit(cache=True, nogil=True)
-    def run_cars(state: np.ndarray, cars: np.ndarray, contacts: np.ndarray,
-                 groups: np.ndarray, drive: np.ndarray, dt: np.ndarray, n: np.ndarray) -> None:
-        """Car i: ``n[i]`` substeps of ``dt[i]`` s, in place. ``state`` ``(S, N)`` and ``drive``
-        ``(2G, N)`` in the batch's layout (by quantity, for numpy); the parameters by car,
-        ``cars`` ``(N, P)`` and ``contacts`` ``(N, K, NC)`` (``PlanarBatch.rows``):
-        a car's 60-odd parameters then lie together (measured: the loop 9 % faster than
-        gathering them from ``(P, N)`` and ``(K, NC, N)`` at 4,096 cars)."""
-        scratch = np.zeros((SCRATCH_ROWS, group_count(cars.shape[1])))
-        # each car's state gathered into a contiguous buffer (a car's values are N apart),
-        # stepped, and put back
-        column, motors = np.empty(state.shape[0]), np.empty(drive.shape[0])
-        for i in range(state.shape[1]):
-            if n[i] == 0:
-                continue
-            column[:] = state[:, i]
-            motors[:] = drive[:, i]
-            params, touches = cars[i], contacts[i]
-            for _ in range(n[i]):
-                _compiled_substep(column, params, touches, groups, motors, dt[i], scratch)
-            state[:, i] = column
 else:
-    run_car = run_cars = None
+    run_car = None
 
 
 def load_transfer(points: np.ndarray) -> np.ndarray:

@@ -132,8 +132,8 @@ def test_the_batch_is_n_single_envs_bit_for_bit(env_id: str, mode: str) -> None:
 
 @pytest.mark.skipif(not dynamics.COMPILED, reason="numba (the fast extra) is not installed")
 def test_the_batch_without_numba_is_the_same_batch(monkeypatch) -> None:
-    """numba's loops (physics, boards and controllers) and the numpy arrays: the same numbers
-    for 64 cars reset at different steps (so each car's events fall apart)."""
+    """numba's loops (physics, motor drive, boards and controllers) and the numpy arrays: the
+    same numbers for 64 cars reset at different steps (so each car's events fall apart)."""
 
     def run() -> list[np.ndarray]:
         venv = gym.make_vec("SmartCar-v0", num_envs=64, vectorization_mode="vector_entry_point",

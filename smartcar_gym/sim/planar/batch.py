@@ -42,7 +42,8 @@ from smartcar_gym.sim.planar.model import PlanarCar
 #: car's substeps take under a microsecond; a split and a thread's wake-up cost more). Measured
 #: on 2 threads, interleaved, ms a batch step: 16 cars 0.84-0.97 split in 4 against 0.51-0.55
 #: unsplit; 1,024 cars 5.34 split in 2 against 5.15; 2,048 cars 9.84 against 11.13; 4,096
-#: cars 13.95 against 16.33. The boards split from the same size (``controller.compiled``).
+#: cars 13.95 against 16.33. In lanes (2026-11-30), 2,048 cars: physics 1.50-1.75 ms a step
+#: split, 2.0 unsplit. The boards split from 8,192 cars (``controller.compiled``).
 MIN_CHUNK_CARS = 1024
 
 

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from smartcar_gym.model.kinematics import quaternion_matrix
+from smartcar_gym.sim.planar import dynamics
 from smartcar_gym.sim.planar.batch import PlanarBatch, yaw_quaternion_arrays
 from smartcar_gym.sim.planar.geometry import OBSTACLE_HEIGHT_M, Shapes2D, cast, clearance
 from smartcar_gym.sim.planar.projection import Footprint
@@ -47,6 +48,8 @@ class PlanarCars:
                              if j in of]
         self._damped_joints = [(of[j], robot.wheel_joint_indices.index(j))
                                for j in body._damping if j in of]
+        self._drive_tables = _tables(self._held_joints, self._damped_joints, self._side,
+                                     self._share, self._sign)
         self._upright = np.ones(self.batch.n)  # a planar car never tips over
         self._body = body
         #: threads the dynamics' and the laser's compiled loops split the cars over
@@ -77,8 +80,12 @@ class PlanarCars:
 
     def set_drive(self, mask: np.ndarray, torque: np.ndarray, damping: np.ndarray) -> None:
         """Each side's motor output into its wheel groups, with ``set_motor_output``'s and
-        ``PlanarBody._drive``'s arithmetic in their order."""
+        ``PlanarBody._drive``'s arithmetic in their order (numba's loop over the cars where
+        installed: the same operations on each car's numbers)."""
         cars, ng = self.batch, self.batch.ng
+        if dynamics.COMPILED:  # read at each call: a test switches it off
+            _drive_cars(mask, torque, damping, *self._drive_tables, cars.torque, cars.damping)
+            return
         mask = slice(None) if mask.all() else mask  # every car: views, not copies
         drive, damp_side = torque[mask], damping[mask]
         tau = [np.zeros(len(drive)) for _ in range(ng)]
@@ -190,3 +197,48 @@ def _stack(parts: list[Shapes2D]) -> Shapes2D:
         kind[row, :j], centre[row, :j] = p.kind[0], p.centre[0]
         rotation[row, :j], half[row, :j], valid[row, :j] = p.rotation[0], p.half[0], True
     return Shapes2D(kind, centre, rotation, half, valid)
+
+
+def _tables(held: list, damped: list, side: list[int], share: list[float],
+            sign: list[float]) -> tuple[np.ndarray, ...]:
+    """``set_drive``'s joints as arrays for numba's loop: per held joint (in the order the
+    body sums them) its group and side, and its group's sign, share and sign; per damped
+    joint its group and side, and its group's sign and share."""
+    return (np.array([g for (g, _), _ in held], dtype=np.int64),
+            np.array([side[k] for _, k in held], dtype=np.int64),
+            np.array([(s, share[k], sign[k]) for (_, s), k in held],
+                     dtype=np.float64).reshape(-1, 3),
+            np.array([g for (g, _), _ in damped], dtype=np.int64),
+            np.array([side[k] for _, k in damped], dtype=np.int64),
+            np.array([(s, share[k]) for (_, s), k in damped], dtype=np.float64).reshape(-1, 2))
+
+
+if dynamics.COMPILED:
+    import numba
+
+    @numba.njit(cache=True)
+    def _drive_cars(mask: np.ndarray, torque: np.ndarray, damping: np.ndarray,
+                    held_group: np.ndarray, held_side: np.ndarray, held: np.ndarray,
+                    damped_group: np.ndarray, damped_side: np.ndarray, damped: np.ndarray,
+                    out_torque: np.ndarray, out_damping: np.ndarray) -> None:
+        """``set_drive``'s sums for each masked car (``torque``, ``damping``: (N, 2) by
+        side; the outputs (G, N))."""
+        ng = out_torque.shape[0]
+        tau = np.zeros(ng)
+        damp = np.zeros(ng)
+        for i in range(mask.shape[0]):
+            if not mask[i]:
+                continue
+            tau[:] = 0.0
+            damp[:] = 0.0
+            for h in range(held_group.shape[0]):
+                g = held_group[h]
+                tau[g] = tau[g] + held[h, 0] * (torque[i, held_side[h]] * held[h, 1]
+                                                * held[h, 2])
+            for h in range(damped_group.shape[0]):
+                g = damped_group[h]
+                sign = damped[h, 0]
+                damp[g] = damp[g] + sign * sign * (damping[i, damped_side[h]] * damped[h, 1])
+            for g in range(ng):
+                out_torque[g, i] = tau[g]
+                out_damping[g, i] = damp[g]

@@ -400,8 +400,7 @@ if COMPILED:
 
     @_jit
     def _queue_again(queue: np.ndarray, queue_prm: np.ndarray, who: np.ndarray, queued: int,
-                     bufs: np.ndarray, blocks: np.ndarray, groups: np.ndarray,
-                     ng: int) -> None:
+                     bufs: np.ndarray, groups: np.ndarray, ng: int) -> None:
         """Solve the ``queued`` lanes of ``queue`` again, and copy their results back to their
         blocks' lanes (``who``: block in the pass, lane)."""
         _solve(queue, queue_prm, groups, ng, True, BU)
@@ -467,11 +466,10 @@ if COMPILED:
                         who[queued, 0], who[queued, 1] = block - start, j
                         queued += 1
                         if queued == LANES:
-                            _queue_again(queue, queue_prm, who, queued, bufs, blocks, groups,
-                                         ng)
+                            _queue_again(queue, queue_prm, who, queued, bufs, groups, ng)
                             queued = 0
                 if queued:
-                    _queue_again(queue, queue_prm, who, queued, bufs, blocks, groups, ng)
+                    _queue_again(queue, queue_prm, who, queued, bufs, groups, ng)
                 for block in range(start, stop):
                     if most[block - start] > sub:
                         _finish(bufs[block - start], blocks[block], ng)

@@ -7,8 +7,8 @@ its own number of substeps of its own length, as its single env's clock would: n
 loop in lanes (``lanes.run_blocks``, 16 cars at once in the CPU's vector registers, reading
 the parameters laid out by block: ``blocks``; the blocks split over ``threads`` threads) when
 installed, else ``dynamics.substep_arrays`` over the cars still stepping (their columns taken
-out and put back). A car of the batch is the same
-car as ``PlanarBody`` steps alone, bit for bit.
+out and put back). A car of the batch is the same car as ``PlanarBody`` steps alone, bit for
+bit.
 """
 
 from __future__ import annotations

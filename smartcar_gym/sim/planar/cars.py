@@ -201,9 +201,10 @@ def _stack(parts: list[Shapes2D]) -> Shapes2D:
 
 def _tables(held: list, damped: list, side: list[int], share: list[float],
             sign: list[float]) -> tuple[np.ndarray, ...]:
-    """``set_drive``'s joints as arrays for numba's loop: per held joint (in the order the
-    body sums them) its group and side, and its group's sign, share and sign; per damped
-    joint its group and side, and its group's sign and share."""
+    """``set_drive``'s joints as arrays for numba's loop: per held joint, in the order the
+    body sums them, its wheel group and side, then the sign it turns with in its group, its
+    share of the side's output and its wheel's forward sign; per damped joint its group and
+    side, then its sign in the group and its share."""
     return (np.array([g for (g, _), _ in held], dtype=np.int64),
             np.array([side[k] for _, k in held], dtype=np.int64),
             np.array([(s, share[k], sign[k]) for (_, s), k in held],

@@ -322,7 +322,7 @@ if COMPILED:
                 b[at + FIRST + j] = b[at + OUT + j]
                 turned = o * (o + b[at + OUT + j]) < 0.0
                 b[CROSSED + j] = 1.0 if turned else b[CROSSED + j]
-        for k in range(groups.shape[0]):  # a tyre's slip?
+        for k in range(groups.shape[0]):  # a tyre's slip? (its change to rows UX, UY here)
             c = kc + k * NC * LANES
             g = groups[k]
             for j in range(LANES):

@@ -70,16 +70,18 @@ class Clocks:
                 one[i] = True
                 self.base.cmd_vel(linear_x, angular_z, now_s, one)
 
-    def _fire(self, mask: np.ndarray) -> None:
+    def _fire(self, mask: np.ndarray) -> np.ndarray:
         """Every masked car's events due at its clock: controller update, then PID frame (the
-        robot's), then the laser, in the single env's order."""
+        robot's), then the laser, in the single env's order. Returns each car's next robot
+        event after them (``_robot_due``; the laser's scans do not move it)."""
         now, cars, base = self.state.now_ns, self.cars, self.base
         for _ in range(MAX_FIRINGS_PER_INSTANT):
-            firing = mask & (self._robot_due() <= now)
+            due = self._robot_due()
+            firing = mask & (due <= now)
             if not firing.any():
                 if self.laser is not None:
                     self.laser.fire(cars, self.state, mask)
-                return
+                return due
             now_s = now / NS_PER_S
             angles = cars.encoder_angles()
             update = firing & (now >= self.next_update)
@@ -93,9 +95,9 @@ class Clocks:
         raise RuntimeError("a car's board is still due after "
                            f"{MAX_FIRINGS_PER_INSTANT} firings at one instant")
 
-    def _next_due(self) -> np.ndarray:
-        """Each car's next event (ns on its clock), of any source."""
-        due = self._robot_due()
+    def _next_due(self, due: np.ndarray) -> np.ndarray:
+        """Each car's next event (ns on its clock), of any source (``due``: its next robot
+        event, ``_robot_due``)."""
         if self.laser is not None:
             due = np.minimum(due, self.laser.next_scan)
         return due
@@ -113,12 +115,12 @@ class Clocks:
         end = now + self.period_ns
         pending = ~self.state.parked
         while True:
-            self._fire(pending)
+            due = self._fire(pending)
             active = pending & (now < end)
             if not active.any():
                 return
             cars = np.flatnonzero(active)
-            target = np.minimum(self._next_due()[cars], end[cars])
+            target = np.minimum(self._next_due(due)[cars], end[cars])
             interval = target - now[cars]
             nstep = -(-interval // self.max_substep_ns)
             timestep = interval.astype(np.float64) / (nstep * NS_PER_S).astype(np.float64)

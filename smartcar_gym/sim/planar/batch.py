@@ -62,6 +62,7 @@ class PlanarBatch:
         #: each car's centre of mass in base_link's frame, x and y (m)
         self.com_x = np.full(self.n, float(model.com[0]))
         self.com_y = np.full(self.n, float(model.com[1]))
+        self._tables: dict[tuple, tuple] = {}  # ``_joint_rows``' arrays by joints
         #: each car's base_link height above the ground (m)
         self.height = np.full(self.n, float(body.height))
         self.initial = np.array(body.state, dtype=np.float64)
@@ -134,14 +135,34 @@ class PlanarBatch:
             self.state[:, idx] = state
 
     # -- what the robot reads and writes -------------------------------------------------------
-    def joint_angles(self, joints: Sequence[tuple[int, float]]) -> np.ndarray:
-        """(N, J): each joint's angle (``sign * angle`` of its group), as ``PlanarBody``."""
-        return np.stack([sign * self.state[ANGLE + g] for g, sign in joints], axis=1)
+    def joint_angles(self, joints: Sequence[tuple[int, float]],
+                     scale: Sequence[float] | None = None) -> np.ndarray:
+        """(N, J): each joint's angle (``sign * angle`` of its group), as ``PlanarBody``;
+        times ``scale[j]`` after that, where given (the encoders' signs)."""
+        return self._joint_rows(joints, ANGLE, scale)
 
     def joint_speeds(self, joints: Sequence[tuple[int, float]]) -> np.ndarray:
         """(N, J): each joint's speed."""
-        speed = speed_row(self.ng)
-        return np.stack([sign * self.state[speed + g] for g, sign in joints], axis=1)
+        return self._joint_rows(joints, speed_row(self.ng))
+
+    def _joint_rows(self, joints: Sequence[tuple[int, float]], first: int,
+                    scale: Sequence[float] | None = None) -> np.ndarray:
+        """(N, J): ``sign * state[first + g]`` of each joint's group ``g``, times ``scale``
+        where given (numba's loop where installed: the same multiplies)."""
+        if dynamics.COMPILED:
+            key = (tuple(joints), first, None if scale is None else tuple(scale))
+            table = self._tables.get(key)
+            if table is None:
+                table = self._tables[key] = (
+                    np.array([first + g for g, _ in joints], dtype=np.int64),
+                    np.array([sign for _, sign in joints], dtype=np.float64),
+                    # times 1.0 where not given: exact, the same bits
+                    np.ones(len(joints)) if scale is None else np.array(scale, dtype=float))
+            out = np.empty((self.n, len(joints)))
+            _gather(self.state, *table, out)
+            return out
+        values = np.stack([sign * self.state[first + g] for g, sign in joints], axis=1)
+        return values if scale is None else values * np.asarray(scale, dtype=float)
 
     @property
     def torque(self) -> np.ndarray:
@@ -159,9 +180,14 @@ class PlanarBatch:
 
     def pose(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Every car's base link x, y and yaw, with ``PlanarBody.link_pose`` and
-        ``pose_from``'s arithmetic (the yaw through the quaternion, by ``math.atan2``)."""
+        ``pose_from``'s arithmetic (the yaw through the quaternion, by ``math.atan2``; numba's
+        loop over the cars where installed, ``_poses``)."""
         x, y, c, s = self.state[X], self.state[Y], self.state[COS], self.state[SIN]
         cx, cy = self.com_x, self.com_y
+        if dynamics.COMPILED and _poses is not None:  # read at each call: a test switches it
+            px, py, yaw = np.empty(self.n), np.empty(self.n), np.empty(self.n)
+            _poses(x, y, c, s, cx, cy, px, py, yaw)
+            return px, py, yaw
         px = x - (c * cx - s * cy)
         py = y - (s * cx + c * cy)
         qz, qw = yaw_quaternion_arrays(c, s)
@@ -196,3 +222,42 @@ def yaw_quaternion_arrays(c: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.
     qw_b = s / (2.0 * np.where(half_s != 0, half_s, 1.0))
     front = c > -0.5
     return np.where(front, qz_a, qz_b), np.where(front, qw_a, qw_b)
+
+
+_gather = _poses = None
+if dynamics.COMPILED:
+    import numba
+
+    @numba.njit(cache=True, nogil=True)
+    def _gather(state: np.ndarray, rows: np.ndarray, signs: np.ndarray, scale: np.ndarray,
+                out: np.ndarray) -> None:
+        """``out[i, j] = (signs[j] * state[rows[j], i]) * scale[j]``: joints' values, (N, J)."""
+        for i in range(out.shape[0]):
+            for j in range(rows.shape[0]):
+                out[i, j] = (signs[j] * state[rows[j], i]) * scale[j]
+
+    # ``PlanarBatch.pose`` as numba's loop over the cars: ``yaw_quaternion``'s and
+    # ``pose_from``'s arithmetic per car, and the C library's ``atan2``, which ``math.atan2``
+    # calls too. Not where numba uses Intel's SVML: its vector ``atan2`` may round otherwise
+    # (then numpy and ``math.atan2``, as without numba)
+    if not numba.config.USING_SVML:
+        @numba.njit(cache=True, nogil=True)
+        def _poses(x: np.ndarray, y: np.ndarray, c: np.ndarray, s: np.ndarray,
+                   cx: np.ndarray, cy: np.ndarray, px: np.ndarray, py: np.ndarray,
+                   yaw: np.ndarray) -> None:
+            """Each car's base link x, y and yaw into ``px``, ``py``, ``yaw``."""
+            for i in range(x.shape[0]):
+                ci, si = c[i], s[i]
+                px[i] = x[i] - (ci * cx[i] - si * cy[i])
+                py[i] = y[i] - (si * cx[i] + ci * cy[i])
+                if ci > -0.5:
+                    half_c = math.sqrt((1.0 + ci) / 2.0)
+                    qz = si / (2.0 * half_c)
+                    qw = half_c
+                else:
+                    half_s = math.copysign(math.sqrt((1.0 - ci) / 2.0),
+                                           si if si != 0.0 else 1.0)
+                    qz = half_s
+                    qw = si / (2.0 * half_s)
+                yaw[i] = math.atan2(2.0 * (qw * qz + 0.0 * 0.0),
+                                    1.0 - 2.0 * (0.0 * 0.0 + qz * qz))

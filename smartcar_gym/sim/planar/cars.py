@@ -39,7 +39,7 @@ class PlanarCars:
         of = body.groups.of
         self._wheel_joints = [of[j] for j in robot.wheel_joint_indices]
         self._encoder_joints = [of[j] for j in robot._encoder_idx]
-        self._encoder_sign = np.array(robot._encoder_signs, dtype=np.float64)
+        self._encoder_sign = tuple(float(x) for x in robot._encoder_signs)
         self._side = [0 if left else 1 for left in robot._left]
         self._share = list(robot._share)
         self._sign = list(robot._signs)
@@ -68,7 +68,7 @@ class PlanarCars:
         self.batch.reset(idx)
 
     def encoder_angles(self) -> np.ndarray:
-        return self.batch.joint_angles(self._encoder_joints) * self._encoder_sign
+        return self.batch.joint_angles(self._encoder_joints, self._encoder_sign)
 
     def read_pose(self, pose: np.ndarray) -> np.ndarray:
         pose[:, 0], pose[:, 1], pose[:, 2] = self.batch.pose()

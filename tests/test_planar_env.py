@@ -15,6 +15,7 @@ from gymnasium.utils.env_checker import check_env
 
 import smartcar_gym  # noqa: F401
 from smartcar_gym.controller import compiled
+from smartcar_gym.envs.vector import events
 from smartcar_gym.sim.planar import dynamics
 from smartcar_gym.sim.planar.layout import CX, CY, LOAD, MASS
 from smartcar_gym.sim.planar.params import PlanarParams, PlanarParamsError, dump, load, resolve
@@ -132,8 +133,9 @@ def test_the_batch_is_n_single_envs_bit_for_bit(env_id: str, mode: str) -> None:
 
 @pytest.mark.skipif(not dynamics.COMPILED, reason="numba (the fast extra) is not installed")
 def test_the_batch_without_numba_is_the_same_batch(monkeypatch) -> None:
-    """numba's loops (physics, motor drive, boards and controllers) and the numpy arrays: the
-    same numbers for 64 cars reset at different steps (so each car's events fall apart)."""
+    """numba's loops (physics, motor drive, boards and controllers, reads, the event loop's
+    substeps) and the numpy arrays: the same numbers for 64 cars reset at different steps (so
+    each car's events fall apart)."""
 
     def run() -> list[np.ndarray]:
         venv = gym.make_vec("SmartCar-v0", num_envs=64, vectorization_mode="vector_entry_point",
@@ -152,6 +154,7 @@ def test_the_batch_without_numba_is_the_same_batch(monkeypatch) -> None:
     fast = run()
     monkeypatch.setattr(dynamics, "COMPILED", False)
     monkeypatch.setattr(compiled, "COMPILED", False)
+    monkeypatch.setattr(events, "COMPILED", False)
     slow = run()
     assert all(np.array_equal(a, b) for a, b in zip(fast, slow, strict=True))
     assert np.ptp(fast[-1][:, 0]) > 0.05  # the cars drove apart

@@ -340,6 +340,16 @@ class BatchedArbotix:
             return np.full(self.n, -1, dtype=np.int64)
         return np.where(self.moving & self.pid_mode, self.f_time + 1, -1)
 
+    def next_frame_ns(self, now_ns: np.ndarray, never: int) -> np.ndarray:
+        """Per car: its next PID frame (ns on its clock, ``now_ns``), not before now, as
+        ``SmartCarRobot.next_event_ns`` takes it; ``never`` while idle (or in sim mode)."""
+        if compiled.COMPILED and self.mode != KINEMATIC:
+            out = np.empty(self.n, dtype=np.int64)
+            compiled.next_frame_ns(now_ns, never, self.ints, self.flags, out)
+            return out
+        frame = self.next_frame_ms()
+        return np.where(frame >= 0, np.maximum(now_ns, frame * 1_000_000), never)
+
     def board_tick(self, now_s: np.ndarray | float, angles: np.ndarray | None = None,
                    mask: np.ndarray | None = None) -> np.ndarray:
         """``ArbotixBase.board_tick`` of the masked cars; returns which cars ran a frame."""

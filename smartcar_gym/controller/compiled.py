@@ -197,6 +197,17 @@ def frame_due(i, t, n, b):
         (np.int64(math.trunc(t * 1000.0 + 1e-6)) > n[F_TIME, i])
 
 
+def next_frame_ns(now, never, n, b, out):
+    """Each car's next PID frame (ns on its clock ``now``), not before now; ``never`` while
+    its board is idle (``BatchedArbotix.next_frame_ns``)."""
+    for i in range(out.shape[0]):
+        frame = n[F_TIME, i] + 1
+        if b[MOVING, i] & b[PID_MODE, i] and frame >= 0:
+            out[i] = max(now[i], frame * 1_000_000)
+        else:
+            out[i] = never
+
+
 def board_tick_car(i, t, a_left, a_right, f, n, b):
     """One PID frame of car ``i``'s board at ``t`` s (``frame_due`` and ``_refused``
     checked): ``DoPid`` on each wheel, then the motors."""
@@ -268,6 +279,7 @@ if COMPILED:
     update_car, frame_due, board_tick_car = (
         _jit(f) for f in (update_car, frame_due, board_tick_car))
     _update_refused, _frames_refused = _jit(_update_refused), _jit(_frames_refused)
+    next_frame_ns = _jit(next_frame_ns)
     # the loops over a chunk of cars free the GIL: ``run_chunks`` runs chunks side by side
     _update_cars, _frame_cars = (numba.njit(cache=True, nogil=True)(f)
                                  for f in (_update_cars, _frame_cars))

@@ -10,6 +10,7 @@ the 35 ms frame cycle, so no common schedule is assumed.
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -104,10 +105,7 @@ class Clocks:
 
     def _robot_due(self) -> np.ndarray:
         """Each car's next robot event (ns on its clock): ``SmartCarRobot.next_event_ns``."""
-        frame = self.base.next_frame_ms()
-        now = self.state.now_ns
-        frame_ns = np.where(frame >= 0, np.maximum(now, frame * 1_000_000), _NEVER)
-        return np.minimum(self.next_update, frame_ns)
+        return np.minimum(self.next_update, self.base.next_frame_ns(self.state.now_ns, _NEVER))
 
     def run_period(self) -> None:
         """``run_until(now + period)`` for every car not parked, from event to event."""
@@ -116,18 +114,69 @@ class Clocks:
         pending = ~self.state.parked
         while True:
             due = self._fire(pending)
-            active = pending & (now < end)
-            if not active.any():
-                return
-            cars = np.flatnonzero(active)
-            target = np.minimum(self._next_due(due)[cars], end[cars])
-            interval = target - now[cars]
-            nstep = -(-interval // self.max_substep_ns)
-            timestep = interval.astype(np.float64) / (nstep * NS_PER_S).astype(np.float64)
-            moving = interval > 0
-            self.cars.step(cars[moving], nstep[moving], timestep[moving])
+            target = np.minimum(self._next_due(due), end)
+            if COMPILED:  # read at each call: a test switches it off
+                # pending becomes the cars still short of the period's end (``active``)
+                cars, nstep, timestep = _substeps(pending, now, end, target,
+                                                  self.max_substep_ns)
+                if cars is None:
+                    return
+            else:
+                pending = pending & (now < end)
+                if not pending.any():
+                    return
+                cars = np.flatnonzero(pending)
+                interval = target[cars] - now[cars]
+                nstep = -(-interval // self.max_substep_ns)
+                timestep = interval.astype(np.float64) / (nstep * NS_PER_S).astype(np.float64)
+                moving = interval > 0
+                cars, nstep, timestep = cars[moving], nstep[moving], timestep[moving]
+            self.cars.step(cars, nstep, timestep)
             unstable = self.cars.take_unstable()
             if unstable:
                 self.report(unstable)
-            now[cars] = target
-            pending = active
+            np.copyto(now, target, where=pending)
+
+
+#: whether numba's loop plans each iteration's substeps (the ``fast`` extra, as
+#: ``controller.compiled``): the same integer and float operations per car as numpy's
+COMPILED = False
+_substeps: Callable[..., tuple[Any, Any, Any]] | None = None
+try:
+    import numba
+except ImportError:  # pragma: no cover - the fast extra is optional
+    numba = None
+if numba is not None and os.environ.get("SMARTCAR_GYM_NUMBA", "1") != "0":
+    COMPILED = True
+
+    @numba.njit(cache=True)
+    def _plan(pending: np.ndarray, now: np.ndarray, end: np.ndarray, target: np.ndarray,
+              max_substep_ns: int, cars: np.ndarray, nstep: np.ndarray,
+              timestep: np.ndarray) -> tuple[int, int]:
+        """Each pending car short of ``end`` stays pending (the others stop); of those, the
+        ones with time to go to ``target`` get their substeps (``cars``, ``nstep``,
+        ``timestep``: the first of the returned counts, the pending ones the second)."""
+        k = active = 0
+        for i in range(pending.shape[0]):
+            if pending[i] and now[i] < end[i]:
+                active += 1
+                interval = target[i] - now[i]
+                if interval > 0:
+                    n = -(-interval // max_substep_ns)
+                    cars[k], nstep[k] = i, n
+                    timestep[k] = np.float64(interval) / np.float64(n * NS_PER_S)
+                    k += 1
+            else:
+                pending[i] = False
+        return k, active
+
+    def _substeps(pending: np.ndarray, now: np.ndarray, end: np.ndarray, target: np.ndarray,
+                  max_substep_ns: int) -> tuple[Any, Any, Any]:
+        """``_plan`` into new arrays; (None, None, None) when no car is pending."""
+        n = pending.shape[0]
+        cars, nstep = np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64)
+        timestep = np.empty(n)
+        k, active = _plan(pending, now, end, target, max_substep_ns, cars, nstep, timestep)
+        if not active:
+            return None, None, None
+        return cars[:k], nstep[:k], timestep[:k]

@@ -136,6 +136,29 @@ def test_a_range_of_blocks_steps_only_its_cars() -> None:
     assert np.array_equal(whole, pieces)
 
 
+def test_blocks_whose_cars_do_not_step_are_left_alone_in_every_pass() -> None:
+    """A block none of whose cars steps is neither copied in nor written back: its cars keep
+    their state to the bit, in the first pass of blocks and in a later one (whose buffer still
+    holds an earlier pass's block), while the cars around them step as alone."""
+    rng = np.random.default_rng(11)
+    n = (lanes.PASS + 5) * lanes.LANES + 7  # two passes, the last block part-filled
+    state, cars, touches, drive, dt, steps = batch(rng, n)
+    steps = np.maximum(steps, 1)
+    idle = [1, lanes.PASS + 2]  # a block of each pass
+    for block in idle:
+        steps[block * lanes.LANES:(block + 1) * lanes.LANES] = 0
+    out = state.copy()
+    blocks = lanes.blocked(cars, touches)
+    lanes.run_blocks(out, blocks, GROUPS, drive, dt, steps, 0, len(blocks))
+    for block in idle:
+        cols = slice(block * lanes.LANES, (block + 1) * lanes.LANES)
+        assert out[:, cols].tobytes() == state[:, cols].tobytes()
+    for i in [0, lanes.LANES - 1, 2 * lanes.LANES, (lanes.PASS + 2) * lanes.LANES - 1,
+              (lanes.PASS + 3) * lanes.LANES, n - 1]:
+        assert out[:, i].tolist() == alone(state, cars, touches, drive, dt, steps, i), f"car {i}"
+    assert not np.array_equal(out[:, -1], state[:, -1])
+
+
 def test_blocks_lay_out_each_cars_parameters_and_pad_with_the_last_blocks_first_car() -> None:
     rng = np.random.default_rng(9)
     n = lanes.LANES + 2

@@ -15,7 +15,8 @@ checking at run time whether arrays overlap. The names below (``DT``, ``SX``, ..
 rows' offsets. The parameters and contacts are read from ``blocked``'s copy, laid out the same
 way (made once per ``set_model``). A car with fewer substeps than its block's most (or a
 padding lane past the last car) keeps its state: each substep is computed for every lane and
-written only to the lanes still stepping.
+written only to the lanes still stepping. A block none of whose cars steps is not copied in or
+out at all (parked cars, cars with no time to go).
 
 **Solving again.** Where a car's tangent step carries a slip through zero, ``dynamics`` solves
 that car again (about one car in eight at a substep, in random driving): a block would solve
@@ -440,10 +441,12 @@ if COMPILED:
         for start in range(first, last, PASS):
             stop = min(start + PASS, last)
             for block in range(start, stop):  # gather the pass's cars
-                b = bufs[block - start]
-                most[block - start] = 0
                 base = block * LANES
                 width = min(LANES, cars - base)
+                most[block - start] = n[base:base + width].max()
+                if most[block - start] == 0:  # no car of it steps: nothing to copy
+                    continue
+                b = bufs[block - start]
                 for j in range(LANES):  # the padding lanes: the first car's, unstepped
                     car = base + j if j < width else base
                     for r in range(ns):
@@ -452,8 +455,6 @@ if COMPILED:
                         b[at_drive + r * LANES + j] = drive[r, car]
                     b[DT + j] = dt[car]
                     b[STEPS + j] = n[car] if j < width else 0
-                    if j < width:
-                        most[block - start] = max(most[block - start], n[car])
             for sub in range(most[:stop - start].max()):
                 queued = 0
                 for block in range(start, stop):
@@ -481,6 +482,8 @@ if COMPILED:
                     if most[block - start] > sub:
                         _finish(bufs[block - start], blocks[block], ng)
             for block in range(start, stop):  # scatter the new states
+                if most[block - start] == 0:
+                    continue
                 b = bufs[block - start]
                 base = block * LANES
                 for j in range(min(LANES, cars - base)):

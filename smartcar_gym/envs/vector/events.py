@@ -138,16 +138,16 @@ class Clocks:
             np.copyto(now, target, where=pending)
 
 
-#: whether numba's loop plans each iteration's substeps (the ``fast`` extra, as
-#: ``controller.compiled``): the same integer and float operations per car as numpy's
-COMPILED = False
-_substeps: Callable[..., tuple[Any, Any, Any]] | None = None
 try:
     import numba
-except ImportError:  # pragma: no cover - the fast extra is optional
+except ImportError:  # the fast extra is not installed
     numba = None
-if numba is not None and os.environ.get("SMARTCAR_GYM_NUMBA", "1") != "0":
-    COMPILED = True
+
+#: whether numba's loop plans each iteration's substeps (the ``fast`` extra, as
+#: ``controller.compiled``): the same integer and float operations per car as numpy's
+COMPILED = numba is not None and os.environ.get("SMARTCAR_GYM_NUMBA", "1") != "0"
+_substeps: Callable[..., tuple[Any, Any, Any]] | None = None
+if COMPILED:
 
     @numba.njit(cache=True)
     def _plan(pending: np.ndarray, now: np.ndarray, end: np.ndarray, target: np.ndarray,

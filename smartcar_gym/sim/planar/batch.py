@@ -20,7 +20,7 @@ import numpy as np
 
 from smartcar_gym.parallel import run_chunks
 from smartcar_gym.sim.planar import dynamics, lanes
-from smartcar_gym.sim.planar.body import PlanarBody
+from smartcar_gym.sim.planar.body import PlanarBody, yaw_quaternion
 from smartcar_gym.sim.planar.dynamics import new_scratch, substep_arrays
 from smartcar_gym.sim.planar.layout import (
     ANGLE,
@@ -236,11 +236,13 @@ if dynamics.COMPILED:
             for j in range(rows.shape[0]):
                 out[i, j] = (signs[j] * state[rows[j], i]) * scale[j]
 
-    # ``PlanarBatch.pose`` as numba's loop over the cars: ``yaw_quaternion``'s and
-    # ``pose_from``'s arithmetic per car, and the C library's ``atan2``, which ``math.atan2``
-    # calls too. Not where numba uses Intel's SVML: its vector ``atan2`` may round otherwise
-    # (then numpy and ``math.atan2``, as without numba)
+    # ``PlanarBatch.pose`` as numba's loop over the cars: ``PlanarBody.link_pose``'s x and y,
+    # ``yaw_quaternion`` itself compiled, and ``pose_from``'s yaw with the C library's
+    # ``atan2``, which ``math.atan2`` calls too. Not where numba uses Intel's SVML: its vector
+    # ``atan2`` may round otherwise (then numpy and ``math.atan2``, as without numba)
     if not numba.config.USING_SVML:
+        _yaw_quaternion = numba.njit(cache=True, nogil=True)(yaw_quaternion)
+
         @numba.njit(cache=True, nogil=True)
         def _poses(x: np.ndarray, y: np.ndarray, c: np.ndarray, s: np.ndarray,
                    cx: np.ndarray, cy: np.ndarray, px: np.ndarray, py: np.ndarray,
@@ -250,14 +252,5 @@ if dynamics.COMPILED:
                 ci, si = c[i], s[i]
                 px[i] = x[i] - (ci * cx[i] - si * cy[i])
                 py[i] = y[i] - (si * cx[i] + ci * cy[i])
-                if ci > -0.5:
-                    half_c = math.sqrt((1.0 + ci) / 2.0)
-                    qz = si / (2.0 * half_c)
-                    qw = half_c
-                else:
-                    half_s = math.copysign(math.sqrt((1.0 - ci) / 2.0),
-                                           si if si != 0.0 else 1.0)
-                    qz = half_s
-                    qw = si / (2.0 * half_s)
-                yaw[i] = math.atan2(2.0 * (qw * qz + 0.0 * 0.0),
-                                    1.0 - 2.0 * (0.0 * 0.0 + qz * qz))
+                qx, qy, qz, qw = _yaw_quaternion(ci, si)
+                yaw[i] = math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))

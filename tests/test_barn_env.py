@@ -178,6 +178,49 @@ def test_pybullets_pillars_scan_as_its_cylinders(monkeypatch):
     assert np.percentile(np.abs(pillars[hit] - exact[hit]), 90) < 0.002
 
 
+def test_pybullets_pillars_are_static_rigid_bodies_and_run_as_fixed_multibodies(monkeypatch):
+    """pybullet makes BARN's pillars static rigid bodies (maximal coordinates), which its
+    multibody solver leaves out of each step, instead of fixed-base multibodies. Upright
+    capsules, they stand where they stood to the bit, so a run into a pillar (scans,
+    clearances, the collision) is the same bit for bit either way (a pillar 1 nm off fails)."""
+    import pybullet
+    create = pybullet.createMultiBody
+
+    def run(maximal: bool | None) -> tuple[list, list[bool]]:
+        made: list[bool] = []
+
+        def recorded(*args, **kwargs):
+            if kwargs.get("baseMass") == 0.0 and "useMaximalCoordinates" in kwargs:
+                if maximal is not None:
+                    kwargs["useMaximalCoordinates"] = maximal
+                made.append(kwargs["useMaximalCoordinates"])
+            return create(*args, **kwargs)
+
+        monkeypatch.setattr(pybullet, "createMultiBody", recorded)
+        env = gym.make("SmartCarBARN-v0", laser={"noise_std_m": 0.01})
+        try:
+            steps = [env.reset(seed=3, options={"world": 12})]
+            for _ in range(40):
+                steps.append(env.step(np.array([1.0, 0.1], dtype=np.float32)))
+                if steps[-1][2]:
+                    break
+        finally:
+            env.close()
+        return steps, made
+
+    rigid, made = run(None)
+    multibodies, forced = run(False)
+    assert len(made) > 200 and all(made) and not any(forced)
+    assert rigid[-1][4]["outcome"] == "collision" and rigid[-1][4]["clearance"] < 0
+    assert len(rigid) == len(multibodies)
+    for a, b in zip(rigid, multibodies, strict=True):
+        assert np.array_equal(a[0], b[0])
+        if len(a) == 5:
+            assert a[1:4] == b[1:4]
+            assert a[4]["clearance"] == b[4]["clearance"]
+            assert a[4]["outcome"] == b[4]["outcome"]
+
+
 def test_the_path_progress_reward_is_the_distance_gone_along_the_path():
     rewards, poses = {}, {}
     for progress in ("goal", "path"):

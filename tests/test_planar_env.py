@@ -60,6 +60,27 @@ def test_seeded_rollouts_repeat_bit_for_bit() -> None:
 
 
 @pytest.mark.skipif(not dynamics.COMPILED, reason="numba (the fast extra) is not installed")
+def test_a_process_first_substeps_in_python_floats_are_the_compiled_ones(monkeypatch) -> None:
+    """A process takes its first ``PYTHON_SUBSTEPS`` single-car substeps in Python floats,
+    then numba's ``run_car``: a rollout crossing the switch, one wholly compiled and one
+    wholly in Python are the same bit for bit."""
+    calls = []
+    run_car = dynamics.run_car
+    monkeypatch.setattr(dynamics, "run_car", lambda *a: calls.append(a[-1]) or run_car(*a))
+    runs = {}
+    for left in (0, 300, 10**9):
+        monkeypatch.setattr(dynamics, "_python_left", left)
+        calls.clear()
+        runs[left] = rollout("SmartCar-v0", 5)
+        runs[left, "compiled"] = sum(calls)
+    assert runs[10**9, "compiled"] == 0 < runs[300, "compiled"] < runs[0, "compiled"]
+    for left in (300, 10**9):
+        assert all(np.array_equal(x, y) for x, y in zip(runs[0], runs[left], strict=True))
+    monkeypatch.setattr(dynamics, "_python_left", 3)  # the switch, once and for all
+    assert [dynamics.compiled_run(2) for _ in range(4)] == [False, False, True, True]
+
+
+@pytest.mark.skipif(not dynamics.COMPILED, reason="numba (the fast extra) is not installed")
 def test_the_same_rollout_without_numba() -> None:
     """``SMARTCAR_GYM_NUMBA=0``: Python floats instead of the compiled loop, same numbers."""
     code = textwrap.dedent("""

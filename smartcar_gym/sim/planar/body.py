@@ -206,17 +206,21 @@ class PlanarBody:
             self._drive_array = np.array(self.drive)
 
     def run(self, n: int, dt: float) -> None:
-        """``n`` substeps of ``dt`` s (compiled when numba is installed)."""
-        if dynamics.COMPILED:
+        """``n`` substeps of ``dt`` s: compiled where numba is installed, but for a
+        process's first few (``dynamics.compiled_run``; the same numbers)."""
+        if dynamics.compiled_run(n):
             car, contacts, groups = self._arrays
             dynamics.run_car(self.state, car, contacts, groups, self._drive_array, dt, n)
             return
         m = self.model
-        state, car, contacts, groups, drive = (self.state, m.car, m.contacts, m.contact_groups,
-                                               self.drive)
+        compiled = dynamics.COMPILED  # the state is an array there: stepped as floats
+        state = self.state.tolist() if compiled else self.state
+        car, contacts, groups, drive = m.car, m.contacts, m.contact_groups, self.drive
         scratch = new_scratch(len(self.groups.members))
         for _ in range(n):
             substep(state, car, contacts, groups, drive, dt, scratch)
+        if compiled:
+            self.state[:] = state
 
     # -- joints --------------------------------------------------------------------------------
     def joint_index(self, joint: str) -> int:

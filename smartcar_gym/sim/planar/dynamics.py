@@ -413,6 +413,24 @@ if COMPILED:
 else:
     run_car = None
 
+#: substeps of single cars a process takes in Python floats before ``run_car`` (the same
+#: numbers): a batch's builder, which only settles its car at a reset (six substeps), then
+#: never compiles ``run_car`` (2.5 s the first time, before numba's cache holds it)
+PYTHON_SUBSTEPS = 64
+_python_left = PYTHON_SUBSTEPS
+
+
+def compiled_run(n: int) -> bool:
+    """Whether a single car's ``n`` substeps run in ``run_car`` (numba installed, and this
+    process has taken its ``PYTHON_SUBSTEPS`` in Python floats), else in ``substep``."""
+    global _python_left
+    if not COMPILED:
+        return False
+    if _python_left <= 0:
+        return True
+    _python_left -= n
+    return False
+
 
 def load_transfer(points: np.ndarray) -> np.ndarray:
     """(K, 2): how each contact's load changes per newton-metre of the pitch moment

@@ -286,6 +286,7 @@ def _make_envs(config: dict[str, Any], run_dir: Path, seed: int, segment: int,
             raise RunSetupError(f"--init {init['model']}: its normaliser {stats} does not fit "
                                 f"the run's observations ({err})") from None
         eval_engine = config.get("eval_engine")
+        checked = env_kwargs  # the training env's, made above (check_env)
         if eval_engine is not None and eval_engine != env_kwargs.get("engine", DEFAULT_ENGINE):
             # evaluated on another engine (planar training, pybullet evaluations)
             env_kwargs = on_engine(env_kwargs, eval_engine)
@@ -301,8 +302,9 @@ def _make_envs(config: dict[str, Any], run_dir: Path, seed: int, segment: int,
                 return wrap(env, training=False)
 
             if config.get("eval_async"):  # runs before it existed: in the training process
-                try:  # here, not in the worker: a clear error now
-                    check_env(env_id, env_kwargs, monitor_kwargs=monitor_kwargs)
+                try:  # here, not in the worker: a clear error now (another engine's env)
+                    if env_kwargs != checked:
+                        check_env(env_id, env_kwargs, monitor_kwargs=monitor_kwargs)
                 except EnvSetupError as err:
                     raise RunSetupError(f"the eval env: {err}") from err
                 eval_env = EvalWorker(make_eval_env)

@@ -90,6 +90,24 @@ def test_a_worker_whose_env_fails_says_why(forkserver, monkeypatch):
         worker.close()
 
 
+def test_a_worker_that_could_not_start_says_why_at_its_first_call(monkeypatch):
+    """The process starts in a thread (the training sets up meanwhile): a start that fails is
+    raised by the first call, and closing such a worker stops nothing."""
+    import multiprocessing.process
+
+    def refuse(self):
+        raise OSError("no processes left")
+
+    monkeypatch.setattr(multiprocessing.process.BaseProcess, "start", refuse)
+    worker = EvalWorker(lambda: None)
+    with pytest.raises(EvalWorkerError, match="could not start: OSError: no processes left"):
+        worker.submit(512, None, [], n_episodes=1, seed=0)
+    assert worker.pending == []
+    with pytest.raises(EvalWorkerError, match="could not start"):
+        worker.wait()
+    worker.close()
+
+
 def test_a_worker_that_died_is_an_error_not_a_hang():
     worker = EvalWorker(lambda: None)  # waits for requests
     try:

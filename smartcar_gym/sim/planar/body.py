@@ -213,13 +213,13 @@ class PlanarBody:
             dynamics.run_car(self.state, car, contacts, groups, self._drive_array, dt, n)
             return
         m = self.model
-        compiled = dynamics.COMPILED  # the state is an array there: stepped as floats
-        state = self.state.tolist() if compiled else self.state
+        array = isinstance(self.state, np.ndarray)  # numba's layout: stepped as floats
+        state = self.state.tolist() if array else self.state
         car, contacts, groups, drive = m.car, m.contacts, m.contact_groups, self.drive
         scratch = new_scratch(len(self.groups.members))
         for _ in range(n):
             substep(state, car, contacts, groups, drive, dt, scratch)
-        if compiled:
+        if array:
             self.state[:] = state
 
     # -- joints --------------------------------------------------------------------------------

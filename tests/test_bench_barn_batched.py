@@ -50,8 +50,9 @@ def test_the_command_runs_batched_where_the_engine_batches(tmp_path, capsys):
 
 def test_worker_processes_give_one_processs_records_in_the_order_of_the_jobs(tmp_path,
                                                                            capsys):
-    """Two processes, each on a car of its own, take every other job: the records (with the
-    laser's noise, so every run differs) are one process's to the bit, in the jobs' order."""
+    """Two processes, each on a car of its own, take the next job none has taken as their car
+    frees: the records (with the laser's noise, so every run differs) are one process's to
+    the bit, in the jobs' order."""
     argv = ["barn", "--engine", "planar", "--worlds", "0", "6", "--runs", "2", "--quiet",
             "--env-kwargs", "laser={noise_std_m: 0.01}", "--json"]
     assert main([*argv, str(tmp_path / "one.json"), "--n-envs", "2"]) == 0
@@ -87,6 +88,6 @@ def test_each_worker_takes_its_share_of_the_cores(monkeypatch):
         driver=driver, kwargs=kwargs))
     options = {"model": None, "pretrained": None, "driver": "dwa", "env_kwargs": [],
                "goal_rate": None, "workers": 2, "n_envs": 1, "quiet": True}
-    cli._shard(options, {"map_mode": "laser"}, [0], [], set())
+    cli._shard(options, {"map_mode": "laser"}, [0], [], set(), 1)
     assert seen["kwargs"] == {"map_mode": "laser", "num_threads": 2}
     assert isinstance(seen["driver"], DWADriver) and seen["driver"].threads == 2

@@ -3,12 +3,13 @@ the hooks' calls, parking and stopping; and the cars' public state it reads (env
 
 from __future__ import annotations
 
+import multiprocessing
 from typing import Any
 
 import numpy as np
 import pytest
 
-from smartcar_gym.agents.runner import Hooks, Job, ResetError, run_jobs
+from smartcar_gym.agents.runner import Hooks, Job, JobQueue, ResetError, run_jobs
 from smartcar_gym.envs.state import CarState
 
 
@@ -103,6 +104,40 @@ def test_fewer_jobs_than_cars_and_a_stop():
     assert envs.parks == [[1, 2], [1, 2]]  # the cars with no job never step
     assert [c for c in hook.calls if c[0] == "step"] == [("step", [0]), ("step", [0])]
     assert not any(c[0] == "end" for c in hook.calls)  # stopped before the job ended
+
+
+def test_queues_that_share_an_index_hand_out_each_job_once_in_order():
+    jobs = [Job(k, k) for k in range(6)]
+    shared = multiprocessing.get_context("spawn").Value("q", 0)
+    a, b = JobQueue(jobs, shared), JobQueue(jobs, shared)
+    assert [j.episode for j in a.take(2)] == [0, 1]
+    assert [j.episode for j in b.take(3)] == [2, 3, 4]
+    assert [j.episode for j in a.take(4)] == [5]  # fewer where fewer are left
+    assert b.take(1) == [] and a.take(1) == [] and shared.value == 6
+    alone = JobQueue(jobs)  # no index shared: every job, its own count
+    assert [j.episode for j in alone.take(4)] == [0, 1, 2, 3] and shared.value == 6
+
+
+def test_a_runner_skips_the_jobs_another_process_took():
+    # car 1's job 1 ends at step 1; meanwhile "another process" (a second queue of the same
+    # jobs and index) takes job 2, so car 1 goes on with job 3
+    jobs = [Job(k, k, {"job": k}) for k in range(5)]
+    shared = multiprocessing.get_context("spawn").Value("q", 0)
+    other = JobQueue(jobs, shared)
+    taken: list[int] = []
+
+    class Meanwhile(Calls):
+        def step(self, cars: np.ndarray, *rest: Any) -> None:
+            super().step(cars, *rest)
+            if not taken:
+                taken.extend(j.episode for j in other.take(1))
+
+    hook = Meanwhile()
+    run_jobs(FakeCars(2, {0: 3, 1: 1, 2: 1, 3: 1, 4: 1}), JobQueue(jobs, shared), _act, [hook])
+    assert taken == [2]
+    assert [c for c in hook.calls if c[0] == "begin"] == [
+        ("begin", [0, 1], [0, 1]), ("begin", [1], [3]), ("begin", [1], [4])]
+    assert sorted(c[2] for c in hook.calls if c[0] == "end") == [0, 1, 3, 4]
 
 
 def test_a_vector_env_that_resets_other_cars_is_one_line():

@@ -5,7 +5,9 @@ vector env, in turn.
 ends takes the next job not started yet at once (Gymnasium's partial reset,
 ``reset(seed=[...], options={"reset_mask": mask, ...})``); a car with no job left is parked
 where the vector env can (``park``: not simulated), else stepped with zero actions and not
-read. So the records do not depend on how many cars ran them. What happens along the way is
+read. So the records do not depend on how many cars ran them. The jobs not started yet are a
+``JobQueue``: one runner's, or one shared by the runners of several processes (``shared``),
+each car taking the next job of all as it frees. What happens along the way is
 the hooks' (``Hooks``): the evaluations' records, the benchmark's runs, a classical
 driver's start, captured frames, dataset steps. Every evaluation, the benchmark, videos and
 bags run their episodes here.
@@ -13,7 +15,6 @@ bags run their episodes here.
 
 from __future__ import annotations
 
-from collections import deque
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -33,6 +34,30 @@ class Job:
     episode: int
     seed: int | None
     options: Mapping[str, Any] | None = None
+
+
+class JobQueue:
+    """The jobs not started yet, taken in their order. ``shared``: a
+    ``multiprocessing.Value`` (an integer, 0 at first) that several processes' queues of the
+    same jobs share, the index of the next job not taken by any: each process's cars take
+    the next jobs of all as they free, so none waits while another still has a backlog (a
+    fixed share each, one process can be left running alone at the end)."""
+
+    def __init__(self, jobs: Sequence[Job], shared: Any | None = None) -> None:
+        self.jobs = list(jobs)
+        self.shared = shared
+        self._next = 0
+
+    def take(self, k: int) -> list[Job]:
+        """The next ``k`` jobs (fewer where fewer are left)."""
+        if self.shared is None:
+            start = self._next
+            self._next = stop = min(start + k, len(self.jobs))
+        else:
+            with self.shared.get_lock():
+                start = self.shared.value
+                self.shared.value = stop = min(start + k, len(self.jobs))
+        return self.jobs[start:stop]
 
 
 class Hooks:
@@ -55,18 +80,19 @@ class ResetError(ValueError):
     """A vector env that cannot reset single cars (``reset_mask``), which the runner needs."""
 
 
-def run_jobs(envs: gym.vector.VectorEnv, jobs: Sequence[Job], act: Act,
+def run_jobs(envs: gym.vector.VectorEnv, jobs: Sequence[Job] | JobQueue, act: Act,
              hooks: Sequence[Hooks] = (), check_resets: bool = False,
              stop: Callable[[], bool] | None = None) -> None:
-    """Run every job on the cars of ``envs`` (see the module); ``check_resets``: one line
+    """Run every job (of a ``JobQueue``: every job this process takes) on the cars of
+    ``envs`` (see the module); ``check_resets``: one line
     (``ResetError``) if the vector env resets other cars than it is asked to; ``stop``:
     asked after every step, True ends the run there (the jobs running are left as they
     are)."""
     n = envs.num_envs
-    queue = deque(jobs)
+    queue = jobs if isinstance(jobs, JobQueue) else JobQueue(jobs)
     running: list[Job | None] = [None] * n
-    for car in range(min(n, len(queue))):
-        running[car] = queue.popleft()
+    for car, job in enumerate(queue.take(n)):
+        running[car] = job
     first = [job for job in running if job is not None]
     obs, info = envs.reset(seed=[None if j is None else j.seed for j in running],
                            options=_options(running, first, np.ones(n, dtype=bool)))
@@ -95,16 +121,16 @@ def run_jobs(envs: gym.vector.VectorEnv, jobs: Sequence[Job], act: Act,
                 hook.end(car, running[car], info)
             running[car] = None
         active &= ~done
-        refill = np.flatnonzero(done)[:len(queue)]
-        if refill.size == 0:
+        new = queue.take(int(done.sum()))
+        if not new:
             continue  # the cars left without a job are not read again
+        refill = np.flatnonzero(done)[:len(new)]
         mask = np.zeros(n, dtype=bool)
         mask[refill] = True
-        for car in refill.tolist():
-            running[car] = queue.popleft()
+        for car, job in zip(refill.tolist(), new, strict=True):
+            running[car] = job
         active[refill] = True
         steps[refill] = 0
-        new = [running[car] for car in refill.tolist()]
         new_obs, new_info = _partial_reset(envs, running, new, mask, check_resets)
         obs = _merge(obs, new_obs, mask)
         for hook in hooks:

@@ -17,10 +17,11 @@ timeout, the mean time of the successful runs and the mean score on both scales
 The ``--n-envs`` cars are the id's vector env: one batched env where the engine batches
 (planar, MuJoCo: ``SmartCarBatchVectorEnv``), elsewhere a loop of single envs; the runs go
 through the episode runner (``bench.runs``). ``--workers W`` shares the runs among W
-processes, each with its own driver and ``--n-envs`` cars (the same records: a run depends
-on its world and seed alone) and its share of the cores for the compiled loops (``num_threads``
-of the CPUs / W); pybullet steps one car at a time in a process, so there it takes every core,
-and the planar batch's Python between its compiled loops runs on W cores instead of one.
+processes, each with its own driver and ``--n-envs`` cars, a car that frees taking the next
+run no worker has taken (``runner.JobQueue``; the same records: a run depends on its world
+and seed alone), and its share of the cores for the compiled loops (``num_threads`` of the
+CPUs / W); pybullet steps one car at a time in a process, so there it takes every core, and
+the planar batch's Python between its compiled loops runs on W cores instead of one.
 """
 
 from __future__ import annotations
@@ -90,8 +91,9 @@ def build_parser() -> argparse.ArgumentParser:
                            "batched env where the engine batches; at most one per run)")
     barn.add_argument("--workers", type=positive_int_arg, default=1, metavar="W",
                       help="processes sharing the runs, each on --n-envs cars of its own "
-                           "and the CPUs / W threads (the same records; pybullet, which steps "
-                           "one car at a time in a process: one a core; default 1)")
+                           "(a car that frees takes the next run none has taken) and the "
+                           "CPUs / W threads (the same records; pybullet, which steps one car "
+                           "at a time in a process: one a core; default 1)")
     barn.add_argument("--seed", type=non_negative_int_arg, default=0,
                       help="run k of a world is reset with seed + k (default 0)")
     barn.add_argument("--env-kwargs", nargs="+", default=[], metavar="KEY=VALUE",
@@ -198,10 +200,13 @@ class Ran:
 
 
 def _run(driver: Any, n_envs: int, kwargs: dict[str, Any], chosen: Sequence[int],
-         jobs: Sequence[BarnJob], plotted: set[int], quiet: bool) -> Ran:
-    """``jobs`` run by ``driver`` on ``n_envs`` cars (at most one a job): DriverError for a
-    policy of another observation space, BarnWorldError for a world without a way."""
-    envs = make_batched_env(ENV_ID, min(n_envs, len(jobs)), kwargs)  # no idle cars
+         jobs: Sequence[BarnJob], plotted: set[int], quiet: bool,
+         cars_for: int | None = None) -> Ran:
+    """``jobs`` run by ``driver`` on ``n_envs`` cars (at most one a job, or one for each of
+    ``cars_for`` jobs): DriverError for a policy of another observation space,
+    BarnWorldError for a world without a way. In a worker (``_in_workers``) the jobs are
+    shared with the others (``_SHARED``), and its records are of the jobs it took."""
+    envs = make_batched_env(ENV_ID, min(n_envs, cars_for or len(jobs)), kwargs)  # no idle cars
     try:
         cars = CarView(envs)
         if isinstance(driver, PolicyDriver):
@@ -211,7 +216,7 @@ def _run(driver: Any, n_envs: int, kwargs: dict[str, Any], chosen: Sequence[int]
         try:
             records = run_barn(envs, driver, jobs,
                                keep=lambda job: job.world in plotted and job.run == 0,
-                               report=None if quiet else _report)
+                               report=None if quiet else _report, shared=_SHARED)
         except BarnRunError as err:  # the runs so far are kept
             records, failed = err.records, str(err)
         paths = {}  # the global paths every car's task planned, by world
@@ -223,18 +228,33 @@ def _run(driver: Any, n_envs: int, kwargs: dict[str, Any], chosen: Sequence[int]
         envs.close()
 
 
+#: in a worker process of ``_in_workers``: the index of the next job no worker has taken
+#: (a ``multiprocessing.Value``, inherited when the worker starts); None in one process
+_SHARED: Any = None
+
+
+def _share(shared: Any) -> None:
+    """A worker's initializer: the jobs' shared index (``_SHARED``)."""
+    global _SHARED
+    _SHARED = shared
+
+
 def _in_workers(args: argparse.Namespace, kwargs: dict[str, Any], chosen: Sequence[int],
                 jobs: Sequence[BarnJob], plotted: set[int]) -> Ran:
-    """``_run`` in ``--workers`` processes, worker w taking every w-th job on cars of its
-    own: a run depends on its job alone (its world and seed), so the records are one
-    process's, to the bit; they come back in the order of the jobs."""
+    """``_run`` in ``--workers`` processes, each on cars of its own, taking the next job of
+    all as a car frees (``runner.JobQueue``): a run depends on its job alone (its world
+    and seed), so the records are one process's, to the bit; they come back in the order
+    of the jobs."""
     workers = min(args.workers, len(jobs))
     options = {k: v for k, v in vars(args).items() if k != "command_parser"}
-    shards = [list(jobs[w::workers]) for w in range(workers)]
     context = multiprocessing.get_context("spawn")  # no copy of this process's threads
-    with ProcessPoolExecutor(workers, mp_context=context) as pool:
+    shared = context.Value("q", 0)
+    with ProcessPoolExecutor(workers, mp_context=context, initializer=_share,
+                             initargs=(shared,)) as pool:
+        # each worker's cars: as many as a fixed share of the jobs would need
         parts = list(pool.map(_shard, [options] * workers, [kwargs] * workers,
-                              [chosen] * workers, shards, [plotted] * workers))
+                              [chosen] * workers, [jobs] * workers, [plotted] * workers,
+                              [-(-len(jobs) // workers)] * workers))
     order = {job: k for k, job in enumerate(jobs)}
     records = sorted((r for part in parts for r in part.records),
                      key=lambda r: order[BarnJob(r.world, r.run, r.seed)])
@@ -244,15 +264,15 @@ def _in_workers(args: argparse.Namespace, kwargs: dict[str, Any], chosen: Sequen
 
 
 def _shard(options: dict[str, Any], kwargs: dict[str, Any], chosen: Sequence[int],
-           jobs: Sequence[BarnJob], plotted: set[int]) -> Ran:
-    """A worker's share of the runs (``_in_workers``): its own driver and cars."""
+           jobs: Sequence[BarnJob], plotted: set[int], cars_for: int) -> Ran:
+    """A worker's runs (``_in_workers``): its own driver and cars."""
     args = argparse.Namespace(**options)
     # the worker's share of the cores for the vector env's and the driver's compiled loops
     # (more threads than cores only wait on one another; the same records whatever the count)
     share = max(1, (os.cpu_count() or 1) // args.workers)
     driver = _driver(args, threads=share)[0]
     return _run(driver, args.n_envs, {**kwargs, "num_threads": share}, chosen, jobs, plotted,
-                args.quiet)
+                args.quiet, cars_for)
 
 
 def _plot_error(path: Path) -> str | None:

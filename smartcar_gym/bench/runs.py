@@ -18,7 +18,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from smartcar_gym.agents.runner import Hooks, Job, run_jobs
+from smartcar_gym.agents.runner import Hooks, Job, JobQueue, run_jobs
 from smartcar_gym.envs.vector.view import CarView
 from smartcar_gym.navigation.grid_planner import NoPathError
 from smartcar_gym.worlds.barn import TEST_WORLDS, BarnWorldError
@@ -111,10 +111,12 @@ class _Records(Hooks):
 
 def run_barn(envs: gym.vector.VectorEnv, driver: Any, jobs: Sequence[BarnJob],
              keep: Callable[[BarnJob], bool] = lambda job: False,
-             report: Callable[[RunRecord], None] | None = None) -> list[RunRecord]:
+             report: Callable[[RunRecord], None] | None = None,
+             shared: Any | None = None) -> list[RunRecord]:
     """Every job's record, in the order of ``jobs``; ``keep(job)``: keep its trajectory;
-    ``report``: called as each run ends. BarnRunError (with the records so far) if a world
-    cannot be run."""
+    ``report``: called as each run ends; ``shared``: the jobs are shared with other
+    processes (``runner.JobQueue``), and the records are of the jobs this one took.
+    BarnRunError (with the records so far) if a world cannot be run."""
     cars = CarView(envs)
     records = _Records(list(jobs), driver, cars, keep, report)
 
@@ -128,8 +130,9 @@ def run_barn(envs: gym.vector.VectorEnv, driver: Any, jobs: Sequence[BarnJob],
         return actions
 
     try:
-        run_jobs(envs, [Job(k, job.seed, {"world": job.world}) for k, job in enumerate(jobs)],
-                 act, [records])
+        queue = JobQueue([Job(k, job.seed, {"world": job.world})
+                          for k, job in enumerate(jobs)], shared)
+        run_jobs(envs, queue, act, [records])
     except (BarnWorldError, NoPathError) as err:
         raise BarnRunError(str(err), [r for r in records.records if r is not None]) from None
     return [record for record in records.records if record is not None]

@@ -87,11 +87,15 @@ class Oscillation:
         c = self.config
         out = np.empty((len(rows), 2))
         turns = forward + np.argsort(samples[0, forward:-1, 1], kind="stable")
+        # each robot's cheapest valid forward sample (-1: none, or escaping), all at once
+        cheapest = np.full(len(rows), -1)
+        driving = ~self.escaping[rows] & valid[:, :forward].any(axis=1)
+        if driving.any():
+            cheapest[driving] = np.nanargmin(np.where(valid[driving, :forward],
+                                                      cost[driving, :forward], np.nan), axis=1)
         for k, i in enumerate(rows):
-            best, best_cost = -1, math.inf
-            if not self.escaping[i] and valid[k, :forward].any():
-                best = int(np.nanargmin(np.where(valid[k, :forward], cost[k, :forward],
-                                                 np.nan)))
+            best, best_cost = int(cheapest[k]), math.inf
+            if best >= 0:
                 best_cost = float(cost[k, best])
             heading = math.inf
             for j in turns.tolist():

@@ -80,14 +80,14 @@ def test_a_workers_refusal_is_the_same_one_line(capsys):
 def test_each_worker_takes_its_share_of_the_cores(monkeypatch):
     """``--workers 2`` on 4 CPUs: each worker's vector env and DWA driver run their compiled
     loops on 2 threads (4 would wait on one another)."""
-    from smartcar_gym.bench import cli
+    from smartcar_gym.bench import cli, workers
 
     seen = {}
-    monkeypatch.setattr(cli.os, "cpu_count", lambda: 4)
+    monkeypatch.setattr(workers.os, "cpu_count", lambda: 4)
     monkeypatch.setattr(cli, "_run", lambda driver, n, kwargs, *rest: seen.update(
         driver=driver, kwargs=kwargs))
     options = {"model": None, "pretrained": None, "driver": "dwa", "env_kwargs": [],
                "goal_rate": None, "workers": 2, "n_envs": 1, "quiet": True}
-    cli._shard(options, {"map_mode": "laser"}, [0], [], set(), 1)
+    workers._shard(options, {"map_mode": "laser"}, [0], [], set(), 1)
     assert seen["kwargs"] == {"map_mode": "laser", "num_threads": 2}
     assert isinstance(seen["driver"], DWADriver) and seen["driver"].threads == 2

@@ -17,22 +17,20 @@ timeout, the mean time of the successful runs and the mean score on both scales
 The ``--n-envs`` cars are the id's vector env: one batched env where the engine batches
 (planar, MuJoCo: ``SmartCarBatchVectorEnv``), elsewhere a loop of single envs; the runs go
 through the episode runner (``bench.runs``). ``--workers W`` shares the runs among W
-processes, each with its own driver and ``--n-envs`` cars, a car that frees taking the next
-run no worker has taken (``runner.JobQueue``; the same records: a run depends on its world
-and seed alone), and its share of the cores for the compiled loops (``num_threads`` of the
-CPUs / W); pybullet steps one car at a time in a process, so there it takes every core, and
-the planar batch's Python between its compiled loops runs on W cores instead of one.
+processes (``bench.workers``), each with its own driver and ``--n-envs`` cars, a car that
+frees taking the next run no worker has taken (``runner.JobQueue``; the same records: a run
+depends on its world and seed alone), and its share of the cores for the compiled loops
+(``num_threads`` of the CPUs / W); pybullet steps one car at a time in a process, so there
+it takes every core, and the planar batch's Python between its compiled loops runs on W
+cores instead of one.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import multiprocessing
-import os
 import sys
 from collections.abc import Sequence
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -49,6 +47,7 @@ from smartcar_gym.agents.cli_args import (
 from smartcar_gym.agents.cli_eval import check_marks
 from smartcar_gym.agents.env_factory import EnvSetupError, check_env
 from smartcar_gym.agents.vec_envs import make_batched_env
+from smartcar_gym.bench import workers
 from smartcar_gym.bench.drivers import DRIVERS, DriverError, PolicyDriver, make_driver
 from smartcar_gym.bench.report import plot_runs, summarize, table
 from smartcar_gym.bench.runs import BarnJob, BarnRunError, RunRecord, barn_jobs, run_barn
@@ -145,7 +144,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     plotted = set() if args.plot is None else set(args.plot_worlds or chosen[:4])
     try:
         if args.workers > 1 and len(jobs) > 1:
-            ran = _in_workers(args, kwargs, chosen, jobs, plotted)
+            ran = workers.run(args, kwargs, chosen, jobs, plotted)
         else:
             ran = _run(driver, args.n_envs, kwargs, chosen, jobs, plotted, args.quiet)
     except (BarnWorldError, DriverError, EnvSetupError) as err:
@@ -204,8 +203,8 @@ def _run(driver: Any, n_envs: int, kwargs: dict[str, Any], chosen: Sequence[int]
          cars_for: int | None = None) -> Ran:
     """``jobs`` run by ``driver`` on ``n_envs`` cars (at most one a job, or one for each of
     ``cars_for`` jobs): DriverError for a policy of another observation space,
-    BarnWorldError for a world without a way. In a worker (``_in_workers``) the jobs are
-    shared with the others (``_SHARED``), and its records are of the jobs it took."""
+    BarnWorldError for a world without a way. In a worker (``workers.run``) the jobs are
+    shared with the others (``workers.SHARED``), and its records are of the jobs it took."""
     envs = make_batched_env(ENV_ID, min(n_envs, cars_for or len(jobs)), kwargs)  # no idle cars
     try:
         cars = CarView(envs)
@@ -216,7 +215,8 @@ def _run(driver: Any, n_envs: int, kwargs: dict[str, Any], chosen: Sequence[int]
         try:
             records = run_barn(envs, driver, jobs,
                                keep=lambda job: job.world in plotted and job.run == 0,
-                               report=None if quiet else _report, shared=_SHARED)
+                               report=None if quiet else _report,
+                               shared=workers.SHARED)
         except BarnRunError as err:  # the runs so far are kept
             records, failed = err.records, str(err)
         paths = {}  # the global paths every car's task planned, by world
@@ -226,53 +226,6 @@ def _run(driver: Any, n_envs: int, kwargs: dict[str, Any], chosen: Sequence[int]
                    isinstance(envs.unwrapped, SmartCarBatchVectorEnv))
     finally:
         envs.close()
-
-
-#: in a worker process of ``_in_workers``: the index of the next job no worker has taken
-#: (a ``multiprocessing.Value``, inherited when the worker starts); None in one process
-_SHARED: Any = None
-
-
-def _share(shared: Any) -> None:
-    """A worker's initializer: the jobs' shared index (``_SHARED``)."""
-    global _SHARED
-    _SHARED = shared
-
-
-def _in_workers(args: argparse.Namespace, kwargs: dict[str, Any], chosen: Sequence[int],
-                jobs: Sequence[BarnJob], plotted: set[int]) -> Ran:
-    """``_run`` in ``--workers`` processes, each on cars of its own, taking the next job of
-    all as a car frees (``runner.JobQueue``): a run depends on its job alone (its world
-    and seed), so the records are one process's, to the bit; they come back in the order
-    of the jobs."""
-    workers = min(args.workers, len(jobs))
-    options = {k: v for k, v in vars(args).items() if k != "command_parser"}
-    context = multiprocessing.get_context("spawn")  # no copy of this process's threads
-    shared = context.Value("q", 0)
-    with ProcessPoolExecutor(workers, mp_context=context, initializer=_share,
-                             initargs=(shared,)) as pool:
-        # each worker's cars: as many as a fixed share of the jobs would need
-        parts = list(pool.map(_shard, [options] * workers, [kwargs] * workers,
-                              [chosen] * workers, [jobs] * workers, [plotted] * workers,
-                              [-(-len(jobs) // workers)] * workers))
-    order = {job: k for k, job in enumerate(jobs)}
-    records = sorted((r for part in parts for r in part.records),
-                     key=lambda r: order[BarnJob(r.world, r.run, r.seed)])
-    failed = next((part.failed for part in parts if part.failed is not None), None)
-    paths = {world: path for part in parts for world, path in part.paths.items()}
-    return Ran(records, failed, paths, parts[0].scale, parts[0].batched)
-
-
-def _shard(options: dict[str, Any], kwargs: dict[str, Any], chosen: Sequence[int],
-           jobs: Sequence[BarnJob], plotted: set[int], cars_for: int) -> Ran:
-    """A worker's runs (``_in_workers``): its own driver and cars."""
-    args = argparse.Namespace(**options)
-    # the worker's share of the cores for the vector env's and the driver's compiled loops
-    # (more threads than cores only wait on one another; the same records whatever the count)
-    share = max(1, (os.cpu_count() or 1) // args.workers)
-    driver = _driver(args, threads=share)[0]
-    return _run(driver, args.n_envs, {**kwargs, "num_threads": share}, chosen, jobs, plotted,
-                args.quiet, cars_for)
 
 
 def _plot_error(path: Path) -> str | None:

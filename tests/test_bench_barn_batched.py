@@ -84,7 +84,7 @@ def test_each_worker_takes_its_share_of_the_cores(monkeypatch):
 
     seen = {}
     monkeypatch.setattr(workers.os, "cpu_count", lambda: 4)
-    monkeypatch.setattr(cli, "_run", lambda driver, n, kwargs, *rest: seen.update(
+    monkeypatch.setattr(cli, "run_here", lambda driver, n, kwargs, *rest: seen.update(
         driver=driver, kwargs=kwargs))
     options = {"model": None, "pretrained": None, "driver": "dwa", "env_kwargs": [],
                "goal_rate": None, "workers": 2, "n_envs": 1, "quiet": True}

@@ -135,7 +135,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         for index in chosen:
             worlds.world(index)
         _check_worlds_chosen(args, chosen)
-        driver, name, trained_with = _driver(args)
+        driver, name, trained_with = driver_for(args)
         kwargs = _env_kwargs(args, trained_with)
         check_env(ENV_ID, kwargs)  # a bad --env-kwargs: one line naming it
         jobs = barn_jobs(chosen, args.runs, args.seed)
@@ -146,7 +146,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.workers > 1 and len(jobs) > 1:
             ran = workers.run(args, kwargs, chosen, jobs, plotted)
         else:
-            ran = _run(driver, args.n_envs, kwargs, chosen, jobs, plotted, args.quiet)
+            ran = run_here(driver, args.n_envs, kwargs, chosen, jobs, plotted, args.quiet)
     except (BarnWorldError, DriverError, EnvSetupError) as err:
         parser.error(str(err))
     records, failed, batched = ran.records, ran.failed, ran.batched
@@ -198,9 +198,9 @@ class Ran:
     batched: bool
 
 
-def _run(driver: Any, n_envs: int, kwargs: dict[str, Any], chosen: Sequence[int],
-         jobs: Sequence[BarnJob], plotted: set[int], quiet: bool,
-         cars_for: int | None = None) -> Ran:
+def run_here(driver: Any, n_envs: int, kwargs: dict[str, Any], chosen: Sequence[int],
+             jobs: Sequence[BarnJob], plotted: set[int], quiet: bool,
+             cars_for: int | None = None) -> Ran:
     """``jobs`` run by ``driver`` on ``n_envs`` cars (at most one a job, or one for each of
     ``cars_for`` jobs): DriverError for a policy of another observation space,
     BarnWorldError for a world without a way. In a worker (``workers.run``) the jobs are
@@ -276,8 +276,8 @@ def _plan_worlds(cars: CarView, chosen: Sequence[int], threads: int = 1) -> None
         task.planned_paths.update(tasks[0].planned_paths)
 
 
-def _driver(args: argparse.Namespace, threads: int | None = None
-            ) -> tuple[Any, str, dict[str, Any]]:
+def driver_for(args: argparse.Namespace, threads: int | None = None
+               ) -> tuple[Any, str, dict[str, Any]]:
     """The driver the arguments name, its name in the table, and the env kwargs it runs with
     unless ``--env-kwargs`` says otherwise: a policy's, those it was trained with (a policy
     of SmartCarBARN-v0); a classical driver's, the challenge's protocol (``map_mode`` laser:

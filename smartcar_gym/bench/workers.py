@@ -27,9 +27,9 @@ def _share(shared: Any) -> None:
 
 def run(args: argparse.Namespace, kwargs: dict[str, Any], chosen: Sequence[int],
         jobs: Sequence[BarnJob], plotted: set[int]) -> Any:
-    """The command's runs (``cli._run``) in ``--workers`` processes, each on cars of its own,
-    taking the next job of all as a car frees: one ``cli.Ran``, the records in the order of
-    the jobs."""
+    """The command's runs (``cli.run_here``) in ``--workers`` processes, each on cars of its
+    own, taking the next job of all as a car frees: one ``cli.Ran``, the records in the order
+    of the jobs."""
     from smartcar_gym.bench.cli import Ran  # the command's (it imports this module)
 
     count = min(args.workers, len(jobs))
@@ -59,6 +59,6 @@ def _shard(options: dict[str, Any], kwargs: dict[str, Any], chosen: Sequence[int
     # the worker's share of the cores for the vector env's and the driver's compiled loops
     # (more threads than cores only wait on one another; the same records whatever the count)
     share = max(1, (os.cpu_count() or 1) // args.workers)
-    driver = cli._driver(args, threads=share)[0]
-    return cli._run(driver, args.n_envs, {**kwargs, "num_threads": share}, chosen, jobs,
+    driver = cli.driver_for(args, threads=share)[0]
+    return cli.run_here(driver, args.n_envs, {**kwargs, "num_threads": share}, chosen, jobs,
                     plotted, args.quiet, cars_for)

@@ -6,8 +6,10 @@ TensorBoard, pandas, matplotlib, imageio-ffmpeg, tqdm, rich); the env does not.
 Modules (imported on demand; this package imports nothing heavy), by concern:
 
 * Command lines (argparse; each calls the library below):
-  ``cli_train`` (``smartcar-train``), ``cli_eval`` (``smartcar-eval``), ``cli_args`` (the
-  options' value types: key=value, counts, percentages, distances).
+  ``cli_train`` (``smartcar-train``), ``cli_eval`` (``smartcar-eval``), ``eval_outputs``
+  (``smartcar-eval``'s output files checked before it runs, and the recorders its episodes
+  stream to), ``cli_args`` (the options' value types: key=value, counts, percentages,
+  distances).
 * Configuration: ``hyperparams`` (zoo-format YAML, ``smartcar_gym/config/<algo>.yaml``,
   key=value overrides, the algorithm's arguments), ``zoo_keys`` (the zoo keys that shape a
   run: env_wrapper, frame_stack, callback, ...).

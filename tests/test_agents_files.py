@@ -12,7 +12,6 @@ from smartcar_gym.agents import cli_eval, cli_train
 from smartcar_gym.agents.atomic_files import output_path_error
 from smartcar_gym.agents.callbacks import (
     CheckpointCallback,
-    StopOnSigint,
     SuccessEvalCallback,
     atomic_path,
     atomic_write_text,
@@ -21,6 +20,7 @@ from smartcar_gym.agents.callbacks import (
     replay_buffer_path_for,
     vecnormalize_path_for,
 )
+from smartcar_gym.agents.run_control import StopOnSigint
 
 
 def test_atomic_write_replaces_the_file_or_leaves_it_untouched(tmp_path):

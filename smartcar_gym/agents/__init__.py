@@ -27,7 +27,8 @@ Modules (imported on demand; this package imports nothing heavy), by concern:
   (evaluations in a second process while
   training goes on).
 * Training: ``training`` (``train()``: a run with checkpoints and evaluation),
-  ``callbacks`` (checkpoints, evaluation by success rate, progress bar, Ctrl-C).
+  ``callbacks`` (checkpoints, evaluation by success rate), ``run_control`` (the progress
+  bar, a clean stop on Ctrl-C or SIGTERM).
 * Files: ``runs`` (a run's folder: a new run's config, the run to resume, checkpoint
   names), ``atomic_files`` (files written atomically; whether a path can be written),
   ``models`` (a saved model's run config and the VecNormalize statistics its place assigns

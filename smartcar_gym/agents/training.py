@@ -83,13 +83,12 @@ def train(
 
     from smartcar_gym.agents.callbacks import (
         CheckpointCallback,
-        ProgressBarCallback,
-        StopOnSigint,
         SuccessEvalCallback,
         atomic_write_text,
         checkpoint_steps,
         save_model_atomic,
     )
+    from smartcar_gym.agents.run_control import ProgressBarCallback, StopOnSigint
 
     run_dir = Path(run_dir)
     algo = config["algo"]

@@ -200,11 +200,12 @@ class Ran:
 
 def run_here(driver: Any, n_envs: int, kwargs: dict[str, Any], chosen: Sequence[int],
              jobs: Sequence[BarnJob], plotted: set[int], quiet: bool,
-             cars_for: int | None = None) -> Ran:
+             cars_for: int | None = None, shared: Any | None = None) -> Ran:
     """``jobs`` run by ``driver`` on ``n_envs`` cars (at most one a job, or one for each of
     ``cars_for`` jobs): DriverError for a policy of another observation space,
-    BarnWorldError for a world without a way. In a worker (``workers.run``) the jobs are
-    shared with the others (``workers.SHARED``), and its records are of the jobs it took."""
+    BarnWorldError for a world without a way. ``shared``: in a worker (``workers.run``), the
+    index the workers take the jobs by (``runner.JobQueue``); its records are of the jobs it
+    took."""
     envs = make_batched_env(ENV_ID, min(n_envs, cars_for or len(jobs)), kwargs)  # no idle cars
     try:
         cars = CarView(envs)
@@ -216,7 +217,7 @@ def run_here(driver: Any, n_envs: int, kwargs: dict[str, Any], chosen: Sequence[
             records = run_barn(envs, driver, jobs,
                                keep=lambda job: job.world in plotted and job.run == 0,
                                report=None if quiet else _report,
-                               shared=workers.SHARED)
+                               shared=shared)
         except BarnRunError as err:  # the runs so far are kept
             records, failed = err.records, str(err)
         paths = {}  # the global paths every car's task planned, by world

@@ -61,4 +61,4 @@ def _shard(options: dict[str, Any], kwargs: dict[str, Any], chosen: Sequence[int
     share = max(1, (os.cpu_count() or 1) // args.workers)
     driver = cli.driver_for(args, threads=share)[0]
     return cli.run_here(driver, args.n_envs, {**kwargs, "num_threads": share}, chosen, jobs,
-                    plotted, args.quiet, cars_for)
+                    plotted, args.quiet, cars_for, SHARED)

@@ -318,3 +318,50 @@ def test_a_pybullet_world_nothing_draws_has_no_visual_shapes_and_the_same_rollou
         finally:
             env.close()
     assert np.array_equal(ways[None], ways["rgb_array"])
+
+
+def test_pybullets_pillars_sleep_after_their_first_step_and_run_as_awake(monkeypatch):
+    """pybullet puts BARN's pillars to sleep after the first physics step (Bullet then stops
+    computing their boxes at every step), not at their creation: a run into a pillar (scans,
+    clearances, the collision) is the same bit for bit as with the pillars awake."""
+    import pybullet
+
+    from smartcar_gym.sim.pybullet.simulator import Simulator
+
+    change = pybullet.changeDynamics
+    asleep: list[int] = []
+
+    def recorded(*args, **kwargs):
+        if kwargs.get("activationState") == pybullet.ACTIVATION_STATE_SLEEP:
+            asleep.append(args[0])
+        return change(*args, **kwargs)
+
+    monkeypatch.setattr(pybullet, "changeDynamics", recorded)
+
+    def run() -> list:
+        env = gym.make("SmartCarBARN-v0", laser={"noise_std_m": 0.01})
+        try:
+            steps = [env.reset(seed=3, options={"world": 12})]
+            for _ in range(40):
+                steps.append(env.step(np.array([1.0, 0.1], dtype=np.float32)))
+                after_first.append(len(asleep))
+                if steps[-1][2]:
+                    break
+        finally:
+            env.close()
+        return steps
+
+    after_first: list[int] = []
+    sleeping = run()
+    pillars = after_first[0]
+    monkeypatch.setattr(Simulator, "_sleep_pillars", lambda self: None)
+    awake = run()
+    assert pillars > 200 and len(asleep) == pillars and len(set(asleep)) == pillars
+    assert sleeping[-1][4]["outcome"] == "collision" and sleeping[-1][4]["clearance"] < 0
+    assert len(sleeping) == len(awake)
+    for a, b in zip(sleeping, awake, strict=True):
+        assert np.array_equal(a[0], b[0])
+        if len(a) == 5:
+            assert a[1:4] == b[1:4]
+            assert a[4]["clearance"] == b[4]["clearance"]
+            assert a[4]["outcome"] == b[4]["outcome"]

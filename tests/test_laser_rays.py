@@ -46,6 +46,39 @@ def test_a_cylinder_is_round(sim):
     assert hits.point[:, 0] == pytest.approx(expected, abs=1e-3)  # within Bullet's margin
 
 
+
+
+def test_a_pillar_asleep_after_its_first_step_is_grazed_as_when_awake(monkeypatch):
+    """pybullet puts a pillar to sleep after the first physics step, once that step has set
+    its bounding box with Bullet's contact margin. Rays grazing its side hit it as they hit
+    an awake pillar; asleep from its creation, its bare box let some of them pass."""
+    import pybullet
+
+    from smartcar_gym.sim.pybullet.simulator import Simulator
+
+    fan = [(y, angle) for y in np.linspace(0.07, 0.08, 101) for angle in (-0.3, 0.0, 0.3)]
+    starts = np.array([[0.0, y, 0.1] for y, _ in fan])
+    ends = starts + 3.0 * np.array([[math.cos(a), math.sin(a), 0.0] for _, a in fan])
+
+    def grazed(asleep_at_creation: bool = False) -> np.ndarray:
+        world = Simulator(draws=False)
+        try:
+            pillar = add_obstacle(world, "pillar", "cylinder", (0.15,), (1.0, 0.0), pillar=True)
+            if asleep_at_creation:
+                world.client.changeDynamics(pillar.uid, -1,
+                                            activationState=pybullet.ACTIVATION_STATE_SLEEP)
+            world.run_until(world.now_ns + 20_000_000)
+            return cast_rays(world, starts, ends).hit
+        finally:
+            world.close()
+
+    asleep = grazed()
+    early = grazed(asleep_at_creation=True)
+    monkeypatch.setattr(Simulator, "_sleep_pillars", lambda self: None)
+    awake = grazed()
+    assert 0 < asleep.sum() < len(fan) and np.array_equal(asleep, awake)
+    assert early.sum() < awake.sum()
+
 def test_hidden_bodies_let_rays_through_but_still_collide(sim, hardware_robot):
     robot = hardware_robot
     wall = add_obstacle(sim, "wall", "box", (0.1, 2.0), (0.6, 0.0))

@@ -197,23 +197,36 @@ def test_pybullets_pillars_are_static_rigid_bodies_and_run_as_fixed_multibodies(
             return create(*args, **kwargs)
 
         monkeypatch.setattr(pybullet, "createMultiBody", recorded)
-        env = gym.make("SmartCarBARN-v0", laser={"noise_std_m": 0.01})
-        try:
-            steps = [env.reset(seed=3, options={"world": 12})]
-            for _ in range(40):
-                steps.append(env.step(np.array([1.0, 0.1], dtype=np.float32)))
-                if steps[-1][2]:
-                    break
-        finally:
-            env.close()
-        return steps, made
+        return _drive_into_a_pillar(), made
 
     rigid, made = run(None)
     multibodies, forced = run(False)
     assert len(made) > 200 and all(made) and not any(forced)
-    assert rigid[-1][4]["outcome"] == "collision" and rigid[-1][4]["clearance"] < 0
-    assert len(rigid) == len(multibodies)
-    for a, b in zip(rigid, multibodies, strict=True):
+    _assert_the_same_collision(rigid, multibodies)
+
+
+def _drive_into_a_pillar(after_each_step=None) -> list:
+    """pybullet BARN world 12, noisy laser, seed 3: the reset and the steps of a drive
+    into a pillar (``after_each_step()`` called after each)."""
+    env = gym.make("SmartCarBARN-v0", laser={"noise_std_m": 0.01})
+    try:
+        steps = [env.reset(seed=3, options={"world": 12})]
+        for _ in range(40):
+            steps.append(env.step(np.array([1.0, 0.1], dtype=np.float32)))
+            if after_each_step is not None:
+                after_each_step()
+            if steps[-1][2]:
+                break
+    finally:
+        env.close()
+    return steps
+
+
+def _assert_the_same_collision(first: list, second: list) -> None:
+    """Two ``_drive_into_a_pillar`` runs ending in the collision, the same bit for bit."""
+    assert first[-1][4]["outcome"] == "collision" and first[-1][4]["clearance"] < 0
+    assert len(first) == len(second)
+    for a, b in zip(first, second, strict=True):
         assert np.array_equal(a[0], b[0])
         if len(a) == 5:
             assert a[1:4] == b[1:4]
@@ -321,9 +334,10 @@ def test_a_pybullet_world_nothing_draws_has_no_visual_shapes_and_the_same_rollou
 
 
 def test_pybullets_pillars_sleep_after_their_first_step_and_run_as_awake(monkeypatch):
-    """pybullet puts BARN's pillars to sleep after the first physics step (Bullet then stops
-    computing their boxes at every step), not at their creation: a run into a pillar (scans,
-    clearances, the collision) is the same bit for bit as with the pillars awake."""
+    """pybullet puts BARN's pillars to sleep, every one by the end of the first step (Bullet
+    then stops computing their boxes at every step): a run into a pillar (scans, clearances,
+    the collision) is the same bit for bit as with the pillars awake. Why after a step and not
+    at their creation: ``test_laser_rays.py``."""
     import pybullet
 
     from smartcar_gym.sim.pybullet.simulator import Simulator
@@ -337,31 +351,10 @@ def test_pybullets_pillars_sleep_after_their_first_step_and_run_as_awake(monkeyp
         return change(*args, **kwargs)
 
     monkeypatch.setattr(pybullet, "changeDynamics", recorded)
-
-    def run() -> list:
-        env = gym.make("SmartCarBARN-v0", laser={"noise_std_m": 0.01})
-        try:
-            steps = [env.reset(seed=3, options={"world": 12})]
-            for _ in range(40):
-                steps.append(env.step(np.array([1.0, 0.1], dtype=np.float32)))
-                after_first.append(len(asleep))
-                if steps[-1][2]:
-                    break
-        finally:
-            env.close()
-        return steps
-
     after_first: list[int] = []
-    sleeping = run()
+    sleeping = _drive_into_a_pillar(lambda: after_first.append(len(asleep)))
     pillars = after_first[0]
     monkeypatch.setattr(Simulator, "_sleep_pillars", lambda self: None)
-    awake = run()
+    awake = _drive_into_a_pillar()
     assert pillars > 200 and len(asleep) == pillars and len(set(asleep)) == pillars
-    assert sleeping[-1][4]["outcome"] == "collision" and sleeping[-1][4]["clearance"] < 0
-    assert len(sleeping) == len(awake)
-    for a, b in zip(sleeping, awake, strict=True):
-        assert np.array_equal(a[0], b[0])
-        if len(a) == 5:
-            assert a[1:4] == b[1:4]
-            assert a[4]["clearance"] == b[4]["clearance"]
-            assert a[4]["outcome"] == b[4]["outcome"]
+    _assert_the_same_collision(sleeping, awake)

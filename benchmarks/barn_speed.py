@@ -70,7 +70,7 @@ def run(cars: int, args: argparse.Namespace, folder: Path, checkout: Path | None
     out = folder / f"cars_{cars}_{'base' if checkout else 'this'}.json"
     name = (args.base_pretrained or args.pretrained) if checkout else args.pretrained
     driver = ["--pretrained", name] if args.pretrained else ["--driver", args.driver]
-    # --workers: this checkout's cars shared among W processes (the base runs them in one)
+    # --workers / --base-workers: each side's cars shared among W processes
     workers = args.base_workers if checkout else args.workers
     split = ["--workers", str(workers)] if workers > 1 else []
     worlds = ["--worlds", *map(str, args.worlds)] if args.worlds else []

@@ -46,8 +46,6 @@ def test_a_cylinder_is_round(sim):
     assert hits.point[:, 0] == pytest.approx(expected, abs=1e-3)  # within Bullet's margin
 
 
-
-
 def test_a_pillar_asleep_after_its_first_step_is_grazed_as_when_awake(monkeypatch):
     """pybullet puts a pillar to sleep after the first physics step, once that step has set
     its bounding box with Bullet's contact margin. Rays grazing its side hit it as they hit
@@ -78,6 +76,7 @@ def test_a_pillar_asleep_after_its_first_step_is_grazed_as_when_awake(monkeypatc
     awake = grazed()
     assert 0 < asleep.sum() < len(fan) and np.array_equal(asleep, awake)
     assert early.sum() < awake.sum()
+
 
 def test_hidden_bodies_let_rays_through_but_still_collide(sim, hardware_robot):
     robot = hardware_robot

@@ -70,9 +70,9 @@ def test_the_known_map_stays_the_default():
 
 @pytest.mark.parametrize(("kwargs", "message"), [
     ({"map_mode": "slam"}, "map_mode must be one of 'known', 'laser', got 'slam'"),
-    ({"map_mode": "laser", "localize": True},
-     "localize=True matches each scan to the known map's cylinders: map_mode='laser' has no "
-     "map (leave localize False)"),
+    ({"map_mode": "laser", "localize": True, "laser": {"rate_hz": 5.0}},
+     "localize=True matches each scan with the odometry of its instant: the laser's rate_hz "
+     "(5) must be the controller's (10)"),
 ])
 def test_a_map_mode_it_cannot_run_is_one_line(kwargs, message):
     with pytest.raises(ValueError) as err:

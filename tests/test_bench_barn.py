@@ -104,7 +104,7 @@ def test_jobs_and_the_summary():
 def test_the_shipped_barn_policy_drives_two_test_worlds_at_the_top_score(tmp_path, capsys):
     """--pretrained barn on the planar batch, without a map: both runs succeed in about 10 s
     (100 steps) and score the challenge's maximum, 0.5 (AT within 2 OT); the policy's env
-    kwargs come along (its laser map's)."""
+    kwargs come along (its laser map's, and its localization on its own scans)."""
     out = tmp_path / "barn.json"
     code = main(["barn", "--pretrained", "barn", "--engine", "planar", "--worlds", "0", "6",
                  "--n-envs", "2", "--fail-under", "100", "--json", str(out), "--quiet"])
@@ -113,6 +113,7 @@ def test_the_shipped_barn_policy_drives_two_test_worlds_at_the_top_score(tmp_pat
     assert result["driver"] == "pretrained:barn" and result["vectorization"] == "batched"
     assert result["env_kwargs"]["map_mode"] == "laser"
     assert result["env_kwargs"]["planner_frequency"] == 0
+    assert result["env_kwargs"]["localize"] is True  # its scans matched to its own map
     assert [r["outcome"] for r in result["records"]] == ["success", "success"]
     assert all(80 <= r["steps"] <= 140 and r["score"] == 0.5 for r in result["records"])
 

@@ -72,7 +72,7 @@ def build_parser() -> argparse.ArgumentParser:
     source.add_argument("--driver", metavar="NAME",
                         help=f"a classical driver: {', '.join(sorted(DRIVERS))} (the default: "
                              "dwa), run on the challenge's protocol: no map (map_mode=laser; "
-                             "map_mode=known or localize=true: the known map)")
+                             "map_mode=known, or localize=true without map_mode: the known map)")
     add_engine_argument(barn)
     barn.add_argument("--goal-rate", type=rate_arg, metavar="HZ",
                       help="a classical driver's goal sent again at this rate, as the "
@@ -282,12 +282,15 @@ def driver_for(args: argparse.Namespace, threads: int | None = None
     """The driver the arguments name, its name in the table, and the env kwargs it runs with
     unless ``--env-kwargs`` says otherwise: a policy's, those it was trained with (a policy
     of SmartCarBARN-v0); a classical driver's, the challenge's protocol (``map_mode`` laser:
-    no map), or the known map when ``localize`` is given (it matches scans to that map).
+    no map), or the known map when ``localize`` is given without ``map_mode`` (it matches
+    scans to that map).
     ``threads``: a classical driver's for its compiled loops (None: its default, one per
     CPU)."""
     if args.model is None and args.pretrained is None:
         name, given = args.driver or "dwa", dict(args.env_kwargs)
-        known = "localize" in given
+        # localize=true alone: the known map (its scans matched to the cylinders); with
+        # map_mode=laser, the laser map and the scans matched to the car's own map
+        known = "localize" in given and given.get("map_mode") != "laser"
         if args.goal_rate is not None and (
                 known or given.get("map_mode", DRIVER_MAP_MODE) != "laser"):
             raise DriverError("--goal-rate: the goal is sent to move_base, which runs with "

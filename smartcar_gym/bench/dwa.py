@@ -234,8 +234,8 @@ class DWADriver:
         else:
             cmd = self.planner.plan(velocity, obstacles, windows, goals, counts=counts)
         if self.recoveries is not None:
-            cmd = self._recover(cars, slots, odometry[:, :3].astype(float), new_plan, cmd,
-                                obstacles, counts)
+            cmd = self._recover(cars, slots, odometry[:, :3].astype(float), poses[:, :2],
+                                new_plan, cmd, obstacles, counts)
         if self.compensate_turns:
             cmd[:, 1] = turn_command(cmd[:, 0], cmd[:, 1])
             if self.oscillation is not None:
@@ -244,10 +244,12 @@ class DWADriver:
         scale = np.array([car.max_linear, car.max_angular])
         return np.clip(cmd / scale, -1.0, 1.0).astype(np.float32)
 
-    def _recover(self, cars: CarView, slots: list[int], odom: np.ndarray, new_plan: np.ndarray,
-                 cmd: np.ndarray, obstacles: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    def _recover(self, cars: CarView, slots: list[int], odom: np.ndarray, at: np.ndarray,
+                 new_plan: np.ndarray, cmd: np.ndarray, obstacles: np.ndarray,
+                 counts: np.ndarray) -> np.ndarray:
         """move_base's cycle around DWA's commands ``cmd`` (K, 2; (0, 0): none valid) of cars
-        ``slots`` at odometry poses ``odom`` (K, 3): the commands to send."""
+        ``slots`` at odometry poses ``odom`` (K, 3), at ``at`` (K, 2) in their costmaps' frame
+        (the pose on the map where localized): the commands to send."""
         c = self.planner.config
         now = cars.state.now_ns[slots].astype(float) / 1e9
         valid = np.any(cmd != 0.0, axis=1)
@@ -257,7 +259,7 @@ class DWADriver:
             if todo[k] in (CONSERVATIVE, AGGRESSIVE):
                 costmaps, car = self._costmap_of(cars, i)
                 if costmaps is not None:
-                    costmaps.clear_outside([car], odom[k, :2],
+                    costmaps.clear_outside([car], at[k],
                                            self.recoveries.reset_distance(todo[k]))
                 self.layers.clear(i)  # no partial clear there: all of it (docs/barn.md)
             elif todo[k] == ROTATE:

@@ -61,11 +61,13 @@ def beam_geometry(angles: np.ndarray, mount: np.ndarray) -> tuple[np.ndarray, np
     return mount[:2, 3].copy(), directions
 
 
-def _step(sums: tuple, at: tuple, correction: tuple) -> tuple:
+def solve_step(sums: tuple, at: tuple, correction: tuple) -> tuple:
     """The correction after one Gauss-Newton step from the normal equations' ``sums`` (JtJ's
-    xx, xy, xt, yy, yt, tt, then Jte's x, y, t), the turn taken about ``at``, the car on the
+    xx, xy, xt, yy, yt, tt, then Jte's x, y, t: the residuals' normals ``n`` and lever arms
+    ``m = n1 (px - at_x) - n0 (py - at_y)``), the turn taken about ``at``, the car on the
     map; ``(ok, x, y, yaw)``, ``ok`` False where the normal matrix is not positive definite.
-    Plain floats, so that numba compiles the very same arithmetic."""
+    Plain floats, so that numba compiles the very same arithmetic (``solve_step_compiled``;
+    ``scan_map`` solves its point-to-line steps with it too)."""
     a00, a01, a02, a11, a12, a22, b0, b1, b2 = sums
     a00, a11, a22 = a00 + DAMPING, a11 + DAMPING, a22 + DAMPING
     # Cholesky, A = L L^T, then L y = -b and L^T x = y
@@ -181,7 +183,7 @@ class ScanMatcher:
         return correction
 
     def _numpy_step(self, correction: Pose, odom: np.ndarray, at: Pose) -> tuple:
-        """``_step`` from the hits ``odom`` (odometry's frame), numpy's way."""
+        """``solve_step`` from the hits ``odom`` (odometry's frame), numpy's way."""
         c, s = math.cos(correction[2]), math.sin(correction[2])
         px = correction[0] + c * odom[:, 0] - s * odom[:, 1]
         py = correction[1] + s * odom[:, 0] + c * odom[:, 1]
@@ -207,7 +209,7 @@ class ScanMatcher:
         terms = np.stack([n0 * n0, n0 * n1, n0 * m, n1 * n1, n1 * m, m * m,
                           n0 * e, n1 * e, m * e], axis=1)
         sums = np.cumsum(terms, axis=0)[-1]  # in the hits' order, as the compiled loop
-        return _step(tuple(sums.tolist()), at, correction)
+        return solve_step(tuple(sums.tolist()), at, correction)
 
 
 class Localizer:
@@ -258,7 +260,7 @@ def _correct_loops(correction, odom_pose, ranges, origin, directions, centres, r
         return False, correction[0], correction[1], correction[2]
     changed = False
     for _ in range(steps):
-        at = _compose(correction, odom_pose)
+        at = compose_compiled(correction, odom_pose)
         c, s = math.cos(correction[2]), math.sin(correction[2])
         sums = np.zeros(9)
         paired = 0
@@ -292,8 +294,8 @@ def _correct_loops(correction, odom_pose, ranges, origin, directions, centres, r
             paired += 1
         if paired < min_hits:
             break
-        ok, x, y, yaw = _step_compiled((sums[0], sums[1], sums[2], sums[3], sums[4], sums[5],
-                                        sums[6], sums[7], sums[8]), at, correction)
+        ok, x, y, yaw = solve_step_compiled((sums[0], sums[1], sums[2], sums[3], sums[4],
+                                             sums[5], sums[6], sums[7], sums[8]), at, correction)
         if not ok:
             break
         correction = (x, y, yaw)
@@ -302,6 +304,7 @@ def _correct_loops(correction, odom_pose, ranges, origin, directions, centres, r
 
 
 if COMPILED:
-    _compose = numba.njit(cache=True)(compose)  # for the compiled loop
-    _step_compiled = numba.njit(cache=True)(_step)
+    #: ``compose`` and ``solve_step`` for compiled loops (here and in ``scan_map``)
+    compose_compiled = numba.njit(cache=True)(compose)
+    solve_step_compiled = numba.njit(cache=True)(solve_step)
     _compiled_correct = numba.njit(cache=True, nogil=True)(_correct_loops)

@@ -32,6 +32,26 @@ OBSERVATION_ORDER = (
 )
 
 
+def goal_columns(pose: Any, cos: Any, sin: Any, goal: Any) -> dict[str, Any]:
+    """The goal's columns (``goal_base``, ``goal_distance``, ``goal_odom``) seen from ``pose``
+    (the odometry's, (N, k) or one car's row; ``cos``, ``sin``: ``heading`` of it), the goals
+    ``goal`` (N, 2) or one car's."""
+    x, y = split(pose)[:2]
+    goal_x, goal_y = split(goal)
+    gx, gy = goal_x - x, goal_y - y
+    return {"goal_base": (cos * gx + sin * gy, -sin * gx + cos * gy),
+            "goal_distance": (np.hypot(gx, gy),), "goal_odom": (goal_x, goal_y)}
+
+
+def pose_columns(poses: np.ndarray, goal: np.ndarray) -> dict[str, Any]:
+    """The columns that read the car's pose (``odom_position``, ``odom_heading`` and the
+    goal's) from ``poses`` (N, 3: x, y, yaw) in place of the odometry's, the goals ``goal``
+    (N, 2) in the same frame: a localized car's."""
+    cos, sin = heading(poses)
+    return {"odom_position": (poses[:, 0], poses[:, 1]), "odom_heading": (cos, sin),
+            **goal_columns(poses, cos, sin, goal)}
+
+
 class ReachTask(Task):
     """## Description
 
@@ -181,13 +201,8 @@ class ReachTask(Task):
         state = cars.state
         odometry = cars.values(state.odometry)
         cos, sin = heading(odometry)
-        x, y = split(odometry)[:2]
-        goal_x, goal_y = split(cars.values(state.goal))
-        gx, gy = goal_x - x, goal_y - y
         return {**robot_columns(cars, cos, sin),
-                "goal_base": (cos * gx + sin * gy, -sin * gx + cos * gy),
-                "goal_distance": (np.hypot(gx, gy),),
-                "goal_odom": (goal_x, goal_y)}
+                **goal_columns(odometry, cos, sin, cars.values(state.goal))}
 
     # -- cars ----------------------------------------------------------------------------------
     def attach(self, num: int) -> None:

@@ -8,6 +8,11 @@ cars' costmaps and marks their first scans, ``update`` marks each new scan at th
 (the laser scans at the controller's rate) and plans again where the replanner says (its rate,
 or a new mark on the path), returning the cars whose path changed. Until a plan succeeds a car
 keeps the path it had.
+
+With ``localize`` each new scan is first matched to the map the car's earlier scans made
+(``navigation.scan_map.ScanMaps``: a laser SLAM front end's map -> odom correction), and the
+pose on that map (``poses``) takes the odometry's place: the scan is marked there and the path
+planned from there.
 """
 
 from __future__ import annotations
@@ -19,12 +24,14 @@ import numpy as np
 
 from smartcar_gym import checks
 from smartcar_gym.envs.state import SCAN, SCAN_TIME, CarState
+from smartcar_gym.navigation import localization
 from smartcar_gym.navigation.costmap import CostmapConfig, LaserCostmaps
 from smartcar_gym.navigation.costmap_planner import (
     PLANNER_FREQUENCY_HZ,
     Replanner,
     check_planner_frequency,
 )
+from smartcar_gym.navigation.scan_map import ScanMaps
 from smartcar_gym.sim.clock import NS_PER_S
 
 
@@ -65,17 +72,23 @@ class LaserMap:
     settings; ``scale`` and ``speed_scale``, the world's and the speed's against the
     challenge's (the planner's rate follows them); ``angles`` and ``mount``, the laser's beams
     (rad) and its 4 x 4 pose in base_link; ``planner_frequency`` (Hz, before scaling; 0: only
-    when the path is blocked)."""
+    when the path is blocked); ``localize``: the scans matched to the car's own map."""
 
     def __init__(self, config: CostmapConfig, num: int, scale: float, speed_scale: float,
                  angles: np.ndarray, mount: np.ndarray,
-                 planner_frequency: float = PLANNER_FREQUENCY_HZ) -> None:
+                 planner_frequency: float = PLANNER_FREQUENCY_HZ,
+                 localize: bool = False) -> None:
         #: each car's costmap (``costs(car)``, ``lethal(car)``)
         self.costmaps = LaserCostmaps(config, num)
         self.replanner = Replanner.challenge(self.costmaps, scale, speed_scale,
                                              planner_frequency)
         self.angles, self.mount = angles, mount
         self._marked = np.full(num, -1, dtype=np.int64)  # the time of the scan last marked
+        #: ``localize``: each car's map of its own returns (on the costmap's grid), else None
+        self.scan_maps = ScanMaps(config, num) if localize else None
+        #: each car's map -> odom correction (x, y, yaw), (N, 3): zero without ``localize``
+        self.corrections = np.zeros((num, 3))
+        self._beams = localization.beam_geometry(angles, mount)
 
     def start(self, state: CarState, idx: np.ndarray, paths: list[np.ndarray],
               threads: int = 1) -> None:
@@ -84,7 +97,20 @@ class LaserMap:
         self.costmaps.reset(idx)
         self.replanner.reset(idx.tolist())
         self._marked[idx] = -1
+        if self.scan_maps is not None:
+            self.scan_maps.reset(idx)
+        self.corrections[idx] = 0.0
         self.update(state, idx, paths, threads)
+
+    def poses(self, state: CarState, idx: np.ndarray) -> np.ndarray:
+        """Cars ``idx``' base_link poses (K, 3) in their costmaps' frame: the odometry's, or
+        with ``localize`` the pose on the map (``localization.compose``, one car at a time)."""
+        odometry = state.odometry[idx, :3]
+        if self.scan_maps is None:
+            return odometry
+        return np.array([localization.compose(tuple(c), tuple(o)) for c, o in
+                         zip(self.corrections[idx].tolist(), odometry.tolist(), strict=True)],
+                        dtype=float).reshape(-1, 3)
 
     def update(self, state: CarState, idx: np.ndarray, paths: list[np.ndarray],
                threads: int = 1) -> list[int]:
@@ -93,13 +119,17 @@ class LaserMap:
         on ``threads`` threads (the same grids and paths whatever the count)."""
         fresh = idx[state.readings[SCAN_TIME][idx] != self._marked[idx]]
         if len(fresh):
-            self.costmaps.update(fresh, state.odometry[fresh, :3], state.readings[SCAN][fresh],
+            if self.scan_maps is not None:
+                self.corrections[fresh] = self.scan_maps.correct(
+                    fresh, self.corrections[fresh], state.odometry[fresh, :3],
+                    state.readings[SCAN][fresh], *self._beams, threads=threads)
+            self.costmaps.update(fresh, self.poses(state, fresh), state.readings[SCAN][fresh],
                                  self.angles, self.mount, threads=threads)
             self._marked[fresh] = state.readings[SCAN_TIME][fresh]
         now_s = [int(now) / NS_PER_S for now in state.now_ns[idx].tolist()]
         due = [k for k, i in enumerate(idx.tolist()) if self.replanner.needs_plan(i, now_s[k])]
         cars = idx[due]
-        changed = self.replanner.plan_many(cars.tolist(), state.odometry[cars, :2],
+        changed = self.replanner.plan_many(cars.tolist(), self.poses(state, cars)[:, :2],
                                            state.goal[cars], [now_s[k] for k in due], threads)
         for i in changed:
             paths[i] = self.replanner.path(i)

@@ -30,6 +30,7 @@ from smartcar_gym.envs.tasks.barn.protocol import (
 from smartcar_gym.envs.tasks.base import Cars, CarSettings, Score
 from smartcar_gym.envs.tasks.nav import NAV_OBSERVATION_ORDER, NavTask
 from smartcar_gym.envs.tasks.obstacles import Obstacle
+from smartcar_gym.envs.tasks.reach import pose_columns
 from smartcar_gym.model.footprint import car_width, footprint_half_extents
 from smartcar_gym.navigation.costmap import CostmapConfig, LaserCostmaps
 from smartcar_gym.navigation.grid_planner import NoPathError, distance_grid, plan_path
@@ -115,6 +116,16 @@ class BarnTask(NavTask):
     odometry (``env.unwrapped.costmaps``, ``global_path``). Until a plan succeeds the path is
     the straight line to the goal.
 
+    With ``map_mode="laser"`` and ``localize=True`` the odometry is corrected as a laser SLAM
+    front end corrects it: each scan is matched to the map the car's earlier scans made
+    (``navigation.scan_map.ScanMaps``: point-to-line ICP against one kept return per costmap
+    cell), the map -> odom correction starting as the identity (``env.unwrapped.correction``),
+    and the pose on that map (``env.unwrapped.map_pose``) takes the odometry pose's place
+    everywhere the car's pose is read: the costmap is marked there, the path planned and
+    followed from there, and the observation's ``odom_position``, ``odom_heading``,
+    ``goal_base`` and ``goal_distance`` are that pose's (the velocities, the wheels and
+    ``info``'s ``odom_pose`` stay the odometry's). No ground truth is read.
+
     ## Episodes
 
     ``reset(options={"world": i})`` picks world i (an integer, 0-299); without it a world is
@@ -139,10 +150,10 @@ class BarnTask(NavTask):
     ``"path"`` the progress along the global path instead (the same weight, on the car's
     ground-truth distance to go: its distance to the path's nearest point plus the path
     beyond it), which does not pull the car at the cylinders between it and the goal.
-    ``localize`` (False) takes the waypoint from the scan-matched pose on the map (above); it
-    needs the laser at the controller's rate (the shipped 10 Hz). ``map_mode``: ``"known"``
-    (the default: the world's cylinders) or ``"laser"`` (the car's own costmap, above), which
-    does not take ``localize`` (there is no map to match). With ``"laser"``,
+    ``localize`` (False) takes the pose from the scans (above): matched to the known
+    cylinders, or with ``"laser"`` to the car's own map; it needs the laser at the
+    controller's rate (the shipped 10 Hz). ``map_mode``: ``"known"`` (the default: the
+    world's cylinders) or ``"laser"`` (the car's own costmap, above). With ``"laser"``,
     ``progress="path"`` still measures the progress along the known map's path: a training
     signal from the simulator's truth, as the reward's other terms are; the observation holds
     nothing of it.
@@ -157,7 +168,8 @@ class BarnTask(NavTask):
     ## Version History
 
     * v0 (0.5.0): ``map_mode="laser"`` (with ``progress="path"``: the known path's progress
-      as the reward); ``costmap``, ``planner_frequency``; no step limit but the protocol's
+      as the reward; with ``localize``, the scans matched to the car's own map);
+      ``costmap``, ``planner_frequency``; no step limit but the protocol's
       timeout (was 1676 steps); the world file's own split; the task written once for the
       single and the batched envs (``BarnTask``).
     * v0 (0.4.0): initial version (the known map, ``localize``, ``progress``).
@@ -197,9 +209,6 @@ class BarnTask(NavTask):
                              f"{map_mode!r}")
         #: where the global path comes from: "known" (the world's cylinders) or "laser"
         self.map_mode = map_mode
-        if map_mode == "laser" and self.localize:
-            raise ValueError("localize=True matches each scan to the known map's cylinders: "
-                             "map_mode='laser' has no map (leave localize False)")
         #: the laser costmap's fields changed from the challenge's scaled ones
         self.costmap_changes = costmap_changes(costmap, map_mode)
         #: move_base's planner_frequency on the laser map (Hz before scaling; the challenge's
@@ -273,7 +282,7 @@ class BarnTask(NavTask):
         self._laser_map = None if self.costmap_config is None else LaserMap(
             self.costmap_config, num, self.protocol.scale,
             self.car.max_linear / JACKAL_TOP_SPEED_M_S, self.laser_config.angles, self.mount,
-            self.planner_frequency)
+            self.planner_frequency, self.localize)
 
     def only_build(self) -> None:
         """A builder keeps no laser map: the batch's own ``begin`` marks the first scan and
@@ -301,7 +310,10 @@ class BarnTask(NavTask):
 
     @property
     def corrections(self) -> list[Pose]:
-        """Each car's map -> odom correction (the identity without ``localize``)."""
+        """Each car's map -> odom correction (the identity without ``localize``; laser: on
+        the map of its own scans)."""
+        if self._laser_map is not None and self.localize:
+            return [tuple(row) for row in self._laser_map.corrections.tolist()]
         return [IDENTITY if loc is None else loc.correction for loc in self._localizers]
 
     @property
@@ -353,7 +365,8 @@ class BarnTask(NavTask):
             self.global_paths[i] = (self.plan(world.index) if self.map_mode == "known"
                                     else np.array([[0.0, 0.0], cars.state.goal[i]]))
             self.optimal[i] = self.protocol.optimal_time_s(world.path_length_m * scale)
-            self.matchers[i] = ScanMatcher(centres, radii) if self.localize else None
+            self.matchers[i] = (ScanMatcher(centres, radii)
+                                if self.localize and self.map_mode == "known" else None)
 
     def plan(self, index: int) -> np.ndarray:
         """World ``index``'s global path in the car's start frame (cached in
@@ -404,8 +417,10 @@ class BarnTask(NavTask):
         if self._laser_map is not None and len(idx):
             for i in self._laser_map.update(state, idx, self.global_paths, cars.threads):
                 self._trackers.start(i, self.global_paths[i])
-        poses = state.odometry[idx, :3].astype(float)
-        if self.localize:
+            poses = self._laser_map.poses(state, idx)
+        else:
+            poses = state.odometry[idx, :3].astype(float)
+        if self.localize and self.map_mode == "known":
             odoms = [tuple(row) for row in poses.tolist()]
             scans = state.readings[SCAN_TIME][idx].tolist()  # each car's scan's key: its time
             ranges = state.readings[SCAN][idx]
@@ -450,6 +465,8 @@ class BarnTask(NavTask):
 
     def columns(self, cars: Cars) -> dict[str, Any]:
         columns = super().columns(cars)
+        if self.localize and self.map_mode == "laser":  # the pose on the map, not odometry's
+            columns.update(pose_columns(self.map_poses, cars.state.goal))
         columns["waypoint_base"] = (self.waypoints[:, 0], self.waypoints[:, 1])
         return columns
 

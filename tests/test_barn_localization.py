@@ -5,6 +5,7 @@ the map, and its batch is its single env bit for bit (DWA from that pose, batche
 
 from __future__ import annotations
 
+import contextlib
 import math
 
 import gymnasium as gym
@@ -191,9 +192,11 @@ def test_bad_localize_arguments_are_refused():
         gym.make("SmartCarBARN-v0", engine="planar", localize=True, laser={"rate_hz": 5.0})
 
 
-def test_the_localized_batch_equals_n_single_envs_bit_for_bit():
-    """8 cars, their scans matched on two threads (4 cars each), as 8 single envs."""
-    kwargs = dict(engine="planar", localize=True, randomize="odometry", max_episode_steps=24)
+@contextlib.contextmanager
+def batch_beside_single(steps: int, **kwargs):
+    """8 cars of SmartCarBARN-v0 with ``kwargs``, their scans matched on two threads (4 cars
+    each), and 8 single envs, rolled out alike for ``steps`` steps, each step the same
+    (``assert_same``); yields both (closed after) for the caller's checks."""
     batched = gym.make_vec("SmartCarBARN-v0", num_envs=8, num_threads=2,
                            vectorization_mode="vector_entry_point", autoreset_mode="SameStep",
                            **kwargs)
@@ -202,13 +205,19 @@ def test_the_localized_batch_equals_n_single_envs_bit_for_bit():
                           **kwargs)
     assert isinstance(batched, SmartCarBatchVectorEnv)
     try:
-        got, want = rollout(batched, 50, 5), rollout(single, 50, 5)
+        got, want = rollout(batched, steps, 5), rollout(single, steps, 5)
         for k, (g, w) in enumerate(zip(got, want, strict=True)):
             assert_same(g, w, f"step {k}")
-        u = batched.unwrapped
-        for i, env in enumerate(single.envs):
-            assert u.corrections[i] == env.unwrapped.correction != IDENTITY
-            assert tuple(u.map_poses[i]) == env.unwrapped.map_pose
+        yield batched.unwrapped, single.envs
     finally:
         batched.close()
         single.close()
+
+
+def test_the_localized_batch_equals_n_single_envs_bit_for_bit():
+    """8 cars, their scans matched on two threads (4 cars each), as 8 single envs."""
+    with batch_beside_single(50, engine="planar", localize=True, randomize="odometry",
+                             max_episode_steps=24) as (u, envs):
+        for i, env in enumerate(envs):
+            assert u.corrections[i] == env.unwrapped.correction != IDENTITY
+            assert tuple(u.map_poses[i]) == env.unwrapped.map_pose

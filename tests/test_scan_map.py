@@ -12,14 +12,11 @@ import numpy as np
 import pytest
 
 import smartcar_gym  # noqa: F401
-from smartcar_gym.envs.vector import SmartCarBatchVectorEnv
 from smartcar_gym.navigation import localization
 from smartcar_gym.navigation.costmap import CostmapConfig
 from smartcar_gym.navigation.localization import COMPILED, compose
 from smartcar_gym.navigation.scan_map import LEVELS, ScanMaps
-from tests.test_barn_localization import scan_of
-from tests.test_vector_batched import rollout
-from tests.test_vector_randomize import assert_same
+from tests.test_barn_localization import batch_beside_single, scan_of
 
 GRID = CostmapConfig.challenge(0.18 / 0.43)  # the shipped car's laser costmap: 2.09 cm cells
 ANGLES = np.linspace(-math.pi, math.pi, 360, endpoint=False)
@@ -170,23 +167,9 @@ def test_the_mapless_env_follows_the_pose_on_its_own_map():
 def test_the_mapless_localized_batch_equals_n_single_envs_bit_for_bit():
     """8 cars, their scans matched on two threads, as 8 single envs: observations, rewards,
     infos, corrections, costmaps."""
-    kwargs = dict(engine="planar", map_mode="laser", localize=True, randomize="odometry",
-                  max_episode_steps=24, laser={"noise_std_m": 0.01})
-    batched = gym.make_vec("SmartCarBARN-v0", num_envs=8, num_threads=2,
-                           vectorization_mode="vector_entry_point", autoreset_mode="SameStep",
-                           **kwargs)
-    single = gym.make_vec("SmartCarBARN-v0", num_envs=8, vectorization_mode="sync",
-                          vector_kwargs={"autoreset_mode": gym.vector.AutoresetMode.SAME_STEP},
-                          **kwargs)
-    assert isinstance(batched, SmartCarBatchVectorEnv)
-    try:
-        got, want = rollout(batched, 40, 5), rollout(single, 40, 5)
-        for k, (g, w) in enumerate(zip(got, want, strict=True)):
-            assert_same(g, w, f"step {k}")
-        u = batched.unwrapped
-        for i, env in enumerate(single.envs):
+    with batch_beside_single(40, engine="planar", map_mode="laser", localize=True,
+                             randomize="odometry", max_episode_steps=24,
+                             laser={"noise_std_m": 0.01}) as (u, envs):
+        for i, env in enumerate(envs):
             assert u.corrections[i] == env.unwrapped.correction != (0.0, 0.0, 0.0)
             assert np.array_equal(u.costmaps.costs(i), env.unwrapped.costmaps.costs(0))
-    finally:
-        batched.close()
-        single.close()

@@ -98,6 +98,22 @@ def solve_step(sums: tuple, at: tuple, correction: tuple) -> tuple:
             ty + s * correction[0] + c * correction[1], dyaw + correction[2])
 
 
+def add_residual(sums: np.ndarray, first: bool, n0: float, n1: float, m: float,
+                 e: float) -> None:
+    """One residual ``e`` (normal ``n0, n1``, lever arm ``m``) added to the normal equations'
+    ``sums`` (9,: ``solve_step``'s order) in place; ``first``: the sums start from it. For
+    compiled loops (``add_residual_compiled``): in the residuals' order, as numpy's cumsum."""
+    terms = (n0 * n0, n0 * n1, n0 * m, n1 * n1, n1 * m, m * m, n0 * e, n1 * e, m * e)
+    for t in range(9):
+        sums[t] = terms[t] if first else sums[t] + terms[t]
+
+
+def solve_sums(sums: np.ndarray, at: tuple, correction: tuple) -> tuple:
+    """``solve_step`` of the sums ``add_residual`` made (compiled: ``solve_sums_compiled``)."""
+    return solve_step_compiled((sums[0], sums[1], sums[2], sums[3], sums[4], sums[5], sums[6],
+                                sums[7], sums[8]), at, correction)
+
+
 class ScanMatcher:
     """The map -> odom correction on a map of circles (``centres`` (M, 2), ``radii`` (M,), m).
 
@@ -286,16 +302,12 @@ def _correct_loops(correction, odom_pose, ranges, origin, directions, centres, r
             if not (abs(best) < gate and bd > 0.0):
                 continue
             n0, n1 = bdx / bd, bdy / bd
-            m = n1 * (px - at[0]) - n0 * (py - at[1])
-            terms = (n0 * n0, n0 * n1, n0 * m, n1 * n1, n1 * m, m * m, n0 * best, n1 * best,
-                     m * best)
-            for t in range(9):
-                sums[t] = terms[t] if paired == 0 else sums[t] + terms[t]
+            add_residual_compiled(sums, paired == 0, n0, n1,
+                                  n1 * (px - at[0]) - n0 * (py - at[1]), best)
             paired += 1
         if paired < min_hits:
             break
-        ok, x, y, yaw = solve_step_compiled((sums[0], sums[1], sums[2], sums[3], sums[4],
-                                             sums[5], sums[6], sums[7], sums[8]), at, correction)
+        ok, x, y, yaw = solve_sums_compiled(sums, at, correction)
         if not ok:
             break
         correction = (x, y, yaw)
@@ -304,7 +316,10 @@ def _correct_loops(correction, odom_pose, ranges, origin, directions, centres, r
 
 
 if COMPILED:
-    #: ``compose`` and ``solve_step`` for compiled loops (here and in ``scan_map``)
+    #: ``compose``, ``solve_step``, ``add_residual`` and ``solve_sums`` for compiled loops
+    #: (here and in ``scan_map``)
     compose_compiled = numba.njit(cache=True)(compose)
     solve_step_compiled = numba.njit(cache=True)(solve_step)
+    add_residual_compiled = numba.njit(cache=True)(add_residual)
+    solve_sums_compiled = numba.njit(cache=True)(solve_sums)
     _compiled_correct = numba.njit(cache=True, nogil=True)(_correct_loops)

@@ -307,18 +307,13 @@ def _correct_loops(idx, corrections, odoms, ranges, origin, directions, offsets,
                 if not length > 0.0:
                     continue
                 n0, n1 = -ty / length, tx / length
-                e = n0 * (x - q1x) + n1 * (y - q1y)
-                m = n1 * (x - at[0]) - n0 * (y - at[1])
-                terms = (n0 * n0, n0 * n1, n0 * m, n1 * n1, n1 * m, m * m, n0 * e, n1 * e,
-                         m * e)
-                for t in range(9):
-                    sums[t] = terms[t] if paired == 0 else sums[t] + terms[t]
+                add_residual_compiled(sums, paired == 0, n0, n1,
+                                      n1 * (x - at[0]) - n0 * (y - at[1]),
+                                      n0 * (x - q1x) + n1 * (y - q1y))
                 paired += 1
             if paired < min_pairs:
                 break
-            ok, x, y, yaw = solve_step_compiled((sums[0], sums[1], sums[2], sums[3], sums[4],
-                                                 sums[5], sums[6], sums[7], sums[8]), at,
-                                                correction)
+            ok, x, y, yaw = solve_sums_compiled(sums, at, correction)
             if not ok:
                 break
             correction = (x, y, yaw)
@@ -340,7 +335,11 @@ def _correct_loops(idx, corrections, odoms, ranges, origin, directions, offsets,
 
 
 if COMPILED:
-    from smartcar_gym.navigation.localization import compose_compiled, solve_step_compiled
+    from smartcar_gym.navigation.localization import (
+        add_residual_compiled,
+        compose_compiled,
+        solve_sums_compiled,
+    )
 
     _settled_compiled = numba.njit(cache=True)(_settled)
     _compiled_correct = numba.njit(cache=True, nogil=True)(_correct_loops)

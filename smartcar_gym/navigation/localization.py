@@ -98,6 +98,24 @@ def solve_step(sums: tuple, at: tuple, correction: tuple) -> tuple:
             ty + s * correction[0] + c * correction[1], dyaw + correction[2])
 
 
+def place_returns(odom: tuple, ranges: np.ndarray, origin: np.ndarray,
+                  directions: np.ndarray, stride: int, ox: np.ndarray, oy: np.ndarray) -> int:
+    """The returns (finite ranges) of every ``stride``-th beam of a scan taken at ``odom``,
+    in the odom frame, written to ``ox``, ``oy`` in the beams' order: their count. For
+    compiled loops (``place_returns_compiled``)."""
+    c, s = math.cos(odom[2]), math.sin(odom[2])
+    n = 0
+    for k in range(0, ranges.shape[0], stride):
+        r = ranges[k]
+        if math.isfinite(r):
+            bx = origin[0] + r * directions[k, 0]
+            by = origin[1] + r * directions[k, 1]
+            ox[n] = odom[0] + c * bx - s * by
+            oy[n] = odom[1] + s * bx + c * by
+            n += 1
+    return n
+
+
 def add_residual(sums: np.ndarray, first: bool, n0: float, n1: float, m: float,
                  e: float) -> None:
     """One residual ``e`` (normal ``n0, n1``, lever arm ``m``) added to the normal equations'
@@ -262,16 +280,7 @@ def _correct_loops(correction, odom_pose, ranges, origin, directions, centres, r
     b = ranges.shape[0]
     ox = np.empty(b)
     oy = np.empty(b)
-    c, s = math.cos(odom_pose[2]), math.sin(odom_pose[2])
-    n = 0
-    for k in range(0, b, stride):
-        r = ranges[k]
-        if math.isfinite(r):
-            bx = origin[0] + r * directions[k, 0]
-            by = origin[1] + r * directions[k, 1]
-            ox[n] = odom_pose[0] + c * bx - s * by
-            oy[n] = odom_pose[1] + s * bx + c * by
-            n += 1
+    n = place_returns_compiled(odom_pose, ranges, origin, directions, stride, ox, oy)
     if n < min_hits:
         return False, correction[0], correction[1], correction[2]
     changed = False
@@ -316,10 +325,12 @@ def _correct_loops(correction, odom_pose, ranges, origin, directions, centres, r
 
 
 if COMPILED:
-    #: ``compose``, ``solve_step``, ``add_residual`` and ``solve_sums`` for compiled loops
+    #: ``compose``, ``solve_step``, ``place_returns``, ``add_residual`` and ``solve_sums`` for
+    #: compiled loops
     #: (here and in ``scan_map``)
     compose_compiled = numba.njit(cache=True)(compose)
     solve_step_compiled = numba.njit(cache=True)(solve_step)
     add_residual_compiled = numba.njit(cache=True)(add_residual)
+    place_returns_compiled = numba.njit(cache=True)(place_returns)
     solve_sums_compiled = numba.njit(cache=True)(solve_sums)
     _compiled_correct = numba.njit(cache=True, nogil=True)(_correct_loops)

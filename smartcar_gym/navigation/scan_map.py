@@ -241,18 +241,9 @@ def _correct_loops(idx, corrections, odoms, ranges, origin, directions, offsets,
     res2 = res * res
     for k in range(idx.shape[0]):
         car = idx[k]
-        c, s = math.cos(odoms[k, 2]), math.sin(odoms[k, 2])
-        count = 0
-        for j in range(b):
-            r = ranges[k, j]
-            if math.isfinite(r):
-                bx = origin[0] + r * directions[j, 0]
-                by = origin[1] + r * directions[j, 1]
-                ox[count] = odoms[k, 0] + c * bx - s * by
-                oy[count] = odoms[k, 1] + s * bx + c * by
-                count += 1
-        correction = (corrections[k, 0], corrections[k, 1], corrections[k, 2])
         odom = (odoms[k, 0], odoms[k, 1], odoms[k, 2])
+        count = place_returns_compiled(odom, ranges[k], origin, directions, 1, ox, oy)
+        correction = (corrections[k, 0], corrections[k, 1], corrections[k, 2])
         for _ in range(iterations):
             at = compose_compiled(correction, odom)
             c, s = math.cos(correction[2]), math.sin(correction[2])
@@ -338,6 +329,7 @@ if COMPILED:
     from smartcar_gym.navigation.localization import (
         add_residual_compiled,
         compose_compiled,
+        place_returns_compiled,
         solve_sums_compiled,
     )
 

@@ -85,20 +85,21 @@ def test_too_few_pairs_or_too_far_keep_the_correction(field):
 
 @pytest.mark.skipif(not COMPILED, reason="needs the fast extra (numba)")
 def test_the_compiled_maps_are_numpys_bit_for_bit(field):
-    """Three cars, 12 noisy scans each along a drive with drifting odometry: numba's loops
-    (on one thread and on two) give numpy's corrections and maps to the bit."""
+    """Eight cars, 12 noisy scans each along drives with drifting odometry: numba's loops
+    (on one thread, and on two: four cars each) give numpy's corrections and maps to the
+    bit."""
     rng = np.random.default_rng(3)
     beams = (np.array([0.05, 0.0]), scan_of(field, (0.0, 0.0, 0.0), ANGLES)[1])
     runs = {}
     for name, compiled, threads in (("numpy", False, 1), ("numba", True, 1),
                                     ("numba x2", True, 2)):
-        maps = ScanMaps(GRID, 6, compiled=compiled)
-        cars = np.array([4, 0, 2])
-        corrections = np.zeros((3, 3))
+        maps = ScanMaps(GRID, 10, compiled=compiled)
+        cars = np.array([4, 0, 2, 9, 7, 1, 5, 3])
+        corrections = np.zeros((8, 3))
         out = []
         rng = np.random.default_rng(3)
         for step in range(12):
-            truth = [(0.03 * step, 0.01 * k, 0.02 * step * (k - 1)) for k in range(3)]
+            truth = [(0.03 * step, 0.01 * k, 0.01 * step * (k - 3)) for k in range(8)]
             odoms = np.array([compose(t, (0.002 * step, -0.001 * step, 0.003 * step))
                               for t in truth])
             ranges = np.stack([scan_of(field, t, ANGLES)[0] for t in truth])

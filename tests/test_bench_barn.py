@@ -336,3 +336,19 @@ def test_the_worlds_planned_over_threads_are_the_sequential_plans(tmp_path):
     finally:
         for env in envs:
             env.close()
+
+
+@pytest.mark.parametrize(("given", "defaults"), [
+    ([], {"map_mode": "laser"}),  # the challenge's protocol: no map
+    ([("localize", True)], {}),  # localize alone: the known map, its scans matched to it
+    ([("map_mode", "laser"), ("localize", True)], {"map_mode": "laser"}),  # its own scans
+])
+def test_a_classical_drivers_map_follows_localize_and_map_mode(given, defaults):
+    from argparse import Namespace
+
+    from smartcar_gym.bench.cli import driver_for
+
+    args = Namespace(model=None, pretrained=None, driver="dwa", env_kwargs=given,
+                     goal_rate=None)
+    _, name, kwargs = driver_for(args, threads=1)
+    assert name == "dwa" and kwargs == defaults

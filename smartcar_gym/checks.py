@@ -9,6 +9,7 @@ from __future__ import annotations
 import difflib
 import math
 import numbers
+import operator
 import os
 from collections.abc import Sequence
 from typing import Any
@@ -56,6 +57,25 @@ def non_negative_number(name: str, value: Any, error: Error = ValueError) -> flo
     if not (is_finite(value) and value >= 0):
         raise error(f"{name} must be a number >= 0, got {value!r}")
     return float(value)
+
+
+def car_indices(label: str, cars: Sequence[int] | np.ndarray, n: int) -> np.ndarray:
+    """``cars`` as distinct int64 indices into ``n`` cars (``label``: whose cars, in the
+    error); IndexError for one out of range, ValueError for a repeated one."""
+    idx = np.asarray(cars, dtype=np.int64).reshape(-1)
+    if len(idx) and (idx.min() < 0 or idx.max() >= n):
+        raise IndexError(f"{label} cars must be in [0, {n}), got {idx.tolist()}")
+    if len(np.unique(idx)) != len(idx):
+        raise ValueError(f"{label} cars must be distinct, got {idx.tolist()}")
+    return idx
+
+
+def car_index(label: str, car: int, n: int) -> int:
+    """One car's index, checked as ``car_indices`` checks many (without its arrays)."""
+    i = operator.index(car)
+    if not 0 <= i < n:
+        raise IndexError(f"{label} cars must be in [0, {n}), got [{i}]")
+    return i
 
 
 def positive_int(name: str, value: Any, upper: int | None = None, why: str = "",

@@ -31,7 +31,6 @@ numpy's own cosines, sines and hypot; clearing, marking and inflating are intege
 from __future__ import annotations
 
 import math
-import operator
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -226,19 +225,10 @@ class LaserCostmaps:
         self._bounds = np.tile(np.array([cells, cells, 0, 0], dtype=np.int64), (n, 1))
 
     def _cars(self, cars: Sequence[int] | np.ndarray) -> np.ndarray:
-        idx = np.asarray(cars, dtype=np.int64).reshape(-1)
-        if len(idx) and (idx.min() < 0 or idx.max() >= self.n):
-            raise IndexError(f"costmap cars must be in [0, {self.n}), got {idx.tolist()}")
-        if len(np.unique(idx)) != len(idx):
-            raise ValueError(f"costmap cars must be distinct, got {idx.tolist()}")
-        return idx
+        return checks.car_indices("costmap", cars, self.n)
 
     def _car(self, car: int) -> int:
-        """One car's index, checked as ``_cars`` checks many (without its arrays)."""
-        i = operator.index(car)
-        if not 0 <= i < self.n:
-            raise IndexError(f"costmap cars must be in [0, {self.n}), got [{i}]")
-        return i
+        return checks.car_index("costmap", car, self.n)
 
     def reset(self, cars: Sequence[int] | np.ndarray) -> None:
         """Clears the grids of ``cars``: nothing seen."""

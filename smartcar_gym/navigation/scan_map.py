@@ -27,7 +27,6 @@ on the thread count.
 from __future__ import annotations
 
 import math
-import operator
 from collections.abc import Sequence
 
 import numpy as np
@@ -35,6 +34,7 @@ import numpy as np
 from smartcar_gym import checks
 from smartcar_gym.navigation.costmap import MAX_TOTAL_CELLS, CostmapConfig
 from smartcar_gym.navigation.localization import COMPILED, Pose, compose, solve_step
+from smartcar_gym.parallel import run_chunks
 
 try:
     import numba
@@ -88,24 +88,13 @@ class ScanMaps:
         #: each car's kept returns: ``[car, iy, ix]`` their offsets in the cell (u, v), EMPTY
         self._offsets = np.full((n, cells, cells, 2), EMPTY, dtype=np.uint8)
 
-    def _cars(self, cars: Sequence[int] | np.ndarray) -> np.ndarray:
-        idx = np.asarray(cars, dtype=np.int64).reshape(-1)
-        if len(idx) and (idx.min() < 0 or idx.max() >= self.n):
-            raise IndexError(f"scan map cars must be in [0, {self.n}), got {idx.tolist()}")
-        if len(np.unique(idx)) != len(idx):
-            raise ValueError(f"scan map cars must be distinct, got {idx.tolist()}")
-        return idx
-
     def reset(self, cars: Sequence[int] | np.ndarray) -> None:
         """Empties the maps of ``cars``: nothing seen."""
-        self._offsets[self._cars(cars)] = EMPTY
+        self._offsets[checks.car_indices("scan map", cars, self.n)] = EMPTY
 
     def points(self, car: int) -> np.ndarray:
         """Car ``car``'s kept returns (P, 2: x, y, m in the map frame), by cell row."""
-        i = operator.index(car)
-        if not 0 <= i < self.n:
-            raise IndexError(f"scan map cars must be in [0, {self.n}), got [{i}]")
-        offsets = self._offsets[i]
+        offsets = self._offsets[checks.car_index("scan map", car, self.n)]
         iy, ix = np.nonzero(offsets[..., 0] != EMPTY)
         return self._decode(ix, iy, offsets[iy, ix, 0], offsets[iy, ix, 1])
 
@@ -125,7 +114,7 @@ class ScanMaps:
         ``directions`` (B, 2) in base_link (``localization.beam_geometry``). The scans'
         returns are then kept in the maps. The compiled loops split the cars over
         ``threads`` threads (the same numbers whatever the count)."""
-        idx = self._cars(cars)
+        idx = checks.car_indices("scan map", cars, self.n)
         out = np.array(corrections, dtype=np.float64).reshape(len(idx), 3)
         odoms = np.ascontiguousarray(odom_poses, dtype=np.float64).reshape(len(idx), 3)
         directions = np.ascontiguousarray(directions, dtype=np.float64).reshape(-1, 2)
@@ -137,8 +126,6 @@ class ScanMaps:
                 self._dy, self._near2, self.gate_m * self.gate_m, self.min_pairs,
                 self.iterations)
         if self.compiled:
-            from smartcar_gym.parallel import run_chunks
-
             def work(a: int, b: int) -> None:
                 _compiled_correct(idx[a:b], out[a:b], odoms[a:b], ranges[a:b], origin,
                                   directions, *args)

@@ -225,18 +225,23 @@ def test_one_points_cell_and_the_ways_cells_are_world_to_cells():
 
 
 def test_the_replanner_plans_at_its_rate_and_at_once_when_its_path_is_blocked():
-    maps = LaserCostmaps(CONFIG, 1)
+    maps = LaserCostmaps(CONFIG, 3)
     replanner = Replanner(maps, period_s=0.1)
-    assert replanner.needs_plan(0, 0.0) and replanner.path(0) is None
-    replanner.plan(0, np.zeros(2), np.array([2.0, 0.0]), 0.0)
-    assert not replanner.needs_plan(0, 0.05)
-    assert replanner.needs_plan(0, 0.1)
+    cars = np.array([0, 1, 2])
+    assert replanner.needs_plan(cars, np.zeros(3)).all() and replanner.path(0) is None
+    for car in (0, 1):
+        replanner.plan(car, np.zeros(2), np.array([2.0, 0.0]), 0.0)
+    # car 2 has no path yet; car 1 is one period on
+    assert replanner.needs_plan(cars, np.array([0.05, 0.1, 0.05])).tolist() == [False, True,
+                                                                                 True]
     replanner.plan(0, np.zeros(2), np.array([2.0, 0.0]), 0.1)
-    assert not replanner.needs_plan(0, 0.15) and not replanner.blocked(0)
-    maps.update([0], np.zeros((1, 3)), _wall_scan(1.01, 0.3), ROUND)  # across the path
-    assert replanner.blocked(0) and replanner.needs_plan(0, 0.15)
+    assert not replanner.needs_plan([0], np.array([0.15]))[0]
+    assert replanner.blocked(cars).tolist() == [False, False, False]
+    maps.update([0], np.zeros((1, 3)), _wall_scan(1.01, 0.3), ROUND)  # across car 0's path
+    assert replanner.blocked(cars).tolist() == [True, False, False]
+    assert replanner.needs_plan([1, 0], np.array([0.05, 0.15])).tolist() == [False, True]
     path = replanner.plan(0, np.zeros(2), np.array([2.0, 0.0]), 0.15)
-    assert np.abs(path[:, 1]).max() > 0.3 and not replanner.needs_plan(0, 0.2)
+    assert np.abs(path[:, 1]).max() > 0.3 and not replanner.needs_plan([0], np.array([0.2]))[0]
     assert Replanner.challenge(maps, 0.4186, 0.25).period_s == pytest.approx(
         0.4186 / 0.25 / 20.0)  # 20 Hz, times scaled by 1.674
     assert Replanner.challenge(maps, 0.4186, 0.25, 5.0).period_s == pytest.approx(

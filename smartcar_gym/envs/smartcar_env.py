@@ -327,7 +327,7 @@ class SmartCarEnv(gym.Env):
                 laser = task.laser
                 if laser is not None:  # the laser's noise: its own generator
                     world.attach_laser(*laser, np.random.default_rng(
-                        self.np_random.integers(2**63)))
+                        self.np_random.integers(2**63)), scan=not task.builds_only)
                 world.read(state, task.needs_speed)
                 if not task.builds_only:  # a batch's builder: the batch's task begins the car
                     task.begin(self, _ONE)

@@ -144,10 +144,11 @@ class World:
         self._radii = np.array([o.radius for o in self.obstacles], dtype=float)
 
     def attach_laser(self, config: LaserConfig, mount: np.ndarray,
-                     rng: np.random.Generator) -> None:
-        """The laser on the robot, scanning now and every period (``rng``: its noise's)."""
+                     rng: np.random.Generator, scan: bool = True) -> None:
+        """The laser on the robot, scanning now (unless ``scan`` is False: a batch's builder,
+        whose batch scans its cars) and every period (``rng``: its noise's)."""
         self.laser = SimulatedLaser(config, mount)
-        self.laser.attach(self.robot.body, rng)
+        self.laser.attach(self.robot.body, rng, scan)
         self.scan_markers = (ScanMarkers(self.sim, config.beams)
                              if self.render_mode is not None else None)
 
@@ -179,7 +180,7 @@ class World:
         state.wheel_position[0] = position
         state.wheel_velocity[0] = velocity
         state.now_ns[0] = sim.now_ns
-        if self.laser is not None:
+        if self.laser is not None and self.laser.latest is not None:
             state.readings[SCAN][0] = self.laser.latest.ranges
             state.readings[SCAN_TIME][0] = self.laser.stamp_ns
 

@@ -311,6 +311,11 @@ class LaserCostmaps:
         view.flags.writeable = False
         return view
 
+    def costs_at(self, cars: np.ndarray, ix: np.ndarray, iy: np.ndarray) -> np.ndarray:
+        """The costs of cells ``(ix, iy)`` of the grids of ``cars`` (equal-length integer
+        arrays, one cell each; uint8)."""
+        return self._costs[cars, iy, ix]
+
     def bounds(self, car: int) -> tuple[int, int, int, int]:
         """A box ``(x_lo, y_lo, x_hi, y_hi)`` (cells, exclusive; empty when ``x_lo >= x_hi``)
         holding every cell of car ``car``'s grid that has had a cost since its reset: the union

@@ -156,15 +156,29 @@ class Replanner:
         """Car ``car``'s current path ((M, 2) m, odom frame), None before its first."""
         return self._paths[car]
 
-    def blocked(self, car: int) -> bool:
-        """Whether a cell of car ``car``'s path past its first is now an obstacle."""
-        ix, iy = self._cells[car]
-        return bool(np.any(self.costmaps.costs(car)[iy[1:], ix[1:]] >= INSCRIBED))
+    def blocked(self, cars: Sequence[int] | np.ndarray) -> np.ndarray:
+        """Whether a cell of each listed car's path past its first is now an obstacle ((K,)
+        bool)."""
+        cars = np.asarray(cars, dtype=np.int64).reshape(-1)
+        cells = [self._cells[car] for car in cars.tolist()]
+        counts = np.array([max(len(ix) - 1, 0) for ix, _ in cells], dtype=np.int64)
+        if not counts.any():
+            return np.zeros(len(cars), dtype=bool)
+        ix = np.concatenate([ix[1:] for ix, _ in cells])
+        iy = np.concatenate([iy[1:] for _, iy in cells])
+        hit = self.costmaps.costs_at(np.repeat(cars, counts), ix, iy) >= INSCRIBED
+        owner = np.repeat(np.arange(len(cars)), counts)
+        return np.bincount(owner[hit], minlength=len(cars)) > 0
 
-    def needs_plan(self, car: int, now_s: float) -> bool:
-        """Whether car ``car`` should plan at time ``now_s`` (s)."""
-        return (self._paths[car] is None or now_s - self._last[car] >= self.period_s - 1e-9
-                or self.blocked(car))
+    def needs_plan(self, cars: Sequence[int] | np.ndarray, now_s: np.ndarray) -> np.ndarray:
+        """Whether each listed car should plan at its time ``now_s`` (K,) s ((K,) bool)."""
+        cars = np.asarray(cars, dtype=np.int64).reshape(-1)
+        due = np.array([self._paths[car] is None for car in cars.tolist()], dtype=bool)
+        due |= np.asarray(now_s, dtype=float) - self._last[cars] >= self.period_s - 1e-9
+        rest = np.flatnonzero(~due)
+        if len(rest):
+            due[rest] = self.blocked(cars[rest])
+        return due
 
     def plan(self, car: int, start: np.ndarray, goal: np.ndarray, now_s: float) -> np.ndarray:
         """Plans car ``car``'s path at ``now_s`` (``plan_on_costmap``) and keeps it; on

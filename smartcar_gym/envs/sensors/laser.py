@@ -89,13 +89,15 @@ class SimulatedLaser:
     def sim(self) -> Simulator:
         return self.body.sim
 
-    def attach(self, body: Body, rng: np.random.Generator | None = None) -> None:
-        """Scan from ``body`` now and every period from now on (``rng``: the range noise's)."""
+    def attach(self, body: Body, rng: np.random.Generator | None = None,
+               scan: bool = True) -> None:
+        """Scan from ``body`` now and every period from now on (``rng``: the range noise's;
+        ``scan`` False: the scan now is left to whoever takes the world, ``latest`` None)."""
         if self.config.noise_std_m > 0 and rng is None:
             raise ValueError("a noisy laser needs a random generator")
         self.body, self.rng = body, rng
         hide_from_rays(body)
-        self.latest = self.scan()
+        self.latest = self.scan() if scan else None
         self._next_ns = body.sim.now_ns + self.period_ns
         body.sim.add_event_source(self)
 

@@ -237,6 +237,8 @@ class SmartCarBatchVectorEnv(CarsVectorEnv):
             self.take_robot(i, b)
             if self.laser is not None:
                 self.laser.start(i, b.laser.rng)
+        if self.laser is not None:  # their first scans, the builder's (it scans none)
+            self.laser.scan(self.cars, self.state, idx)
 
     def take_robot(self, i: int, single: SmartCarEnv) -> None:
         """Car ``i``'s robot becomes ``single``'s, just reset for the car's episode (the

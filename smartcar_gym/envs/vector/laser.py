@@ -1,9 +1,10 @@
 """A task's laser on every car of a batch: an event source on each car's clock.
 
-Each car scans at t = 0 of its episode (the single env that built the episode scanned then)
-and every period after; the engine casts every due car's beams at once (``CarBatch.cast``)
-and the ranges are ``SimulatedLaser.ranges`` on them (REP 117, noise from each car's own
-generator), written into the state's ``scan`` reading with the time it was taken.
+Each car scans at t = 0 of its episode (where the single env that built the episode would
+have: the builder leaves it to the batch) and every period after; the engine casts every
+due car's beams at once (``CarBatch.cast``) and the ranges are ``SimulatedLaser.ranges`` on
+them (REP 117, noise from each car's own generator), written into the state's ``scan``
+reading with the time it was taken.
 """
 
 from __future__ import annotations
@@ -29,7 +30,8 @@ class BatchLaser:
         self.rngs: list[np.random.Generator | None] = [None] * num
 
     def start(self, car: int, rng: np.random.Generator | None) -> None:
-        """Car ``car`` scanned at t = 0 of its episode; its noise from ``rng`` on."""
+        """Car ``car`` starts an episode: its noise from ``rng`` on, its next scan a period
+        after the one at t = 0 (``scan``)."""
         self.next_scan[car] = self.period_ns
         self.rngs[car] = rng
 

@@ -77,8 +77,8 @@ class PlanarStatic:
                  rgba: Sequence[float] = (0.5, 0.5, 0.5, 1.0), collides: bool = True,
                  parts: Sequence[Any] = ()) -> None:
         self.sim, self.name, self.kind = sim, name, kind
-        self.size = tuple(float(v) for v in size)
-        self.position = tuple(float(v) for v in position)
+        self.size = tuple(map(float, size))
+        self.position = tuple(map(float, position))
         self.orientation: Quat = (0.0, 0.0, math.sin(yaw / 2.0), math.cos(yaw / 2.0))
         self.rgba = tuple(rgba)
         self.collides = collides

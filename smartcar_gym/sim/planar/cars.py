@@ -20,7 +20,7 @@ from smartcar_gym.sim.planar import dynamics
 from smartcar_gym.sim.planar.batch import PlanarBatch, yaw_quaternion_arrays
 from smartcar_gym.sim.planar.geometry import OBSTACLE_HEIGHT_M, Shapes2D, cast, clearance
 from smartcar_gym.sim.planar.projection import Footprint
-from smartcar_gym.sim.planar.world import footprint_of, obstacle_shapes
+from smartcar_gym.sim.planar.world import footprint_of, outlines
 
 
 class PlanarCars:
@@ -56,7 +56,9 @@ class PlanarCars:
         self.threads = threads
         #: per car, its obstacles' outlines (SmartCarNav-v0; ``load``)
         self._shapes: list[Any] = [None] * self.batch.n
-        self._stacked: Shapes2D | None = None  # every car's, stacked (``_world_shapes``)
+        #: every car's, stacked (``_world_shapes``): its arrays, then their read-only view
+        self._rows: tuple[np.ndarray, ...] | None = None
+        self._stacked: Shapes2D | None = None
         # a car a ``load`` gave a varied robot (``randomize``) has its own model and
         # footprint, the others the template's
         self._template = (body.compiled(), body.height, footprint_of(body))
@@ -116,8 +118,8 @@ class PlanarCars:
         """Car ``car``'s obstacles (``env``'s statics) and its car: ``env``'s robot as it
         stands where it varies (``randomize``: its parameters, centre of mass, height,
         footprint and spawned state), else the template's at the spawn."""
-        self._shapes[car] = obstacle_shapes(env.sim.statics())
-        self._stacked = None
+        self._shapes[car] = outlines(env.sim, tuple(env.sim.statics()))
+        self._restack(car)
         idx = np.array([car])
         if env.robot.variation is None:
             if car in self._varied:
@@ -136,11 +138,27 @@ class PlanarCars:
         self._footprints[car] = footprint
         self._footprint = None if self._varied else self._template[2]
 
+    def _restack(self, car: int) -> None:
+        """Car ``car``'s row of the stacked arrays written again after its ``load``, in place
+        while the padding stays as wide (the most obstacles of any car), else stacked afresh
+        at the next use; a new view of them either way (``distance`` keeps what it derives
+        from a ``Shapes2D`` on it)."""
+        self._stacked = None
+        if self._rows is None:
+            return
+        if max(p.num_shapes for p in self._shapes) != self._rows[0].shape[1]:
+            self._rows = None
+            return
+        _write_row(self._rows, car, self._shapes[car])
+
     def _world_shapes(self, idx: np.ndarray) -> Shapes2D:
         """The listed cars' obstacles as one ``Shapes2D`` (padded to the most obstacles): rows
-        of every car's, stacked once per ``load``."""
+        of every car's, stacked once and each row written again at its car's ``load``."""
+        if self._rows is None:
+            self._rows = _stack([self._shapes[i] for i in range(self.batch.n)])
         if self._stacked is None:
-            self._stacked = _stack([self._shapes[i] for i in range(self.batch.n)])
+            # each car's shapes were checked when made: the stack needs no second check
+            self._stacked = Shapes2D.derived(*self._rows)
         all_ = self._stacked
         if len(idx) == self.batch.n and (idx == np.arange(self.batch.n)).all():
             return all_
@@ -184,19 +202,27 @@ class PlanarCars:
                          max_distance_m, height=OBSTACLE_HEIGHT_M, cars=listed)[idx]
 
 
-def _stack(parts: list[Shapes2D]) -> Shapes2D:
-    """One car's ``Shapes2D`` each as one, padded to the most obstacles (padding: invalid
-    unit boxes at the origin)."""
+def _stack(parts: list[Shapes2D]) -> tuple[np.ndarray, ...]:
+    """One car's ``Shapes2D`` each as the rows of ``Shapes2D``'s five arrays (kind, centre,
+    rotation, half, valid), padded to the most obstacles."""
     m = max(p.num_shapes for p in parts)
     k = len(parts)
-    kind = np.zeros((k, m), dtype=np.int8)
-    centre, rotation = np.zeros((k, m, 2)), np.tile([1.0, 0.0], (k, m, 1))
-    half, valid = np.ones((k, m, 2)), np.zeros((k, m), dtype=bool)
+    rows = (np.zeros((k, m), dtype=np.int8), np.zeros((k, m, 2)), np.zeros((k, m, 2)),
+            np.zeros((k, m, 2)), np.zeros((k, m), dtype=bool))
     for row, p in enumerate(parts):
-        j = p.num_shapes
-        kind[row, :j], centre[row, :j] = p.kind[0], p.centre[0]
-        rotation[row, :j], half[row, :j], valid[row, :j] = p.rotation[0], p.half[0], True
-    return Shapes2D(kind, centre, rotation, half, valid)
+        _write_row(rows, row, p)
+    return rows
+
+
+def _write_row(rows: tuple[np.ndarray, ...], row: int, shapes: Shapes2D) -> None:
+    """``shapes`` (one world's) into row ``row`` of the stacked arrays ``rows``, padded with
+    invalid unit boxes at the origin."""
+    kind, centre, rotation, half, valid = rows
+    j = shapes.num_shapes
+    kind[row, :j], centre[row, :j] = shapes.kind[0], shapes.centre[0]
+    rotation[row, :j], half[row, :j], valid[row, :j] = shapes.rotation[0], shapes.half[0], True
+    kind[row, j:], centre[row, j:], rotation[row, j:] = 0, 0.0, (1.0, 0.0)
+    half[row, j:], valid[row, j:] = 1.0, False
 
 
 def _tables(held: list, damped: list, side: list[int], share: list[float],

@@ -44,18 +44,32 @@ def _height(statics: list[PlanarStatic]) -> float:
     return max((2.0 * s.size[2] for s in statics), default=OBSTACLE_HEIGHT_M)
 
 
+def outlines(sim: PlanarSimulator, statics: tuple[PlanarStatic, ...]) -> Shapes2D:
+    """``obstacle_shapes`` of ``statics`` (bodies of ``sim``), kept on ``sim`` while they are
+    the same bodies (held there, so none is a new one at an old address): a world's scans
+    and the batch's ``load`` of it ask again."""
+    kept = getattr(sim, "_outlines", None)
+    if kept is None or not _same(kept[0], statics):
+        kept = (statics, obstacle_shapes(list(statics)))
+        sim._outlines = kept
+    return kept[1]
+
+
+def _same(kept: tuple[PlanarStatic, ...], statics: tuple[PlanarStatic, ...]) -> bool:
+    return len(kept) == len(statics) and all(a is b for a, b in zip(kept, statics,
+                                                                    strict=True))
+
+
 def cast_world(sim: PlanarSimulator, starts: np.ndarray, ends: np.ndarray) -> RayHits:
     """``cast_rays`` in a planar world: exact 2D casts against the obstacles' outlines; each
     hit reports the obstacle's index among the world's bodies."""
     statics = tuple(s for s in sim.statics() if not s.hidden_from_rays)
     kept = getattr(sim, "_ray_world", None)
-    if kept is None or len(kept[0]) != len(statics) or any(
-            a is not b for a, b in zip(kept[0], statics, strict=True)):
-        # the same static bodies (held here, so none is a new one at an old address) keep
-        # their outlines, indices and height from scan to scan
+    if kept is None or not _same(kept[0], statics):
+        # the same static bodies keep their outlines, indices and height from scan to scan
         where = {name: i for i, name in enumerate(sim._bodies)}
         ids = np.array([where[s.name] for s in statics], dtype=int)
-        kept = (statics, obstacle_shapes(list(statics)), ids, _height(list(statics)))
+        kept = (statics, outlines(sim, statics), ids, _height(list(statics)))
         sim._ray_world = kept
     return ray_hits(starts, ends, kept[1], kept[2], height=kept[3])
 

@@ -126,11 +126,11 @@ class LaserMap:
             self.costmaps.update(fresh, self.poses(state, fresh), state.readings[SCAN][fresh],
                                  self.angles, self.mount, threads=threads)
             self._marked[fresh] = state.readings[SCAN_TIME][fresh]
-        now_s = [int(now) / NS_PER_S for now in state.now_ns[idx].tolist()]
-        due = [k for k, i in enumerate(idx.tolist()) if self.replanner.needs_plan(i, now_s[k])]
+        now_s = state.now_ns[idx] / NS_PER_S
+        due = self.replanner.needs_plan(idx, now_s)
         cars = idx[due]
         changed = self.replanner.plan_many(cars.tolist(), self.poses(state, cars)[:, :2],
-                                           state.goal[cars], [now_s[k] for k in due], threads)
+                                           state.goal[cars], now_s[due].tolist(), threads)
         for i in changed:
             paths[i] = self.replanner.path(i)
         return changed

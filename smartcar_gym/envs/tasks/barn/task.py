@@ -216,6 +216,9 @@ class BarnTask(NavTask):
         self.planner_frequency = checked_planner_frequency(planner_frequency, map_mode)
         #: the global paths planned so far, by world
         self.planned_paths: dict[int, np.ndarray] = {}
+        #: each world's cylinders in the car's start frame so far, by world: centres (M, 2),
+        #: radii (M,) m and their obstacles
+        self.layouts: dict[int, tuple[np.ndarray, np.ndarray, tuple[Obstacle, ...]]] = {}
         # the reaching task's goal and arena come from the protocol, once the car is known
         super().__init__(obstacles=0, obstacle_clearance=0.0,
                          collision_penalty=collision_penalty,
@@ -356,9 +359,14 @@ class BarnTask(NavTask):
         scale = self.protocol.scale
         for i in idx.tolist():
             world = self.worlds.world(int(self.world_index[i]))
-            centres, radii = to_car_frame(world.centres, scale), world.radii * scale
-            layout = tuple(Obstacle("cylinder", (float(x), float(y)), (2.0 * float(r),))
-                           for (x, y), r in zip(centres, radii, strict=True))
+            if world.index not in self.layouts:
+                centres, radii = to_car_frame(world.centres, scale), world.radii * scale
+                centres.setflags(write=False)
+                radii.setflags(write=False)
+                self.layouts[world.index] = (centres, radii, tuple(
+                    Obstacle("cylinder", (float(x), float(y)), (2.0 * float(r),))
+                    for (x, y), r in zip(centres, radii, strict=True)))
+            centres, radii, layout = self.layouts[world.index]
             self.obstacles[i] = layout
             cars.place_obstacles(i, layout, self.pillars)
             # laser: planned on the car's costmap once it has scanned (begin)

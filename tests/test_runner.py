@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from smartcar_gym.agents.runner import Hooks, Job, JobQueue, ResetError, run_jobs
+from smartcar_gym.agents.runner import Hooks, Job, JobQueue, ResetError, one_torch_thread, run_jobs
 from smartcar_gym.envs.state import CarState
 
 
@@ -163,3 +163,20 @@ def test_a_state_row_is_copied_whole_and_states_stack():
     both = CarState.stack([b, a.rows([1])])
     assert both.num == 2 and both.pose.tolist() == [[1.0, 2.0, 0.5]] * 2
     assert both.previous_action.dtype == np.float32 and both.readings["scan"].shape == (2, 3)
+
+
+def test_one_torch_thread_holds_torch_to_one_thread_and_gives_the_count_back():
+    """A batch's predict calls run on one torch thread (its idle-spinning intra-op threads
+    slowed the batch's own worker threads); the count is given back, also after an error."""
+    torch = pytest.importorskip("torch")
+    before = torch.get_num_threads()
+    torch.set_num_threads(2)
+    try:
+        with one_torch_thread():
+            assert torch.get_num_threads() == 1
+        assert torch.get_num_threads() == 2
+        with pytest.raises(RuntimeError, match="boom"), one_torch_thread():
+            raise RuntimeError("boom")
+        assert torch.get_num_threads() == 2
+    finally:
+        torch.set_num_threads(before)

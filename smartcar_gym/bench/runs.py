@@ -18,7 +18,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from smartcar_gym.agents.runner import Hooks, Job, JobQueue, run_jobs
+from smartcar_gym.agents.runner import Hooks, Job, JobQueue, one_torch_thread, run_jobs
 from smartcar_gym.envs.vector.view import CarView
 from smartcar_gym.navigation.grid_planner import NoPathError
 from smartcar_gym.worlds.barn import TEST_WORLDS, BarnWorldError
@@ -132,7 +132,8 @@ def run_barn(envs: gym.vector.VectorEnv, driver: Any, jobs: Sequence[BarnJob],
     try:
         queue = JobQueue([Job(k, job.seed, {"world": job.world})
                           for k, job in enumerate(jobs)], shared)
-        run_jobs(envs, queue, act, [records])
+        with one_torch_thread():
+            run_jobs(envs, queue, act, [records])
     except (BarnWorldError, NoPathError) as err:
         raise BarnRunError(str(err), [r for r in records.records if r is not None]) from None
     return [record for record in records.records if record is not None]

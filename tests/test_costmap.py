@@ -242,6 +242,10 @@ def test_the_replanner_plans_at_its_rate_and_at_once_when_its_path_is_blocked():
     assert replanner.needs_plan([1, 0], np.array([0.05, 0.15])).tolist() == [False, True]
     path = replanner.plan(0, np.zeros(2), np.array([2.0, 0.0]), 0.15)
     assert np.abs(path[:, 1]).max() > 0.3 and not replanner.needs_plan([0], np.array([0.2]))[0]
+    with pytest.raises(IndexError, match=r"replanner cars must be in \[0, 3\), got \[-1\]"):
+        replanner.needs_plan([-1], np.array([0.2]))
+    with pytest.raises(IndexError, match=r"replanner cars must be in \[0, 3\), got \[3\]"):
+        replanner.blocked([3])
     assert Replanner.challenge(maps, 0.4186, 0.25).period_s == pytest.approx(
         0.4186 / 0.25 / 20.0)  # 20 Hz, times scaled by 1.674
     assert Replanner.challenge(maps, 0.4186, 0.25, 5.0).period_s == pytest.approx(

@@ -159,7 +159,7 @@ class Replanner:
     def blocked(self, cars: Sequence[int] | np.ndarray) -> np.ndarray:
         """Whether a cell of each listed car's path past its first is now an obstacle ((K,)
         bool)."""
-        cars = np.asarray(cars, dtype=np.int64).reshape(-1)
+        cars = checks.car_indices("replanner", cars, self.costmaps.n)
         cells = [self._cells[car] for car in cars.tolist()]
         counts = np.array([max(len(ix) - 1, 0) for ix, _ in cells], dtype=np.int64)
         if not counts.any():
@@ -172,7 +172,7 @@ class Replanner:
 
     def needs_plan(self, cars: Sequence[int] | np.ndarray, now_s: np.ndarray) -> np.ndarray:
         """Whether each listed car should plan at its time ``now_s`` (K,) s ((K,) bool)."""
-        cars = np.asarray(cars, dtype=np.int64).reshape(-1)
+        cars = checks.car_indices("replanner", cars, self.costmaps.n)
         due = np.array([self._paths[car] is None for car in cars.tolist()], dtype=bool)
         due |= np.asarray(now_s, dtype=float) - self._last[cars] >= self.period_s - 1e-9
         rest = np.flatnonzero(~due)

@@ -37,8 +37,9 @@ numpy's float arithmetic and square root are IEEE's (where numpy's function is n
 from __future__ import annotations
 
 import copy
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from types import MappingProxyType
 from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 
 import numpy as np
@@ -122,6 +123,16 @@ class Cars(Protocol):
     def place_obstacles(self, car: int, obstacles: tuple[Obstacle, ...],
                         pillars: bool) -> None:
         """Put ``obstacles`` into car ``car``'s world (a single env's ``build``)."""
+
+
+#: one car's reset options when none were given: empty and read-only, so that every car of a
+#: batch can share it (an autoreset of many cars then makes no dict a car)
+NO_OPTIONS: Mapping[str, Any] = MappingProxyType({})
+
+
+def no_options(n: int) -> tuple[Mapping[str, Any], ...]:
+    """The options of ``n`` cars reset with none (``Task.start``'s ``options``)."""
+    return (NO_OPTIONS,) * n
 
 
 class Task:
@@ -248,11 +259,11 @@ class Task:
         """Option ``key``'s value for each car, checked."""
         raise NotImplementedError(key)
 
-    def start(self, cars: Cars, idx: np.ndarray, options: list[dict[str, Any]]) -> None:
+    def start(self, cars: Cars, idx: np.ndarray, options: Sequence[Mapping[str, Any]]) -> None:
         """The listed cars' episodes: what is drawn before the car is spawned (``options[i]``:
         car i's checked options)."""
 
-    def build(self, cars: Cars, idx: np.ndarray, options: list[dict[str, Any]]) -> None:
+    def build(self, cars: Cars, idx: np.ndarray, options: Sequence[Mapping[str, Any]]) -> None:
         """What the listed cars' worlds hold this episode (after the spawn; a single env's)."""
 
     def begin(self, cars: Cars, idx: np.ndarray) -> None:

@@ -268,7 +268,7 @@ class NavTask(ReachTask):
                                  f"start (a {self.field.robot_radius_m:.3f} m circle around "
                                  "the origin)")
 
-    def build(self, cars: Cars, idx: np.ndarray, options: list[dict[str, Any]]) -> None:
+    def build(self, cars: Cars, idx: np.ndarray, options: Sequence[Mapping[str, Any]]) -> None:
         """Each car's obstacles: given (a drawn goal drawn again until it keeps clear of them)
         or drawn with its generator, placed in its world."""
         goal = cars.state.goal

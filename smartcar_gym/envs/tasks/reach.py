@@ -7,7 +7,7 @@ reaching it, flipping over or leaving the arena, for any number of cars.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -250,7 +250,7 @@ class ReachTask(Task):
         bearing = rng.uniform(-math.pi, math.pi)
         return np.zeros(2) + distance * np.array([math.cos(bearing), math.sin(bearing)])
 
-    def start(self, cars: Cars, idx: np.ndarray, options: list[dict[str, Any]]) -> None:
+    def start(self, cars: Cars, idx: np.ndarray, options: Sequence[Mapping[str, Any]]) -> None:
         """Each listed car's goal: given, or drawn from its generator."""
         goal = cars.state.goal
         for i in idx.tolist():

@@ -12,6 +12,7 @@ are reset (``_reset_cars``) and how a period runs (``_run``).
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import gymnasium as gym
@@ -22,7 +23,7 @@ from gymnasium.vector.utils import batch_space
 
 from smartcar_gym.controller.batched import BatchedArbotix
 from smartcar_gym.envs.state import CarState
-from smartcar_gym.envs.tasks.base import Task
+from smartcar_gym.envs.tasks.base import Task, no_options
 from smartcar_gym.envs.vector.common import (
     check_actions,
     check_reset_mask,
@@ -144,7 +145,7 @@ class CarsVectorEnv(gym.vector.VectorEnv):
         terminated &= ~parked
         truncated &= ~parked
         if restart.any():  # NextStep: the cars that ended at the last step start afresh
-            self._reset_cars(restart, None)
+            self._reset_cars(restart, no_options(self.num_envs))
             reward[restart] = 0.0
             terminated[restart] = truncated[restart] = success[restart] = False
         everyone = np.ones(self.num_envs, dtype=bool)
@@ -157,7 +158,7 @@ class CarsVectorEnv(gym.vector.VectorEnv):
                 for i in np.flatnonzero(done):
                     final_obs[i] = task.car_obs(obs, i)
                 final_info = self._info(done, success)
-                self._reset_cars(done, None)
+                self._reset_cars(done, no_options(self.num_envs))
                 obs = self._observe()
                 info = self._info(everyone, success & ~done)
                 info["final_obs"], info["_final_obs"] = final_obs, done.copy()
@@ -194,8 +195,9 @@ class CarsVectorEnv(gym.vector.VectorEnv):
                                         "reset_mask)")
         return options or None, mask
 
-    def _reset_cars(self, mask: np.ndarray, options: list[dict[str, Any]] | None) -> None:
-        """The masked cars afresh, each with its episode's ``options`` (None: none)."""
+    def _reset_cars(self, mask: np.ndarray, options: Sequence[Mapping[str, Any]]) -> None:
+        """The masked cars afresh, each with its episode's ``options`` (one a car of the
+        batch, ``Task.check_options``'s or ``no_options``)."""
         raise NotImplementedError
 
     def _run(self, linear_x: np.ndarray, angular_z: np.ndarray) -> None:

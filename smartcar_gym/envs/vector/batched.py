@@ -10,7 +10,7 @@ single env runs.
 from __future__ import annotations
 
 import warnings
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import gymnasium as gym
@@ -205,12 +205,11 @@ class SmartCarBatchVectorEnv(CarsVectorEnv):
         return self.cars.clearances(self.state.pose, max_distance_m, cars)
 
     # -- resets --------------------------------------------------------------------------------
-    def _reset_cars(self, mask: np.ndarray, options: list[dict[str, Any]] | None) -> None:
+    def _reset_cars(self, mask: np.ndarray, options: Sequence[Mapping[str, Any]]) -> None:
         """The masked cars afresh: their episodes and worlds, the controller at t = 0."""
         idx = np.flatnonzero(mask)
         state, task = self.state, self.task
         state.parked[idx] = False
-        options = options or [{} for _ in range(self.num_envs)]
         if task.builds_worlds:
             self._build(idx, options)
         else:
@@ -224,7 +223,7 @@ class SmartCarBatchVectorEnv(CarsVectorEnv):
         self._read()
         task.begin(self, idx)
 
-    def _build(self, idx: np.ndarray, options: list[dict[str, Any]]) -> None:
+    def _build(self, idx: np.ndarray, options: Sequence[Mapping[str, Any]]) -> None:
         """Each listed car's episode as its single env starts it, built by the builder with
         the car's generator and loaded into its slot."""
         b = self.builder

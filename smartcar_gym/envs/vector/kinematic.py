@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -139,11 +140,11 @@ class SmartCarSimVectorEnv(CarsVectorEnv):
         return np.full(len(cars), max_distance_m)
 
     # -- the model -----------------------------------------------------------------------------
-    def _reset_cars(self, mask: np.ndarray, options: list[dict[str, Any]] | None) -> None:
+    def _reset_cars(self, mask: np.ndarray, options: Sequence[Mapping[str, Any]]) -> None:
         """Spawn the masked cars afresh at the origin, each with a goal from its generator."""
         idx = np.flatnonzero(mask)
         state = self.state
-        self.task.start(self, idx, options or [{} for _ in range(self.num_envs)])
+        self.task.start(self, idx, options)
         state.steps[idx] = 0
         self._body[idx] = 0.0
         self._wheels[idx] = 0.0

@@ -343,7 +343,7 @@ class BarnTask(NavTask):
             chosen = [value] * self.num
         return [self.worlds.world(index).index for index in chosen]
 
-    def start(self, cars: Cars, idx: np.ndarray, options: list[dict[str, Any]]) -> None:
+    def start(self, cars: Cars, idx: np.ndarray, options: Sequence[Mapping[str, Any]]) -> None:
         """Each car's world (given, or drawn from the world file's training worlds) and the
         goal the protocol sets."""
         goal = to_car_frame(np.array(GOAL_XY), self.protocol.scale)
@@ -354,7 +354,7 @@ class BarnTask(NavTask):
             self.world_index[i] = index
             cars.state.goal[i] = goal
 
-    def build(self, cars: Cars, idx: np.ndarray, options: list[dict[str, Any]]) -> None:
+    def build(self, cars: Cars, idx: np.ndarray, options: Sequence[Mapping[str, Any]]) -> None:
         """Each car's cylinders, its global path and OT, and its map's scan matcher."""
         scale = self.protocol.scale
         for i in idx.tolist():

@@ -24,7 +24,7 @@ import json
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 from smartcar_gym.agents import EVAL_MODULES, require_train_extra
 from smartcar_gym.agents.cli_args import (
@@ -51,6 +51,7 @@ from smartcar_gym.agents.eval_outputs import (
 from smartcar_gym.agents.hyperparams import ALGOS
 from smartcar_gym.agents.models import PRETRAINED_MODEL, PRETRAINED_POLICIES, load_model
 from smartcar_gym.agents.policies import DEFAULT_ENV_ID, Policy, PolicyError
+from smartcar_gym.agents.process_exit import exit_now
 from smartcar_gym.agents.random_policy import RandomPolicy
 from smartcar_gym.agents.records import summarize
 from smartcar_gym.agents.references import reference_scores
@@ -392,5 +393,11 @@ def _print_summary(summary: dict[str, Any], model_path: Path, env_id: str,
     Console().print(table)
 
 
+def run() -> NoReturn:
+    """The ``smartcar-eval`` command: ``main``, then the process ends without Python's teardown
+    (``process_exit.exit_now``)."""
+    exit_now(main())
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    run()

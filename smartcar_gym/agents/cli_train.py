@@ -19,11 +19,12 @@ import shlex
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 from smartcar_gym.agents import require_train_extra
 from smartcar_gym.agents.cli_args import key_value_arg, non_negative_int_arg, positive_int_arg
 from smartcar_gym.agents.hyperparams import ALGOS, HyperparamsError
+from smartcar_gym.agents.process_exit import exit_now
 from smartcar_gym.agents.runs import DEFAULT_ENV_ID, new_run, resume_config
 from smartcar_gym.agents.training import RunSetupError, TrainResult, train
 from smartcar_gym.agents.vec_envs import VECTORIZATIONS
@@ -220,5 +221,11 @@ def print_summary(result: TrainResult, config: dict[str, Any]) -> None:
     Console().print(table)
 
 
+def run() -> NoReturn:
+    """The ``smartcar-train`` command: ``main``, then the process ends without Python's teardown
+    (``process_exit.exit_now``)."""
+    exit_now(main())
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    run()

@@ -182,6 +182,7 @@ def train(
                 evaluation.discard_pending()
         interrupted = aborted or stop.requested
         stop_signal = signal.Signals(stop.signum or signal.SIGINT).name if interrupted else None
+    _close_logger(model)
 
     from smartcar_gym.agents.plots import plot_learning_curve
 
@@ -315,6 +316,16 @@ def _make_envs(config: dict[str, Any], run_dir: Path, seed: int, segment: int,
                 close_env(env)
         raise
     return venv, eval_env
+
+
+def _close_logger(model: Any) -> None:
+    """Close the files of ``model``'s logger (TensorBoard's, CSV's) once the run is done with
+    them; a model whose ``learn`` never ran has no logger."""
+    try:
+        logger = model.logger
+    except AttributeError:
+        return
+    logger.close()
 
 
 def close_env(env: Any, force: bool = False) -> None:

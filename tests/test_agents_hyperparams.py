@@ -157,7 +157,7 @@ def test_run_integers():
 def test_the_main_jobs_planar_preset_is_the_documented_one():
     # the README's training command reads it (docs/planar.md, "Training on planar")
     hp = load_hyperparams("ppo", "SmartCar-v0-batched-planar")
-    assert (hp["n_envs"], hp["n_steps"], hp["batch_size"]) == (32, 64, 256)
+    assert (hp["n_envs"], hp["n_steps"], hp["batch_size"]) == (64, 32, 256)
     assert (hp["n_epochs"], hp["learning_rate"], hp["gamma"]) == (5, "lin_1.5e-3", 0.98)
     assert hp["n_timesteps"] == 262_144 == 128 * hp["n_steps"] * hp["n_envs"]
     assert (hp["eval_freq"], hp["eval_episodes"], hp["eval_async"]) == (10_000, 100, True)

@@ -38,7 +38,7 @@ def test_a_bad_setting_names_its_key(setting, message):
 def test_the_shipped_preset_sets_its_own_schedule():
     """The main job's preset: 100 episodes every 10,000 steps, beside the training."""
     config = _config("--env-kwargs", "engine=planar", "--vectorization", "batched")
-    assert (config["n_envs"], config["hyperparams"]["n_steps"]) == (32, 64)
+    assert (config["n_envs"], config["hyperparams"]["n_steps"]) == (64, 32)
     assert (config["eval_freq"], config["eval_episodes"], config["eval_async"]) == (
         10_000, 100, True)
     assert config["eval_engine"] is None  # evaluated on planar, the training engine

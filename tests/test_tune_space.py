@@ -48,7 +48,7 @@ def test_shipped_space_is_valid_and_lists_its_trials():
 
 
 @pytest.mark.parametrize(("engine", "n_envs", "n_steps", "timesteps", "cpus"), [
-    ("planar", 32, 64, 262144, 2), ("mujoco", 16, 128, 249856, 1)])
+    ("planar", 64, 32, 262144, 2), ("mujoco", 16, 128, 249856, 1)])
 def test_the_shipped_batched_space_is_smartcar_train_s_batched_preset(engine, n_envs, n_steps,
                                                                        timesteps, cpus):
     """``smartcar-tune --engine E --vectorization batched``: the entry ``smartcar-train
@@ -78,7 +78,7 @@ def test_a_trial_s_cpus_default_to_what_its_run_uses():
     assert preset_cpus("batched", {"eval_async": False}) == 1
     sweep = sweep_of(vectorization="batched", env_kwargs={"engine": "planar"},
                      hyperparams={"eval_async": False})
-    assert sweep.cpus_per_trial == 1 and sweep.hyperparams["n_envs"] == 32
+    assert sweep.cpus_per_trial == 1 and sweep.hyperparams["n_envs"] == 64
     assert sweep_of(vectorization="batched", env_kwargs={"engine": "planar"},
                     cpus_per_trial=3).cpus_per_trial == 3
 

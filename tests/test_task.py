@@ -198,3 +198,32 @@ def test_arriving_and_info_on_a_cars_values_match_the_batch_bit_for_bit():
             assert np.array_equal(value, info[key][i]), key
             assert np.shape(value) == np.shape(info[key][i])
     assert 20 < scored[1].sum() < n - 20  # arrivals and not
+
+
+@pytest.mark.parametrize("engine", ["planar", None], ids=["planar batch", "SmartCarSim-v0"])
+def test_an_autoreset_gives_every_car_the_one_read_only_empty_options(engine, monkeypatch):
+    """No dict a car at each autoreset (4,096 of them cost a 4,096-car batch garbage
+    collections): every car that starts again without options shares ``NO_OPTIONS``."""
+    import gymnasium as gym
+
+    import smartcar_gym  # noqa: F401
+    from smartcar_gym.envs.tasks.base import NO_OPTIONS
+
+    env_id, kwargs = ("SmartCar-v0", {"engine": engine}) if engine else ("SmartCarSim-v0", {})
+    env = gym.make_vec(env_id, num_envs=3, vectorization_mode="vector_entry_point",
+                       max_episode_steps=2, **kwargs)
+    try:
+        env.reset(seed=0)
+        seen = []
+        start = type(env.task).start
+        monkeypatch.setattr(type(env.task), "start", lambda self, cars, idx, options: (
+            seen.append((idx.tolist(), list(options))), start(self, cars, idx, options))[1])
+        for _ in range(3):
+            env.step(np.zeros((3, 2), dtype=np.float32))
+    finally:
+        env.close()
+    assert seen and all(idx == [0, 1, 2] for idx, _ in seen)  # every car ends at step 2
+    assert all(len(options) == 3 and all(o is NO_OPTIONS for o in options)
+               for _, options in seen)
+    with pytest.raises(TypeError):
+        NO_OPTIONS["goal"] = (1.0, 0.0)  # type: ignore[index]

@@ -120,8 +120,9 @@ def test_the_commands_use_the_library_s_objects():
 def test_the_console_scripts_run_the_command_line_modules():
     tomllib = pytest.importorskip("tomllib", reason="Python 3.11 reads pyproject.toml")
     scripts = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["scripts"]
-    assert scripts["smartcar-train"] == "smartcar_gym.agents.cli_train:main"
-    assert scripts["smartcar-eval"] == "smartcar_gym.agents.cli_eval:main"
+    # run: main, then the process's end without Python's teardown (process_exit)
+    assert scripts["smartcar-train"] == "smartcar_gym.agents.cli_train:run"
+    assert scripts["smartcar-eval"] == "smartcar_gym.agents.cli_eval:run"
     for target in (scripts["smartcar-train"], scripts["smartcar-eval"]):
         module, _, name = target.partition(":")
         assert callable(getattr(importlib.import_module(module), name))

@@ -7,7 +7,6 @@ import os
 import subprocess
 import sys
 import textwrap
-from importlib.metadata import entry_points
 from pathlib import Path
 
 import pytest
@@ -52,9 +51,3 @@ def test_exit_now_does_what_pythons_exit_does_first(tmp_path, code, expected, fa
     assert (tmp_path / "thread").read_text() == "done"
     assert not Path((tmp_path / "tmpdir").read_text()).exists()
     assert not (tmp_path / "after").exists()
-
-
-def test_the_commands_end_through_exit_now():
-    scripts = {e.name: e.value for e in entry_points(group="console_scripts")}
-    assert scripts["smartcar-train"] == "smartcar_gym.agents.cli_train:run"
-    assert scripts["smartcar-eval"] == "smartcar_gym.agents.cli_eval:run"

@@ -9,7 +9,7 @@ Modules (imported on demand; this package imports nothing heavy), by concern:
   ``cli_train`` (``smartcar-train``), ``cli_eval`` (``smartcar-eval``), ``eval_outputs``
   (``smartcar-eval``'s output files checked before it runs, and the recorders its episodes
   stream to), ``cli_args`` (the options' value types: key=value, counts, percentages,
-  distances).
+  distances), ``process_exit`` (the two commands' processes end without Python's teardown).
 * Configuration: ``hyperparams`` (zoo-format YAML, ``smartcar_gym/config/<algo>.yaml``,
   key=value overrides, the algorithm's arguments), ``zoo_keys`` (the zoo keys that shape a
   run: env_wrapper, frame_stack, callback, ...).

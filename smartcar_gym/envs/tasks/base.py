@@ -230,12 +230,12 @@ class Task:
         self.builds_only = True
 
     # -- reset ---------------------------------------------------------------------------------
-    def check_options(self, options: Any, vector: bool) -> list[dict[str, Any]]:
-        """``reset``'s options checked (before anything is touched), one dict per car:
-        ``vector`` says whether they are a vector env's (``num`` cars; values may be per
-        car)."""
+    def check_options(self, options: Any, vector: bool) -> list[Mapping[str, Any]]:
+        """``reset``'s options checked (before anything is touched), one mapping per car
+        (``NO_OPTIONS`` for each where none were given): ``vector`` says whether they are a
+        vector env's (``num`` cars; values may be per car)."""
         if options is None:
-            return [{} for _ in range(self.num)]
+            return list(no_options(self.num))
         if not isinstance(options, Mapping):
             raise TypeError(f"reset options must be a dict of {self.options_help()}, got "
                             f"{type(options).__name__}: {options!r}")

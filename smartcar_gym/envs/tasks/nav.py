@@ -245,7 +245,7 @@ class NavTask(ReachTask):
         self._sectors_of = np.full(num, -1, dtype=np.int64)
 
     # -- reset ---------------------------------------------------------------------------------
-    def check_options(self, options: Any, vector: bool) -> list[dict[str, Any]]:
+    def check_options(self, options: Any, vector: bool) -> list[Mapping[str, Any]]:
         cars = super().check_options(options, vector)
         for car in cars:
             layout, goal = car.get("obstacles", self.layout), car.get("goal")

@@ -97,6 +97,11 @@ def test_ppo_run_folder(ppo_run):
     _check_run_folder(ppo_run, "ppo", 512)
     hp = yaml.safe_load((ppo_run / "config.yaml").read_text())["hyperparams"]
     assert (hp["n_steps"], hp["batch_size"], hp["n_epochs"]) == (128, 64, 2)
+    # the run's Adam took the multi-tensor update (optimizers.foreach_updates), saved with it
+    from stable_baselines3 import PPO
+
+    saved = PPO.load(ppo_run / "model.zip", device="cpu")
+    assert saved.policy.optimizer.param_groups[0]["foreach"] is True
 
 
 @pytest.mark.slow

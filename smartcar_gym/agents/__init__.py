@@ -9,7 +9,8 @@ Modules (imported on demand; this package imports nothing heavy), by concern:
   ``cli_train`` (``smartcar-train``), ``cli_eval`` (``smartcar-eval``), ``eval_outputs``
   (``smartcar-eval``'s output files checked before it runs, and the recorders its episodes
   stream to), ``cli_args`` (the options' value types: key=value, counts, percentages,
-  distances), ``process_exit`` (the two commands' processes end without Python's teardown).
+  distances), ``process_start`` and ``process_exit`` (the two commands' processes: the
+  garbage collector's threshold at the start, the end without Python's teardown).
 * Configuration: ``hyperparams`` (zoo-format YAML, ``smartcar_gym/config/<algo>.yaml``,
   key=value overrides, the algorithm's arguments), ``zoo_keys`` (the zoo keys that shape a
   run: env_wrapper, frame_stack, callback, ...).
@@ -28,7 +29,8 @@ Modules (imported on demand; this package imports nothing heavy), by concern:
   training goes on).
 * Training: ``training`` (``train()``: a run with checkpoints and evaluation),
   ``callbacks`` (checkpoints, evaluation by success rate), ``run_control`` (the progress
-  bar, a clean stop on Ctrl-C or SIGTERM).
+  bar, a clean stop on Ctrl-C or SIGTERM), ``optimizers`` (the models' Adam optimizers on
+  torch's multi-tensor update: the same numbers sooner).
 * Files: ``runs`` (a run's folder: a new run's config, the run to resume, checkpoint
   names), ``atomic_files`` (files written atomically; whether a path can be written),
   ``models`` (a saved model's run config and the VecNormalize statistics its place assigns

@@ -344,6 +344,7 @@ def _make_model(config: dict[str, Any], venv: Any, seed: int, tb_dir: Path,
     """A new model from the hyperparameters, or the checkpoint's; ``RunSetupError`` if the
     algorithm refuses them."""
     from smartcar_gym.agents.hyperparams import algo_class
+    from smartcar_gym.agents.optimizers import foreach_updates
 
     algo, hp, device = config["algo"], config["hyperparams"], config["device"]
     cls = algo_class(algo)
@@ -353,6 +354,7 @@ def _make_model(config: dict[str, Any], venv: Any, seed: int, tb_dir: Path,
         except Exception as err:
             raise RunSetupError(f"cannot load checkpoint {checkpoint}: {err}") from err
         model.set_random_seed(seed)
+        foreach_updates(model)
         return model
     kwargs = build_algo_kwargs(algo, hp, n_actions=venv.action_space.shape[0])
     try:
@@ -367,6 +369,7 @@ def _make_model(config: dict[str, Any], venv: Any, seed: int, tb_dir: Path,
         ) from err
     if config.get("init"):  # runs before it existed: none
         _load_init(model, config["init"]["model"], algo, device)
+    foreach_updates(model)  # the same numbers sooner
     return model
 
 

@@ -8,6 +8,11 @@ eval env once, plays the seeded episodes (``episodes.run_sb3_episodes``) and sen
 back, in order. They are the
 records the same evaluation makes in the training process (same policy, statistics, seed and
 env), so a run picks the same best model either way, only sooner.
+
+Before it builds its env, the worker compiles the boards' loops
+(``controller.compiled.compile_loops``; loaded from numba's cache after the first run): the
+training compiles its physics first and the boards next, so on a first run it finds them in
+the cache (2 s of the README's first training on the 2-core machine).
 """
 
 from __future__ import annotations
@@ -71,9 +76,14 @@ def _serve(conn: Any, make_env: Any) -> None:
     signal.signal(signal.SIGTERM, signal.SIG_IGN)
     import torch
 
+    from smartcar_gym.controller.compiled import compile_loops
+
     torch.set_num_threads(1)
     venv = None
     try:
+        # idle until the first evaluation: the boards' compiled loops, which the training
+        # compiles after its physics, compiled (or loaded) here meanwhile, on the other core
+        compile_loops()
         venv = make_env.var()
         while True:
             try:

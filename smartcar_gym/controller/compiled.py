@@ -324,3 +324,27 @@ def board_tick(b: BatchedArbotix, now_s: np.ndarray | float, angles: np.ndarray,
     run_chunks(lambda i, j: _frame_cars(i, j, now, angles, ran, f, n, flags), b.n, b.threads,
                MIN_CHUNK_CARS)
     return ran
+
+
+def compile_loops() -> bool:
+    """Compile the loops above now, or load them from numba's cache: a throwaway one-car
+    board through the calls a batch makes (reset, ``cmd_vel``, update, next frame, frame), so
+    with the types a batch gives them. A process that will step boards later can run it ahead,
+    on a core that is idle: a batched training's evaluation process does
+    (``agents.eval_worker``) while the training compiles its physics, which comes first (the
+    boards were 2 s of a first run's compiling on the 2-core machine; the training now loads
+    them from the cache). False where numba is not in use (nothing to compile)."""
+    if not COMPILED:
+        return False
+    from smartcar_gym.controller.batched import BatchedArbotix  # it imports this module
+    from smartcar_gym.controller.config import load_controller_config
+    from smartcar_gym.controller.diff_controller import HARDWARE
+
+    board = BatchedArbotix(load_controller_config(), HARDWARE, 0.03, num_cars=1)
+    angles = np.zeros((1, 2))
+    board.reset(0.0, angles)
+    board.cmd_vel(np.ones(1), np.zeros(1), 0.0)
+    board.update(0.02, angles)
+    board.next_frame_ns(np.zeros(1, dtype=np.int64), int(np.iinfo(np.int64).max))
+    board.board_tick(0.05, angles)
+    return True

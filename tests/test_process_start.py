@@ -1,5 +1,6 @@
-"""process_start.start_process: the commands' processes collect young garbage in larger
-batches, set before ``main`` runs; code that calls ``main`` keeps its own settings."""
+"""process_start: the commands' processes collect young garbage in larger batches, set
+before ``main`` runs, and end through ``exit_now`` with its code; code that calls ``main``
+keeps its own settings."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ import importlib
 
 import pytest
 
+from smartcar_gym.agents import process_start
 from smartcar_gym.agents.process_start import YOUNG_THRESHOLD, start_process
 
 
@@ -39,7 +41,7 @@ def test_the_command_sets_up_its_process_before_main(command, thresholds, monkey
         raise SystemExit(code)
 
     monkeypatch.setattr(module, "main", main)
-    monkeypatch.setattr(module, "exit_now", exit_now)
+    monkeypatch.setattr(process_start, "exit_now", exit_now)
     with pytest.raises(SystemExit) as stop:
         module.run()
     assert stop.value.code == 3

@@ -51,8 +51,7 @@ from smartcar_gym.agents.eval_outputs import (
 from smartcar_gym.agents.hyperparams import ALGOS
 from smartcar_gym.agents.models import PRETRAINED_MODEL, PRETRAINED_POLICIES, load_model
 from smartcar_gym.agents.policies import DEFAULT_ENV_ID, Policy, PolicyError
-from smartcar_gym.agents.process_exit import exit_now
-from smartcar_gym.agents.process_start import start_process
+from smartcar_gym.agents.process_start import run_command
 from smartcar_gym.agents.random_policy import RandomPolicy
 from smartcar_gym.agents.records import summarize
 from smartcar_gym.agents.references import reference_scores
@@ -395,10 +394,9 @@ def _print_summary(summary: dict[str, Any], model_path: Path, env_id: str,
 
 
 def run() -> NoReturn:
-    """The ``smartcar-eval`` command: the process set up (``process_start.start_process``),
-    ``main``, then the process ends without Python's teardown (``process_exit.exit_now``)."""
-    start_process()
-    exit_now(main())
+    """The ``smartcar-eval`` command's process: ``main`` through ``process_start.run_command``
+    (the process set up, then ended without Python's teardown)."""
+    run_command(main)
 
 
 if __name__ == "__main__":

@@ -24,8 +24,7 @@ from typing import Any, NoReturn
 from smartcar_gym.agents import require_train_extra
 from smartcar_gym.agents.cli_args import key_value_arg, non_negative_int_arg, positive_int_arg
 from smartcar_gym.agents.hyperparams import ALGOS, HyperparamsError
-from smartcar_gym.agents.process_exit import exit_now
-from smartcar_gym.agents.process_start import start_process
+from smartcar_gym.agents.process_start import run_command
 from smartcar_gym.agents.runs import DEFAULT_ENV_ID, new_run, resume_config
 from smartcar_gym.agents.training import RunSetupError, TrainResult, train
 from smartcar_gym.agents.vec_envs import VECTORIZATIONS
@@ -223,10 +222,9 @@ def print_summary(result: TrainResult, config: dict[str, Any]) -> None:
 
 
 def run() -> NoReturn:
-    """The ``smartcar-train`` command: the process set up (``process_start.start_process``),
-    ``main``, then the process ends without Python's teardown (``process_exit.exit_now``)."""
-    start_process()
-    exit_now(main())
+    """The ``smartcar-train`` command's process: ``main`` through ``process_start.run_command``
+    (the process set up, then ended without Python's teardown)."""
+    run_command(main)
 
 
 if __name__ == "__main__":

@@ -16,8 +16,9 @@ process (``os._exit``) instead of tearing the interpreter down:
 
 Nothing a command writes is left unwritten: its files are closed by then (the run's logger
 included, ``training.train``). Only the console scripts and ``python -m`` of ``smartcar-train``
-and ``smartcar-eval`` call it, once ``main`` has returned; an exception leaves the usual way,
-and code that calls ``main`` (the tests, a notebook) is not touched.
+and ``smartcar-eval`` call it (``process_start.run_command``), once ``main`` has returned; an
+exception leaves the usual way, and code that calls ``main`` (the tests, a notebook) is not
+touched.
 ``SMARTCAR_GYM_FAST_EXIT=0`` ends with ``sys.exit`` instead (for a tool that needs the
 teardown).
 """

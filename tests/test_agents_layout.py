@@ -120,7 +120,7 @@ def test_the_commands_use_the_library_s_objects():
 def test_the_console_scripts_run_the_command_line_modules():
     tomllib = pytest.importorskip("tomllib", reason="Python 3.11 reads pyproject.toml")
     scripts = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["scripts"]
-    # run: main, then the process's end without Python's teardown (process_exit)
+    # run: main in a process set up and ended by process_start.run_command
     assert scripts["smartcar-train"] == "smartcar_gym.agents.cli_train:run"
     assert scripts["smartcar-eval"] == "smartcar_gym.agents.cli_eval:run"
     for target in (scripts["smartcar-train"], scripts["smartcar-eval"]):

@@ -206,8 +206,9 @@ class BatchedArbotix:
         return [i for i in sorted(self.faulty) if m[i]]
 
     @property
-    def _compiled(self) -> bool:
-        """Whether the compiled loops run this batch (none count faulty encoders)."""
+    def compiled(self) -> bool:
+        """Whether the compiled loops (``controller.compiled``) run this batch: numba in use,
+        and no car counts with faulty encoders."""
         return compiled.COMPILED and not self.faulty
 
     # -- lifecycle -----------------------------------------------------------------------------
@@ -266,7 +267,7 @@ class BatchedArbotix:
                mask: np.ndarray | None = None) -> None:
         """One controller firing of the masked cars (``ArbotixBase.update``): odometry, timeout,
         ramp and (hardware) the write to the board; ``angles`` (N, 2) in hardware mode."""
-        if self._compiled and self.mode == HARDWARE and angles is not None:
+        if self.compiled and self.mode == HARDWARE and angles is not None:
             compiled.update(self, now_s, angles, mask)
             return
         m = _sel(mask)
@@ -355,7 +356,7 @@ class BatchedArbotix:
         """``ArbotixBase.board_tick`` of the masked cars; returns which cars ran a frame."""
         if self.mode == KINEMATIC:
             return np.zeros(self.n, dtype=bool)
-        if self._compiled and angles is not None:
+        if self.compiled and angles is not None:
             return compiled.board_tick(self, now_s, angles, mask)
         now_ms = np.broadcast_to(board_millis(now_s), (self.n,))
         m = _all(mask, self.n) & self.moving & self.pid_mode & (now_ms > self.f_time)

@@ -197,15 +197,20 @@ def frame_due(i, t, n, b):
         (np.int64(math.trunc(t * 1000.0 + 1e-6)) > n[F_TIME, i])
 
 
+def next_frame_car(i, now, never, n, b):
+    """Car ``i``'s next PID frame (ns on its clock, ``now`` ns), not before now; ``never``
+    while its board is idle."""
+    frame = n[F_TIME, i] + 1
+    if b[MOVING, i] & b[PID_MODE, i] and frame >= 0:
+        return max(now, frame * 1_000_000)
+    return never
+
+
 def next_frame_ns(now, never, n, b, out):
     """Each car's next PID frame (ns on its clock ``now``), not before now; ``never`` while
     its board is idle (``BatchedArbotix.next_frame_ns``)."""
     for i in range(out.shape[0]):
-        frame = n[F_TIME, i] + 1
-        if b[MOVING, i] & b[PID_MODE, i] and frame >= 0:
-            out[i] = max(now[i], frame * 1_000_000)
-        else:
-            out[i] = never
+        out[i] = next_frame_car(i, now[i], never, n, b)
 
 
 def board_tick_car(i, t, a_left, a_right, f, n, b):
@@ -272,6 +277,26 @@ def _frame_cars(start, stop, now, angles, ran, f, n, b):
             board_tick_car(i, now[i], angles[i, 0], angles[i, 1], f, n, b)
 
 
+def fire_car(i, t, a_left, a_right, update, f, n, b):
+    """Car ``i``'s board events at ``t`` s, as ``update`` then ``board_tick`` run them for
+    it: the controller's update where ``update``, then the PID frame if one is due; each
+    refused (``_refused``, time going backwards) before it changes the car. Returns the code
+    of what was refused (0: nothing)."""
+    if update:
+        code = _refused(i, a_left, a_right, f, b)
+        if code:
+            return code
+        if t - f[THEN, i] < 0:
+            return BACKWARDS
+        update_car(i, t, a_left, a_right, f, n, b)
+    if frame_due(i, t, n, b):
+        code = _refused(i, a_left, a_right, f, b)
+        if code:
+            return code
+        board_tick_car(i, t, a_left, a_right, f, n, b)
+    return 0
+
+
 if COMPILED:
     _jit = numba.njit(cache=True)  # the scalar emulation's own integer helpers too
     _wrap16, _wrap32, _c_div, _ns, _count, _refused, _apply_pwm = (
@@ -279,7 +304,8 @@ if COMPILED:
     update_car, frame_due, board_tick_car = (
         _jit(f) for f in (update_car, frame_due, board_tick_car))
     _update_refused, _frames_refused = _jit(_update_refused), _jit(_frames_refused)
-    next_frame_ns = _jit(next_frame_ns)
+    next_frame_car = _jit(next_frame_car)
+    next_frame_ns, fire_car = _jit(next_frame_ns), _jit(fire_car)
     # the loops over a chunk of cars free the GIL: ``run_chunks`` runs chunks side by side
     _update_cars, _frame_cars = (numba.njit(cache=True, nogil=True)(f)
                                  for f in (_update_cars, _frame_cars))

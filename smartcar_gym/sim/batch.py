@@ -36,6 +36,12 @@ class CarBatch(Protocol):
     ``threads`` is how many worker threads may step the cars (an engine may ignore it).
     A batch can be copied (``copy.deepcopy``, pickle); a copy may leave out what ``close``
     frees, and the env calls ``reopen`` on it before its first reset.
+
+    An engine may also offer ``run_period(base, now, next_update, end, pending, period_ns,
+    max_substep_ns) -> bool``: every pending car's events (``base``'s boards) and physics
+    until ``end`` in a loop of its own, the same sequence per car as the env's event loop
+    (``envs.vector.events.Clocks``), returning False where it cannot (the env then runs
+    them). The planar engine's does (``sim.planar.period``).
     """
 
     def reset(self, idx: np.ndarray) -> None:

@@ -150,19 +150,26 @@ class PlanarBatch:
         """(N, J): ``sign * state[first + g]`` of each joint's group ``g``, times ``scale``
         where given (numba's loop where installed: the same multiplies)."""
         if dynamics.COMPILED:
-            key = (tuple(joints), first, None if scale is None else tuple(scale))
-            table = self._tables.get(key)
-            if table is None:
-                table = self._tables[key] = (
-                    np.array([first + g for g, _ in joints], dtype=np.int64),
-                    np.array([sign for _, sign in joints], dtype=np.float64),
-                    # times 1.0 where not given: exact, the same bits
-                    np.ones(len(joints)) if scale is None else np.array(scale, dtype=float))
             out = np.empty((self.n, len(joints)))
-            _gather(self.state, *table, out)
+            _gather(self.state, *self.joint_table(joints, first, scale), out)
             return out
         values = np.stack([sign * self.state[first + g] for g, sign in joints], axis=1)
         return values if scale is None else values * np.asarray(scale, dtype=float)
+
+    def joint_table(self, joints: Sequence[tuple[int, float]], first: int = ANGLE,
+                    scale: Sequence[float] | None = None
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The arrays numba's loops read joints' values by (``_joint_rows``): each joint's
+        row of ``state`` (``first`` plus its group), its sign and its scale (1.0 where not
+        given: a multiply that changes no bit); made once per joints."""
+        key = (tuple(joints), first, None if scale is None else tuple(scale))
+        table = self._tables.get(key)
+        if table is None:
+            table = self._tables[key] = (
+                np.array([first + g for g, _ in joints], dtype=np.int64),
+                np.array([sign for _, sign in joints], dtype=np.float64),
+                np.ones(len(joints)) if scale is None else np.array(scale, dtype=float))
+        return table
 
     @property
     def torque(self) -> np.ndarray:

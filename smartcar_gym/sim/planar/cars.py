@@ -15,9 +15,11 @@ from typing import Any
 
 import numpy as np
 
+from smartcar_gym.controller.diff_controller import HARDWARE
 from smartcar_gym.model.kinematics import quaternion_matrix
-from smartcar_gym.sim.planar import dynamics
+from smartcar_gym.sim.planar import dynamics, period
 from smartcar_gym.sim.planar.batch import PlanarBatch, yaw_quaternion_arrays
+from smartcar_gym.sim.planar.drive import drive_cars, drive_tables
 from smartcar_gym.sim.planar.geometry import OBSTACLE_HEIGHT_M, Shapes2D, cast, clearance
 from smartcar_gym.sim.planar.projection import Footprint
 from smartcar_gym.sim.planar.world import footprint_of, outlines
@@ -48,7 +50,7 @@ class PlanarCars:
                              if j in of]
         self._damped_joints = [(of[j], robot.wheel_joint_indices.index(j))
                                for j in body._damping if j in of]
-        self._drive_tables = _tables(self._held_joints, self._damped_joints, self._side,
+        self._drive_tables = drive_tables(self._held_joints, self._damped_joints, self._side,
                                      self._share, self._sign)
         self._upright = np.ones(self.batch.n)  # a planar car never tips over
         self._body = body
@@ -86,7 +88,7 @@ class PlanarCars:
         installed: the same operations on each car's numbers)."""
         cars, ng = self.batch, self.batch.ng
         if dynamics.COMPILED:  # read at each call: a test switches it off
-            _drive_cars(mask, torque, damping, *self._drive_tables, cars.torque, cars.damping)
+            drive_cars(mask, torque, damping, *self._drive_tables, cars.torque, cars.damping)
             return
         mask = slice(None) if mask.all() else mask  # every car: views, not copies
         drive, damp_side = torque[mask], damping[mask]
@@ -102,6 +104,21 @@ class PlanarCars:
 
     def step(self, idx: np.ndarray, nstep: np.ndarray, timestep: np.ndarray) -> None:
         self.batch.step(idx, nstep, timestep)
+
+    def run_period(self, base: Any, now: np.ndarray, next_update: np.ndarray,
+                   end: np.ndarray, pending: np.ndarray, period_ns: int,
+                   max_substep_ns: int) -> bool:
+        """Every pending car's events and physics until ``end`` in one compiled loop
+        (``period.run_period``), for ``period.MIN_CARS`` cars or more where numba runs both
+        the physics and ``base``'s boards in hardware mode; False where it does not (the
+        caller runs the events)."""
+        if self.batch.n < period.MIN_CARS or not (
+                period.available() and base.compiled and base.mode == HARDWARE):
+            return False
+        encoders = self.batch.joint_table(self._encoder_joints, scale=self._encoder_sign)
+        period.run_period(self.batch, base, encoders, self._drive_tables, now, next_update,
+                          end, pending, period_ns, max_substep_ns)
+        return True
 
     def take_unstable(self) -> tuple[Warning, ...]:
         """None: the implicit step is stable at any length."""
@@ -223,49 +240,3 @@ def _write_row(rows: tuple[np.ndarray, ...], row: int, shapes: Shapes2D) -> None
     rotation[row, :j], half[row, :j], valid[row, :j] = shapes.rotation[0], shapes.half[0], True
     kind[row, j:], centre[row, j:], rotation[row, j:] = 0, 0.0, (1.0, 0.0)
     half[row, j:], valid[row, j:] = 1.0, False
-
-
-def _tables(held: list, damped: list, side: list[int], share: list[float],
-            sign: list[float]) -> tuple[np.ndarray, ...]:
-    """``set_drive``'s joints as arrays for numba's loop: per held joint, in the order the
-    body sums them, its wheel group and side, then the sign it turns with in its group, its
-    share of the side's output and its wheel's forward sign; per damped joint its group and
-    side, then its sign in the group and its share."""
-    return (np.array([g for (g, _), _ in held], dtype=np.int64),
-            np.array([side[k] for _, k in held], dtype=np.int64),
-            np.array([(s, share[k], sign[k]) for (_, s), k in held],
-                     dtype=np.float64).reshape(-1, 3),
-            np.array([g for (g, _), _ in damped], dtype=np.int64),
-            np.array([side[k] for _, k in damped], dtype=np.int64),
-            np.array([(s, share[k]) for (_, s), k in damped], dtype=np.float64).reshape(-1, 2))
-
-
-if dynamics.COMPILED:
-    import numba
-
-    @numba.njit(cache=True)
-    def _drive_cars(mask: np.ndarray, torque: np.ndarray, damping: np.ndarray,
-                    held_group: np.ndarray, held_side: np.ndarray, held: np.ndarray,
-                    damped_group: np.ndarray, damped_side: np.ndarray, damped: np.ndarray,
-                    out_torque: np.ndarray, out_damping: np.ndarray) -> None:
-        """``set_drive``'s sums for each masked car (``torque``, ``damping``: (N, 2) by
-        side; the outputs (G, N))."""
-        ng = out_torque.shape[0]
-        tau = np.zeros(ng)
-        damp = np.zeros(ng)
-        for i in range(mask.shape[0]):
-            if not mask[i]:
-                continue
-            tau[:] = 0.0
-            damp[:] = 0.0
-            for h in range(held_group.shape[0]):
-                g = held_group[h]
-                tau[g] = tau[g] + held[h, 0] * (torque[i, held_side[h]] * held[h, 1]
-                                                * held[h, 2])
-            for h in range(damped_group.shape[0]):
-                g = damped_group[h]
-                sign = damped[h, 0]
-                damp[g] = damp[g] + sign * sign * (damping[i, damped_side[h]] * damped[h, 1])
-            for g in range(ng):
-                out_torque[g, i] = tau[g]
-                out_damping[g, i] = damp[g]

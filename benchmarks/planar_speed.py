@@ -8,7 +8,8 @@ Each round times, one after the other in this process, with random actions:
   (Python floats: ``dynamics.COMPILED`` off for that env);
 - the planar batch (``gym.make_vec(..., vectorization_mode="vector_entry_point",
   engine="planar")``) at ``--cars`` cars: numba's loops (the physics, ``dynamics``, and the boards
-  and controllers, ``controller.compiled``), and numpy arrays (both switched off).
+  and controllers, ``controller.compiled``; from 1,024 cars a period's events and physics in
+  one loop, ``sim/planar/period.py``), and numpy arrays (both switched off).
 
 Figures are env steps (car-steps for the batch) per second of this process's CPU time (the
 steadier figure on a shared machine) and by the wall clock; each ratio cell is the median over

@@ -304,7 +304,9 @@ if COMPILED:
     update_car, frame_due, board_tick_car = (
         _jit(f) for f in (update_car, frame_due, board_tick_car))
     _update_refused, _frames_refused = _jit(_update_refused), _jit(_frames_refused)
-    next_frame_car = _jit(next_frame_car)
+    # inlined by numba into ``next_frame_ns`` and ``period``'s loop (a function of its own
+    # is compiled again in each caller)
+    next_frame_car = numba.njit(cache=True, inline="always")(next_frame_car)
     next_frame_ns, fire_car = _jit(next_frame_ns), _jit(fire_car)
     # the loops over a chunk of cars free the GIL: ``run_chunks`` runs chunks side by side
     _update_cars, _frame_cars = (numba.njit(cache=True, nogil=True)(f)

@@ -88,7 +88,8 @@ class PlanarCars:
         installed: the same operations on each car's numbers)."""
         cars, ng = self.batch, self.batch.ng
         if dynamics.COMPILED:  # read at each call: a test switches it off
-            drive_cars(mask, torque, damping, *self._drive_tables, cars.torque, cars.damping)
+            drive_cars(mask, 0, cars.n, torque, damping, *self._drive_tables, cars.torque,
+                       cars.damping)
             return
         mask = slice(None) if mask.all() else mask  # every car: views, not copies
         drive, damp_side = torque[mask], damping[mask]

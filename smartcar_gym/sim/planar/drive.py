@@ -1,7 +1,7 @@
 """The planar cars' motors: each side's output (the boards' ``drive_torque`` and ``damping``,
 (N, 2)) shared into the wheel groups' drive rows with ``set_motor_output``'s and
-``PlanarBody._drive``'s arithmetic in their order, as numba's loop over the cars
-(``PlanarCars.set_drive``, and a car at a time in ``period``'s loop). Without numba,
+``PlanarBody._drive``'s arithmetic in their order, as numba's loop over a range of the cars
+(``PlanarCars.set_drive``, and each pass of ``period``'s loop). Without numba,
 ``PlanarCars.set_drive`` does the same sums on numpy arrays.
 """
 
@@ -11,7 +11,7 @@ import numpy as np
 
 from smartcar_gym.sim.planar import dynamics
 
-drive_car = drive_cars = None
+drive_cars = None
 
 
 def drive_tables(held: list, damped: list, side: list[int], share: list[float],
@@ -33,36 +33,29 @@ if dynamics.COMPILED:
     import numba
 
     @numba.njit(cache=True, nogil=True)
-    def drive_car(i: int, torque: np.ndarray, damping: np.ndarray, held_group: np.ndarray,
-                  held_side: np.ndarray, held: np.ndarray, damped_group: np.ndarray,
-                  damped_side: np.ndarray, damped: np.ndarray, out_torque: np.ndarray,
-                  out_damping: np.ndarray, tau: np.ndarray, damp: np.ndarray) -> None:
-        """``set_drive``'s sums for car ``i`` (``torque``, ``damping``: (N, 2) by side; the
-        outputs (G, N); ``tau``, ``damp``: (G,) scratch; the tables: ``drive_tables``)."""
-        ng = out_torque.shape[0]
-        tau[:] = 0.0
-        damp[:] = 0.0
-        for h in range(held_group.shape[0]):
-            g = held_group[h]
-            tau[g] = tau[g] + held[h, 0] * (torque[i, held_side[h]] * held[h, 1] * held[h, 2])
-        for h in range(damped_group.shape[0]):
-            g = damped_group[h]
-            sign = damped[h, 0]
-            damp[g] = damp[g] + sign * sign * (damping[i, damped_side[h]] * damped[h, 1])
-        for g in range(ng):
-            out_torque[g, i] = tau[g]
-            out_damping[g, i] = damp[g]
-
-    @numba.njit(cache=True)
-    def drive_cars(mask: np.ndarray, torque: np.ndarray, damping: np.ndarray,
-                    held_group: np.ndarray, held_side: np.ndarray, held: np.ndarray,
-                    damped_group: np.ndarray, damped_side: np.ndarray, damped: np.ndarray,
-                    out_torque: np.ndarray, out_damping: np.ndarray) -> None:
-        """``set_drive``'s sums for each masked car (``drive_car``)."""
+    def drive_cars(mask: np.ndarray, start: int, stop: int, torque: np.ndarray,
+                   damping: np.ndarray, held_group: np.ndarray, held_side: np.ndarray,
+                   held: np.ndarray, damped_group: np.ndarray, damped_side: np.ndarray,
+                   damped: np.ndarray, out_torque: np.ndarray, out_damping: np.ndarray) -> None:
+        """``set_drive``'s sums for each masked car of ``start`` .. ``stop - 1``
+        (``torque``, ``damping``: (N, 2) by side; the outputs (G, N); the tables:
+        ``drive_tables``)."""
         ng = out_torque.shape[0]
         tau = np.zeros(ng)
         damp = np.zeros(ng)
-        for i in range(mask.shape[0]):
-            if mask[i]:
-                drive_car(i, torque, damping, held_group, held_side, held, damped_group,
-                          damped_side, damped, out_torque, out_damping, tau, damp)
+        for i in range(start, stop):
+            if not mask[i]:
+                continue
+            tau[:] = 0.0
+            damp[:] = 0.0
+            for h in range(held_group.shape[0]):
+                g = held_group[h]
+                tau[g] = tau[g] + held[h, 0] * (torque[i, held_side[h]] * held[h, 1]
+                                                * held[h, 2])
+            for h in range(damped_group.shape[0]):
+                g = damped_group[h]
+                sign = damped[h, 0]
+                damp[g] = damp[g] + sign * sign * (damping[i, damped_side[h]] * damped[h, 1])
+            for g in range(ng):
+                out_torque[g, i] = tau[g]
+                out_damping[g, i] = damp[g]

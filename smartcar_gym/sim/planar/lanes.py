@@ -431,84 +431,71 @@ if COMPILED:
         return most
 
     @_jit
-    def scratch(state: np.ndarray, blocks: np.ndarray, drive: np.ndarray) -> tuple:
-        """``run_pass``' working buffers for a batch of this layout: a pass's blocks, the
-        queue block, its parameters, who is queued, each block's most substeps, and the rows
-        the second solve reads of a lane."""
-        ng = drive.shape[0] // 2
-        size = _layout(ng)[3] + (drive.shape[0] + ng * 9) * LANES
-        copied = np.array([DT, BODY_VX, BODY_VY, DU, DV, DW], dtype=np.int64)
-        return (np.zeros((PASS, size)), np.zeros(size), np.zeros(blocks.shape[1]),
-                np.zeros((LANES, 2), dtype=np.int64), np.zeros(PASS, dtype=np.int64), copied)
-
-    @_jit
     def run_blocks(state: np.ndarray, blocks: np.ndarray, groups: np.ndarray,
                    drive: np.ndarray, dt: np.ndarray, n: np.ndarray, first: int,
                    last: int) -> None:
         """Blocks ``first`` .. ``last - 1`` of the batch: car i ``n[i]`` substeps of ``dt[i]``
         s, in place. ``state`` ``(S, N)`` and ``drive`` ``(2G, N)`` in the batch's layout,
         ``blocks`` the parameters and contacts by block (``blocked``)."""
-        work = scratch(state, blocks, drive)
-        for start in range(first, last, PASS):
-            run_pass(state, blocks, groups, drive, dt, n, start, min(start + PASS, last), work)
-
-    @_jit
-    def run_pass(state: np.ndarray, blocks: np.ndarray, groups: np.ndarray,
-                 drive: np.ndarray, dt: np.ndarray, n: np.ndarray, start: int, stop: int,
-                 work: tuple) -> None:
-        """``run_blocks`` of one pass, blocks ``start`` .. ``stop - 1`` (at most ``PASS``),
-        in ``work``'s buffers (``scratch``)."""
-        bufs, queue, queue_prm, who, most, copied = work
         ns, nd, cars = state.shape[0], drive.shape[0], state.shape[1]
         ng = nd // 2
         at_drive = _layout(ng)[3]
-        size = bufs.shape[1]
-        for block in range(start, stop):  # gather the pass's cars
-            base = block * LANES
-            width = min(LANES, cars - base)
-            most[block - start] = _most(n, base, base + width)
-            if most[block - start] == 0:  # no car of it steps: nothing to copy
-                continue
-            b = bufs[block - start]
-            for j in range(LANES):  # the padding lanes: the first car's, unstepped
-                car = base + j if j < width else base
-                for r in range(ns):
-                    b[STATE + r * LANES + j] = state[r, car]
-                for r in range(nd):
-                    b[at_drive + r * LANES + j] = drive[r, car]
-                b[DT + j] = dt[car]
-                b[STEPS + j] = n[car] if j < width else 0
-        for sub in range(_most(most, 0, stop - start)):
-            queued = 0
-            for block in range(start, stop):
-                b = bufs[block - start]
-                prm = blocks[block]
-                if most[block - start] <= sub or not _begin(b, prm, groups, ng, sub):
+        size = at_drive + (nd + ng * 9) * LANES
+        bufs = np.zeros((PASS, size))
+        queue = np.zeros(size)
+        queue_prm = np.zeros(blocks.shape[1])
+        who = np.zeros((LANES, 2), dtype=np.int64)
+        most = np.zeros(PASS, dtype=np.int64)  # each block's most substeps
+        # what the second solve reads of a lane: rows copied to the queue
+        copied = np.array([DT, BODY_VX, BODY_VY, DU, DV, DW], dtype=np.int64)
+        for start in range(first, last, PASS):
+            stop = min(start + PASS, last)
+            for block in range(start, stop):  # gather the pass's cars
+                base = block * LANES
+                width = min(LANES, cars - base)
+                most[block - start] = _most(n, base, base + width)
+                if most[block - start] == 0:  # no car of it steps: nothing to copy
                     continue
-                for j in range(LANES):  # its lanes that solve again, to the queue
-                    if b[CROSSED + j] == 0.0:
+                b = bufs[block - start]
+                for j in range(LANES):  # the padding lanes: the first car's, unstepped
+                    car = base + j if j < width else base
+                    for r in range(ns):
+                        b[STATE + r * LANES + j] = state[r, car]
+                    for r in range(nd):
+                        b[at_drive + r * LANES + j] = drive[r, car]
+                    b[DT + j] = dt[car]
+                    b[STEPS + j] = n[car] if j < width else 0
+            for sub in range(_most(most, 0, stop - start)):
+                queued = 0
+                for block in range(start, stop):
+                    b = bufs[block - start]
+                    prm = blocks[block]
+                    if most[block - start] <= sub or not _begin(b, prm, groups, ng, sub):
                         continue
-                    for r in copied:
-                        queue[r + queued] = b[r + j]
-                    for r in range(STATE, size, LANES):  # state, drive, groups' rows
-                        queue[r + queued] = b[r + j]
-                    for r in range(0, prm.shape[0], LANES):
-                        queue_prm[r + queued] = prm[r + j]
-                    who[queued, 0], who[queued, 1] = block - start, j
-                    queued += 1
-                    if queued == LANES:
-                        _queue_again(queue, queue_prm, who, queued, bufs, groups, ng)
-                        queued = 0
-            if queued:
-                _queue_again(queue, queue_prm, who, queued, bufs, groups, ng)
-            for block in range(start, stop):
-                if most[block - start] > sub:
-                    _finish(bufs[block - start], blocks[block], ng)
-        for block in range(start, stop):  # scatter the new states
-            if most[block - start] == 0:
-                continue
-            b = bufs[block - start]
-            base = block * LANES
-            for j in range(min(LANES, cars - base)):
-                for r in range(ns):
-                    state[r, base + j] = b[STATE + r * LANES + j]
+                    for j in range(LANES):  # its lanes that solve again, to the queue
+                        if b[CROSSED + j] == 0.0:
+                            continue
+                        for r in copied:
+                            queue[r + queued] = b[r + j]
+                        for r in range(STATE, size, LANES):  # state, drive, groups' rows
+                            queue[r + queued] = b[r + j]
+                        for r in range(0, prm.shape[0], LANES):
+                            queue_prm[r + queued] = prm[r + j]
+                        who[queued, 0], who[queued, 1] = block - start, j
+                        queued += 1
+                        if queued == LANES:
+                            _queue_again(queue, queue_prm, who, queued, bufs, groups, ng)
+                            queued = 0
+                if queued:
+                    _queue_again(queue, queue_prm, who, queued, bufs, groups, ng)
+                for block in range(start, stop):
+                    if most[block - start] > sub:
+                        _finish(bufs[block - start], blocks[block], ng)
+            for block in range(start, stop):  # scatter the new states
+                if most[block - start] == 0:
+                    continue
+                b = bufs[block - start]
+                base = block * LANES
+                for j in range(min(LANES, cars - base)):
+                    for r in range(ns):
+                        state[r, base + j] = b[STATE + r * LANES + j]

@@ -6,13 +6,15 @@ the boards that are due (the controller's update, then the PID frame, then the m
 drive), step every car to its next event, and again until each car reaches the end. Each car's
 sequence depends only on its own numbers, so this loop runs the same sequence car by car:
 for each pass of ``lanes.PASS`` blocks (256 cars), it fires each car's events
-(``controller.compiled.fire_car``, ``drive.drive_car``), plans its substeps to its next event
-as ``events._plan`` does, and steps the pass in lanes (``lanes.run_pass``), until no car of
-the pass has time left. The arithmetic is those functions', so every car ends the period with
-the numpy loop's bits (``tests/test_planar_period.py``). What it saves is the numpy loop's
-fixed costs per event (some 30 array operations and compiled calls over every car, four
-times a period) and the split: the boards and motors run on every thread with the physics,
-one split a period instead of one per event.
+(``controller.compiled.fire_car``) and plans its substeps to its next event as
+``events._plan`` does, sets the drive of the cars that fired (``drive.drive_cars``: a car's
+drive depends only on its board's last outputs), and steps the pass in lanes
+(``lanes.run_blocks``), until no car of the pass has time left. The arithmetic is those
+functions', so every car ends the period with the numpy loop's bits
+(``tests/test_planar_period.py``). What it saves is the numpy loop's fixed costs per event
+(some 30 array operations and compiled calls over every car, four times a period) and the
+split: the boards and motors run on every thread with the physics, one split a period
+instead of one per event.
 
 Where a car's board refuses to run (not reset, a wheel angle that gives no count, time going
 backwards) or fires more than ``MAX_FIRINGS_PER_INSTANT`` times at one instant, its error is
@@ -69,6 +71,7 @@ def run_period(batch: PlanarBatch, base: BatchedArbotix,
         raise RuntimeError("period.run_period needs numba's loops (period.available())")
     n = batch.n
     steps, timestep = np.zeros(n, dtype=np.int64), np.zeros(n)
+    fired = np.zeros(n, dtype=np.bool_)
     target = np.empty(n, dtype=np.int64)
     blocks, state, drive_rows = batch.blocks(), batch.state, batch.drive
     f, ints, flags = base.floats, base.ints, base.flags
@@ -79,8 +82,8 @@ def run_period(batch: PlanarBatch, base: BatchedArbotix,
     def work(first: int, last: int) -> None:  # a range of blocks (the loop frees the GIL)
         code = _run(first, last, state, blocks, batch.contact_groups, drive_rows, f, ints,
                     flags, torque, damping, out_torque, out_damping, *encoders, *drive_tables,
-                    now, next_update, end, pending, steps, timestep, target, period_ns,
-                    max_substep_ns, never)
+                    now, next_update, end, pending, steps, timestep, target, fired,
+                    period_ns, max_substep_ns, never)
         if code == TOO_MANY:
             raise RuntimeError("a car's board is still due after "
                                f"{MAX_FIRINGS_PER_INSTANT} firings at one instant")
@@ -99,11 +102,9 @@ if dynamics.COMPILED and boards.COMPILED:
     def _run(first, last, state, blocks, groups, drive_rows, f, ints, flags, torque, damping,
              out_torque, out_damping, enc_rows, enc_signs, enc_scale, held_group, held_side,
              held, damped_group, damped_side, damped, now, next_update, end, pending, steps,
-             timestep, target, period_ns, max_substep_ns, never):
+             timestep, target, fired, period_ns, max_substep_ns, never):
         """``run_period`` for blocks ``first`` .. ``last - 1``; the code of the first car
         refused (0: none)."""
-        work = lanes.scratch(state, blocks, drive_rows)
-        tau, damp = np.zeros(out_torque.shape[0]), np.zeros(out_torque.shape[0])
         cars = state.shape[1]
         for start in range(first, last, lanes.PASS):
             stop = min(start + lanes.PASS, last)
@@ -111,7 +112,7 @@ if dynamics.COMPILED and boards.COMPILED:
             while True:
                 active = 0
                 for i in range(lo, hi):
-                    steps[i], timestep[i] = 0, 0.0
+                    steps[i], timestep[i], fired[i] = 0, 0.0, False
                     if not pending[i]:
                         continue
                     # ``Clocks._fire``: the car's events due now, at most MAX a instant
@@ -132,9 +133,7 @@ if dynamics.COMPILED and boards.COMPILED:
                             return code
                         if update:
                             next_update[i] += period_ns
-                        drive.drive_car(i, torque, damping, held_group, held_side, held,
-                                        damped_group, damped_side, damped, out_torque,
-                                        out_damping, tau, damp)
+                        fired[i] = True
                     # ``events._plan``: its substeps to its next event, or the period done
                     if now[i] < end[i]:
                         active += 1
@@ -146,10 +145,12 @@ if dynamics.COMPILED and boards.COMPILED:
                             timestep[i] = np.float64(interval) / np.float64(count * NS_PER_S)
                     else:
                         pending[i] = False
+                drive.drive_cars(fired, lo, hi, torque, damping, held_group, held_side, held,
+                                 damped_group, damped_side, damped, out_torque, out_damping)
                 if active == 0:
                     break
-                lanes.run_pass(state, blocks, groups, drive_rows, timestep, steps, start,
-                               stop, work)
+                lanes.run_blocks(state, blocks, groups, drive_rows, timestep, steps, start,
+                                 stop)
                 for i in range(lo, hi):
                     if pending[i]:
                         now[i] = target[i]

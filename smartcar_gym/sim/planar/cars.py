@@ -51,7 +51,7 @@ class PlanarCars:
         self._damped_joints = [(of[j], robot.wheel_joint_indices.index(j))
                                for j in body._damping if j in of]
         self._drive_tables = drive_tables(self._held_joints, self._damped_joints, self._side,
-                                     self._share, self._sign)
+                                          self._share, self._sign)
         self._upright = np.ones(self.batch.n)  # a planar car never tips over
         self._body = body
         #: threads the dynamics' and the laser's compiled loops split the cars over

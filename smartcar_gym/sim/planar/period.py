@@ -43,11 +43,12 @@ TOO_MANY = max(boards.MESSAGES) + 1
 MIN_CHUNK_BLOCKS = 1024 // lanes.LANES
 #: cars from which a batch runs its periods here (``PlanarCars.run_period``). Below, the
 #: numpy loop's fixed costs are small beside what compiling this loop costs a first run:
-#: measured, the README's 64-car training from a cold cache took 39.5, 42.3 and 31.5 s
-#: against 34.0, 40.8 and 30.8 s in numpy, in turn (numba compiles this loop with the lanes
-#: and boards in it, and the evaluation process's head start on the boards' loops is lost),
-#: for 0.18 ms a step saved warm (0.47 against 0.65 ms, 4,096 steps a training). At 4,096
-#: cars it saves 17 % of a step (8.2 against 10.2 ms).
+#: measured, the README's 64-car training from a cold cache took 39.8, 47.8 and 50.6 s
+#: with this loop against 38.3, 42.4 and 42.5 s in numpy, in turn (numba compiles the loop
+#: with the lanes and boards in it, and the evaluation process's head start on the boards'
+#: loops is lost), for 0.18 ms a step saved warm (0.47 against 0.65 ms, 4,096 steps a
+#: training; the same ``policy.pth`` either way). At 4,096 cars it saves 17 % of a step (8.2
+#: against 10.2 ms).
 MIN_CARS = 1024
 
 

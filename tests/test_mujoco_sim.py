@@ -92,9 +92,9 @@ def test_the_car_has_the_urdf_masses_and_the_rotor_inertia(world, car, shipped_c
 def test_a_side_s_wheels_turn_together_and_the_car_drives_straight(car):
     drive(car, 0.3, 0.0, 20)
     position, velocity = car.body.joint_states(car.wheel_joint_indices)
-    signs = np.array(car._signs)
+    signs = np.array(car.wheel_signs)
     forward = velocity * signs
-    left = [f for f, is_left in zip(forward, car._left, strict=True) if is_left]
+    left = [f for f, is_left in zip(forward, car.wheel_left, strict=True) if is_left]
     assert left[0] == pytest.approx(left[1], rel=1e-3)  # the chain holds them 1:1
     pose = car.pose()
     assert 0.4 < pose.x < 0.6 and abs(pose.y) < 0.01 and abs(pose.yaw) < 0.01

@@ -108,3 +108,24 @@ def test_timeout_stops_the_base_after_one_second(hardware_robot):
     for _ in range(20):
         drive(robot, None, None)
     assert abs(robot.joint_states().velocity.mean()) < 0.2  # rolled to a stop
+
+
+def test_the_wiring_a_car_batch_reads(hardware_robot):
+    """What an engine's car batch reads of the robot (``sim/*/cars.py``): the tutorial's four
+    wheels, two a side, each half its side's motor output; the encoders left then right, each
+    read forward-positive."""
+    robot = hardware_robot
+    assert [w.joint for w in robot.wheels] == [
+        "left_front_wheel_joint", "left_back_wheel_joint", "right_front_wheel_joint",
+        "right_back_wheel_joint"]
+    assert robot.wheel_left == [True, True, False, False]
+    assert robot.wheel_shares == [0.5] * 4
+    assert robot.wheel_signs == [1.0] * 4  # every wheel rolls forward on a positive angle
+    assert robot.encoder_signs == (1, 1)
+    # the encoders on the front wheels (the default), left then right
+    assert robot.encoder_joint_indices == [robot.wheel_joint_indices[0],
+                                           robot.wheel_joint_indices[2]]
+    left, right = robot.encoder_angles()
+    angles, _ = robot.body.joint_states(robot.encoder_joint_indices)
+    assert (left, right) == (angles[0] * robot.encoder_signs[0],
+                             angles[1] * robot.encoder_signs[1])

@@ -188,6 +188,32 @@ class SmartCarRobot:
         return self._wheel_idx
 
     @property
+    def encoder_joint_indices(self) -> list[int]:
+        """The simulator's joint indices of the encoder wheels, left then right (after
+        ``spawn``)."""
+        return self._encoder_idx
+
+    @property
+    def encoder_signs(self) -> tuple[float, float]:
+        """Each encoder wheel's forward sign (its joint angle times it: forward-positive)."""
+        return self._encoder_signs
+
+    @property
+    def wheel_left(self) -> list[bool]:
+        """Per wheel of ``wheels``: whether the left motor drives it (else the right)."""
+        return self._left
+
+    @property
+    def wheel_shares(self) -> list[float]:
+        """Per wheel: its share of its side's motor output (1 / the side's wheel count)."""
+        return self._share
+
+    @property
+    def wheel_signs(self) -> list[float]:
+        """Per wheel: its joint's forward sign (a forward torque is ``sign`` times it)."""
+        return self._signs
+
+    @property
     def kinematic(self) -> bool:
         """True in ``sim`` mode: the body is moved kinematically, no physics is stepped."""
         return self.mode == KINEMATIC

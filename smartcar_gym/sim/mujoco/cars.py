@@ -31,12 +31,12 @@ class MujocoCars:
         qadr, dadr = ids.addresses(robot.wheel_joint_indices)
         self._wheel_q = np.asarray(qadr)
         self._wheel_v = np.asarray(dadr)
-        self._encoder_q = np.asarray(ids.addresses(robot._encoder_idx)[0])
-        self._encoder_sign = np.array(robot._encoder_signs, dtype=np.float64)
+        self._encoder_q = np.asarray(ids.addresses(robot.encoder_joint_indices)[0])
+        self._encoder_sign = np.array(robot.encoder_signs, dtype=np.float64)
         self._free_q, self._free_v = ids.free_q, ids.free_v
-        self._side = np.array([0 if left else 1 for left in robot._left])
-        self._share = np.array(robot._share)
-        self._sign = np.array(robot._signs)
+        self._side = np.array([0 if left else 1 for left in robot.wheel_left])
+        self._share = np.array(robot.wheel_shares)
+        self._sign = np.array(robot.wheel_signs)
         #: the worlds, stepped in C
         self.batch = CarBatch(sim, num_cars, list(dadr), threads)
         self._car_geoms = list(ids.collision_geoms)

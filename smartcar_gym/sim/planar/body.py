@@ -315,6 +315,12 @@ class PlanarBody:
         state.inertia[k, k] += inertia_kg_m2
         self._changed()
 
+    @property
+    def damped_joints(self) -> tuple[int, ...]:
+        """The joints whose damping was set, in the order the body sums them into its wheel
+        groups."""
+        return tuple(self._damping)
+
     def clear_damping(self, link: int) -> None:
         """No damping but what is set on purpose (the planar engine adds none of its own)."""
         if link != BASE:

@@ -40,16 +40,16 @@ class PlanarCars:
         self.batch = PlanarBatch(body, num_cars, threads)
         of = body.groups.of
         self._wheel_joints = [of[j] for j in robot.wheel_joint_indices]
-        self._encoder_joints = [of[j] for j in robot._encoder_idx]
-        self._encoder_sign = tuple(float(x) for x in robot._encoder_signs)
-        self._side = [0 if left else 1 for left in robot._left]
-        self._share = list(robot._share)
-        self._sign = list(robot._signs)
+        self._encoder_joints = [of[j] for j in robot.encoder_joint_indices]
+        self._encoder_sign = tuple(float(x) for x in robot.encoder_signs)
+        self._side = [0 if left else 1 for left in robot.wheel_left]
+        self._share = list(robot.wheel_shares)
+        self._sign = list(robot.wheel_signs)
         # the order PlanarBody sums joint torques and damping into its groups
         self._held_joints = [(of[j], k) for k, j in enumerate(robot.wheel_joint_indices)
                              if j in of]
         self._damped_joints = [(of[j], robot.wheel_joint_indices.index(j))
-                               for j in body._damping if j in of]
+                               for j in body.damped_joints if j in of]
         self._drive_tables = drive_tables(self._held_joints, self._damped_joints, self._side,
                                           self._share, self._sign)
         self._upright = np.ones(self.batch.n)  # a planar car never tips over

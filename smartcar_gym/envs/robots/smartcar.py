@@ -133,14 +133,19 @@ class SmartCarRobot:
         self.spawn_z = max(w.radius_m - w.position_m[2] for w in self.wheels)
         self.body: Body | None = None
         self._wheel_idx: list[int] = []
-        self._encoder_idx: list[int] = []
-        self._signs = [float(w.forward_sign) for w in self.wheels]
-        self._encoder_signs = tuple(w.forward_sign for w in self.encoder_wheels)
-        self._left = [w.side == "left" for w in self.wheels]
+        #: the simulator's joint indices of the encoder wheels, left then right (after spawn)
+        self.encoder_joint_indices: list[int] = []
+        #: per wheel of ``wheels``: its joint's forward sign (a forward torque is sign times it)
+        self.wheel_signs = [float(w.forward_sign) for w in self.wheels]
+        #: each encoder wheel's forward sign (its joint angle times it: forward-positive)
+        self.encoder_signs = tuple(w.forward_sign for w in self.encoder_wheels)
+        #: per wheel: whether the left motor drives it (else the right)
+        self.wheel_left = [w.side == "left" for w in self.wheels]
         # Each side's motor drives its wheels through a 1:1 chain: they share its output.
-        n_left = sum(self._left)
-        self._share = [1.0 / n_left if left else 1.0 / (len(self.wheels) - n_left)
-                       for left in self._left]
+        n_left = sum(self.wheel_left)
+        #: per wheel: its share of its side's motor output (1 / the side's wheel count)
+        self.wheel_shares = [1.0 / n_left if left else 1.0 / (len(self.wheels) - n_left)
+                             for left in self.wheel_left]
         self._torque = [0.0] * len(self.wheels)
         self._damping = [0.0] * len(self.wheels)
         self._next_update_ns = 0
@@ -188,32 +193,6 @@ class SmartCarRobot:
         return self._wheel_idx
 
     @property
-    def encoder_joint_indices(self) -> list[int]:
-        """The simulator's joint indices of the encoder wheels, left then right (after
-        ``spawn``)."""
-        return self._encoder_idx
-
-    @property
-    def encoder_signs(self) -> tuple[float, float]:
-        """Each encoder wheel's forward sign (its joint angle times it: forward-positive)."""
-        return self._encoder_signs
-
-    @property
-    def wheel_left(self) -> list[bool]:
-        """Per wheel of ``wheels``: whether the left motor drives it (else the right)."""
-        return self._left
-
-    @property
-    def wheel_shares(self) -> list[float]:
-        """Per wheel: its share of its side's motor output (1 / the side's wheel count)."""
-        return self._share
-
-    @property
-    def wheel_signs(self) -> list[float]:
-        """Per wheel: its joint's forward sign (a forward torque is ``sign`` times it)."""
-        return self._signs
-
-    @property
     def kinematic(self) -> bool:
         """True in ``sim`` mode: the body is moved kinematically, no physics is stepped."""
         return self.mode == KINEMATIC
@@ -249,17 +228,17 @@ class SmartCarRobot:
         if self.model.drive_kind == "differential" and isinstance(sim, ConvergesContacts):
             sim.converge_contacts()
         self._wheel_idx = [body.joint_index(w.joint) for w in self.wheels]
-        self._encoder_idx = [body.joint_index(w.joint) for w in self.encoder_wheels]
+        self.encoder_joint_indices = [body.joint_index(w.joint) for w in self.encoder_wheels]
         if self.variation is not None:
             self.variation.apply_to_body(body, self._wheel_idx)
         # pybullet's velocity motor on each wheel, held at speed 0 with at most the gearbox's
         # friction torque, is the gearbox's Coulomb friction; the DC motors add their torque.
         body.set_velocity_motors(
             self._wheel_idx, [0.0] * len(self.wheels),
-            [share * self.config.motor.friction_torque_nm for share in self._share],
+            [share * self.config.motor.friction_torque_nm for share in self.wheel_shares],
             key="gearbox",
         )
-        for wheel, idx, share in zip(self.wheels, self._wheel_idx, self._share, strict=True):
+        for wheel, idx, share in zip(self.wheels, self._wheel_idx, self.wheel_shares, strict=True):
             # The side's gearmotor rotor, seen through the gearbox, spins with the wheels: add
             # this wheel's share of its inertia about the axle (the joint axis).
             body.clear_damping(idx)
@@ -324,14 +303,15 @@ class SmartCarRobot:
     # -- WheelDrive (the controller's view of the simulator) -----------------------------------
     def encoder_angles(self) -> tuple[float, float]:
         """Forward-positive cumulative angles (rad) of the left and right encoder wheels."""
-        left, right = self.body.joint_angles(self._encoder_idx)
-        return left * self._encoder_signs[0], right * self._encoder_signs[1]
+        left, right = self.body.joint_angles(self.encoder_joint_indices)
+        return left * self.encoder_signs[0], right * self.encoder_signs[1]
 
     def set_motor_output(self, left: MotorOutput, right: MotorOutput) -> None:
         """Apply each side's motor output, shared by its wheels, until the next change."""
         torque, damping, changed = [], [], []
         for idx, is_left, share, sign, old in zip(
-            self._wheel_idx, self._left, self._share, self._signs, self._damping, strict=True
+            self._wheel_idx, self.wheel_left, self.wheel_shares, self.wheel_signs, self._damping,
+            strict=True,
         ):
             out = left if is_left else right
             torque.append(out.drive_torque_nm * share * sign)  # joint-space torque
@@ -363,7 +343,7 @@ class SmartCarRobot:
         r = self.model.wheel_radius_m
         angles, _ = self.body.joint_states(self._wheel_idx)
         for i, (wheel, idx) in enumerate(zip(self.wheels, self._wheel_idx, strict=True)):
-            speed = (v - w * half if self._left[i] else v + w * half) / r * wheel.forward_sign
+            speed = (v - w * half if self.wheel_left[i] else v + w * half) / r * wheel.forward_sign
             self.body.reset_joint(idx, angles[i] + speed * duration, speed)
 
     # -- sensing -------------------------------------------------------------------------------

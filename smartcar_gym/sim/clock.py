@@ -30,6 +30,9 @@ DEFAULT_MAX_SUBSTEP_S = 0.01
 # car's contacts jitter (they start to between 10 and 16 ms).
 MAX_SUBSTEP_RANGE_S = (1e-4, 0.02)
 MAX_FIRINGS_PER_INSTANT = 100
+#: what a batch raises when one of its cars' boards is due again after that many firings
+BATCH_STILL_DUE = (f"a car's board is still due after {MAX_FIRINGS_PER_INSTANT} firings at one "
+                   "instant")
 
 
 class EventSource(Protocol):

@@ -20,7 +20,7 @@ from smartcar_gym.controller.batched import BatchedArbotix
 from smartcar_gym.controller.latency import CommandDelay
 from smartcar_gym.envs.state import CarState
 from smartcar_gym.envs.vector.laser import BatchLaser
-from smartcar_gym.sim.clock import MAX_FIRINGS_PER_INSTANT, NS_PER_S
+from smartcar_gym.sim.clock import BATCH_STILL_DUE, MAX_FIRINGS_PER_INSTANT, NS_PER_S
 
 _NEVER = np.iinfo(np.int64).max
 
@@ -93,8 +93,7 @@ class Clocks:
                 self.next_update[update] += self.period_ns
             base.board_tick(now_s, angles, firing)
             cars.set_drive(firing, base.drive_torque, base.damping)
-        raise RuntimeError("a car's board is still due after "
-                           f"{MAX_FIRINGS_PER_INSTANT} firings at one instant")
+        raise RuntimeError(BATCH_STILL_DUE)
 
     def _next_due(self, due: np.ndarray) -> np.ndarray:
         """Each car's next event (ns on its clock), of any source (``due``: its next robot

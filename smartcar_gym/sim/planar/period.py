@@ -29,7 +29,7 @@ import numpy as np
 
 from smartcar_gym.controller import compiled as boards
 from smartcar_gym.parallel import run_chunks
-from smartcar_gym.sim.clock import MAX_FIRINGS_PER_INSTANT, NS_PER_S
+from smartcar_gym.sim.clock import BATCH_STILL_DUE, MAX_FIRINGS_PER_INSTANT, NS_PER_S
 from smartcar_gym.sim.planar import drive, dynamics, lanes
 
 if TYPE_CHECKING:
@@ -86,8 +86,7 @@ def run_period(batch: PlanarBatch, base: BatchedArbotix,
                     now, next_update, end, pending, steps, timestep, target, fired,
                     period_ns, max_substep_ns, never)
         if code == TOO_MANY:
-            raise RuntimeError("a car's board is still due after "
-                               f"{MAX_FIRINGS_PER_INSTANT} firings at one instant")
+            raise RuntimeError(BATCH_STILL_DUE)
         if code:
             error, message = boards.MESSAGES[code]
             raise error(message)

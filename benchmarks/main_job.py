@@ -9,8 +9,10 @@ package first on the path), the order alternating, and times each to its end (st
 compile, training, the last evaluation, the files written). The ratio is taken within a
 round (this shared machine's speed drifts). Prints a Markdown table: each command's wall and
 CPU seconds, the load average before it, whether this checkout's run is within the 30 s, the
-ratio (at most 0.65 asked), and the ``policy.pth`` of this checkout's best model by the start
-of its sha256 (the same in every round: the training repeats exactly on one machine).
+ratio (at most 0.65 asked), this checkout's time at the speed the issue measured at (the
+ratio times 49d6fad's 47 s then; against 49d6fad only), and the ``policy.pth`` of this
+checkout's best model by the start of its sha256 (the same in every round: the training
+repeats exactly on one machine).
 
 Warm (the default): numba's compiled loops come from its cache, as in every run after the
 first; each side first runs once untimed, to fill it (the base's worktree is a new path).
@@ -34,6 +36,11 @@ from timed import timed_run, worktree_at  # benchmarks/timed.py, beside this scr
 
 TARGET_S = 30.0  # issue 56: the main job's training on the 2-core machine
 TARGET_RATIO = 0.65  # and against 49d6fad's same command, interleaved
+#: 49d6fad's training when issue 56 set the 30 s: 38-47 s on the 2-core machine. The machine's
+#: speed drifts by half and more (the same command took 85-98 s in a slow hour), so each round
+#: also gives this checkout's time at that speed: its wall time x ISSUE_BASE_S / the base's
+ISSUE_BASE_S = 47.0
+ISSUE_BASE = "49d6fad"
 COMMAND = ["--engine", "planar", "--vectorization", "batched", "--no-progress"]
 
 
@@ -78,18 +85,24 @@ def main(argv: list[str] | None = None) -> int:
             rows.append({"round": round_, **got})
             print(f"round {round_}: this {got['this']['wall_s']:.1f} s, {args.base} "
                   f"{got['base']['wall_s']:.1f} s", file=sys.stderr)
+    def at_issue(ratio: float) -> str:  # only against the commit the issue measured
+        same = args.base.startswith(ISSUE_BASE) or (len(args.base) >= 7
+                                                     and ISSUE_BASE.startswith(args.base))
+        return f"{ratio * ISSUE_BASE_S:.1f}" if same else "-"
+
     cache = "an empty numba cache each run" if args.cold else "warm caches"
     print(f"The README's training, this checkout against {args.base} ({cache}):\n")
     print(f"| round | this (s) | CPU (s) | load before | within {TARGET_S:.0f} s | "
-          f"{args.base} (s) | CPU (s) | ratio (at most {TARGET_RATIO}) | policy.pth |")
-    print("|---|---|---|---|---|---|---|---|---|")
+          f"{args.base} (s) | CPU (s) | ratio (at most {TARGET_RATIO}) | "
+          f"this at the issue's speed (s) | policy.pth |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     for row in rows:
         this, then = row["this"], row["base"]
         ratio = this["wall_s"] / then["wall_s"]
         print(f"| {row['round']} | {this['wall_s']:.1f} | {this['cpu_s']:.1f} | "
               f"{this['load']:.2f} | {'yes' if this['wall_s'] <= TARGET_S else 'no'} | "
               f"{then['wall_s']:.1f} | {then['cpu_s']:.1f} | {ratio:.2f} | "
-              f"{this['policy_sha256'][:8]} |")
+              f"{at_issue(ratio)} | {this['policy_sha256'][:8]} |")
     digests = {row["this"]["policy_sha256"] for row in rows}
     print("\nthis checkout's policy.pth: " + ("the same in every round" if len(digests) == 1
                                              else f"{len(digests)} different ones"))

@@ -112,9 +112,10 @@ class Clocks:
         end = now + self.period_ns
         pending = ~self.state.parked
         # the engine's own loop over the cars' events, where it has one (the planar batch's
-        # compiled ``run_period``): the same sequence per car, without this loop's costs
+        # compiled ``run_period``, which says itself where it cannot run): the same sequence
+        # per car, without this loop's costs
         fused = getattr(self.cars, "run_period", None)
-        if COMPILED and fused is not None and self.laser is None and not self.delays and \
+        if fused is not None and self.laser is None and not self.delays and \
                 fused(self.base, now, self.next_update, end, pending, self.period_ns,
                       self.max_substep_ns):
             return

@@ -7,12 +7,19 @@ Keys: ``record`` (topic -> type), ``duration`` (wall s after the subscriptions c
 ``publish`` (list of {"after": wall s, "topic", "type", "msg": fields}), ``drive`` ({"linear",
 "angular", "duration", "align"}: cmd_vel on every /clock tick for ``duration`` simulated s
 from the second multiple of ``align`` after the first tick seen, then one zero twist),
-``until_rosout`` (stop as soon as a /rosout line contains this text), ``until_stamp``
+``until_rosout`` (stop as soon as a log line contains this text), ``until_stamp``
 ({"topic", "after_drive"}: stop once that topic has a message stamped that long after the
 drive started), ``wait_for`` (topics
 that must have a publisher before the clock starts), ``grace`` (s recorded after the awaited
 line). Output on stdout: {"topics": {topic: [{"t": s since the start, "wall": time.time(),
-"stamp": header stamp, "f": [fields]}]}, "rosout": [[node, level, text]]}.
+"stamp": header stamp, "f": [fields]}]}, "rosout": [[node, level, text]]}, or {"error": why}
+when what it waits for has not connected after ``connect_timeout`` (s, 30 by default).
+
+The log lines come from ``/rosout_agg``, as rqt_console reads them: the rosout node, up since
+roscore started, gathers every node's ``/rosout``, and the probe's one connection to it is made
+before its clock starts. (Subscribing ``/rosout`` itself, the probe could not tell when it is
+connected to a node that registers while it starts, as the policy node does after loading
+torch.)
 """
 
 from __future__ import annotations
@@ -77,7 +84,7 @@ def main() -> None:
         if until and until in msg.msg:
             done["flag"] = True
 
-    rospy.Subscriber("/rosout", ros.rosgraph_msgs.Log, on_log)
+    logs = rospy.Subscriber("/rosout_agg", ros.rosgraph_msgs.Log, on_log)
     publishers = {}
     for item in spec.get("publish", []):
         cls = roslib.message.get_message_class(item["type"])
@@ -108,9 +115,14 @@ def main() -> None:
                 print(json.dumps({"error": f"no publisher of {topic}"}))
                 return
             time.sleep(0.05)
-    while any(p.get_num_connections() == 0 for p in publishers.values()):
-        if time.monotonic() > deadline:
-            break
+    waiting = {**{f"a subscriber of {topic}": p for topic, p in publishers.items()},
+               "the rosout node (/rosout_agg)": logs}
+    while waiting:  # a message published before its subscriber connects goes to nobody
+        waiting = {what: end for what, end in waiting.items() if end.get_num_connections() == 0}
+        if waiting and time.monotonic() > deadline:
+            print(json.dumps({"error": f"{', '.join(waiting)}: not connected after "
+                                       f"{spec.get('connect_timeout', 30)} s"}))
+            return
         time.sleep(0.05)
     if drive:
         rospy.Subscriber("/clock", ros.rosgraph_msgs.Clock, on_clock)

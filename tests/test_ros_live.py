@@ -298,6 +298,18 @@ def test_parameters_from_the_server_behave_like_the_same_file(ros, tmp_path):
     assert server[-1][3] > 0.5, server  # it turned (1.2 s at 1 rad/s, less the ramp)
 
 
+def _story(data: dict, *nodes: Node) -> str:
+    """What a probe and the nodes logged, a line each (a failure's message)."""
+    topics = ", ".join(f"{topic} {len(rows)}" for topic, rows in data["topics"].items())
+    lines = [f"probe: {data['elapsed']:.1f} s; messages: {topics}; its log lines:"]
+    lines += [f"  {name} [{level}] {text}" for name, level, text in data["rosout"]]
+    for node in nodes:
+        lines.append(f"{' '.join(node.proc.args[3:])} printed:")
+        lines += [f"  {line}" for line in node.output.splitlines()
+                  if line.startswith(("[INFO]", "[WARN]", "[ERROR]", "smartcar-ros"))]
+    return "\n".join(lines)
+
+
 def test_policy_drives_to_a_nav_goal_and_stops(ros, tmp_path):
     ros.set("/use_sim_time", True)
     goal = {"header": {"frame_id": "odom"},
@@ -322,9 +334,8 @@ def test_policy_drives_to_a_nav_goal_and_stops(ros, tmp_path):
             "until_rosout": "goal dropped",
             "publish": [{"after": 0.2, "topic": "/move_base_simple/goal",
                          "type": "geometry_msgs/PoseStamped", "msg": wrong}]}, timeout=60)
-        outputs = bringup.output + policy.output
     logs = [text for _, _, text in data["rosout"]]
-    assert any("reached" in text for text in logs), (logs, outputs)
+    assert any("reached" in text for text in logs), _story(data, bringup, policy)
     # one line says from when on a goal counts (rviz's goals are not latched), before it came
     said = policy.output.splitlines()
     listening = [i for i, line in enumerate(said) if "listening for goals on "

@@ -17,6 +17,11 @@ from typing import Any
 from smartcar_gym.bags import messages as m
 from smartcar_gym.ros.driving import Command, GoalDriver
 
+#: the state topics (odometry, joint states, ground truth) keep only their newest message: a
+#: node that falls behind (a loaded machine, a fast ``--speed``) decides on the present instead
+#: of working through a backlog of odometry that is stale by the time it is read (which stops
+#: the car at every decision, for as long as the backlog lasts)
+STATE_QUEUE = 1
 JOINT_WAIT_S = 0.02  # wall seconds to wait for the joint states stamped with the odometry
 LISTEN_TIMEOUT_S = 60.0  # wall seconds to wait for the master to list the goal subscription
 GOAL_TOPIC = "/move_base_simple/goal"
@@ -32,11 +37,12 @@ class PolicyNode:
         self._lock = threading.Condition()
         self.pub = rospy.Publisher("cmd_vel", ros.geometry_msgs.Twist, queue_size=10)
         rospy.Subscriber("joint_states", ros.sensor_msgs.JointState, self._on_joint_states,
-                         queue_size=10)
-        rospy.Subscriber("odom", ros.nav_msgs.Odometry, self._on_odometry, queue_size=10)
+                         queue_size=STATE_QUEUE)
+        rospy.Subscriber("odom", ros.nav_msgs.Odometry, self._on_odometry,
+                         queue_size=STATE_QUEUE)
         if driver.stop_on == "ground_truth":
             rospy.Subscriber(m.GROUND_TRUTH_TOPIC, ros.nav_msgs.Odometry, self._on_ground_truth,
-                             queue_size=10)
+                             queue_size=STATE_QUEUE)
         self.goal_topic = rospy.resolve_name(GOAL_TOPIC)
         rospy.Subscriber(self.goal_topic, ros.geometry_msgs.PoseStamped, self._on_goal,
                          queue_size=10)

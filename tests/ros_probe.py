@@ -107,7 +107,8 @@ def main() -> None:
                 drive_state["stopped"] = True
             cmd.publish(twist)
 
-    deadline = time.monotonic() + spec.get("connect_timeout", 30)
+    connect_timeout = spec.get("connect_timeout", 30)
+    deadline = time.monotonic() + connect_timeout
     for topic in spec.get("wait_for", []):  # the node under test is up and publishing
         while not rospy.get_published_topics() or topic not in dict(
                 rospy.get_published_topics()):
@@ -118,10 +119,11 @@ def main() -> None:
     waiting = {**{f"a subscriber of {topic}": p for topic, p in publishers.items()},
                "the rosout node (/rosout_agg)": logs}
     while waiting:  # a message published before its subscriber connects goes to nobody
-        waiting = {what: end for what, end in waiting.items() if end.get_num_connections() == 0}
+        waiting = {what: link for what, link in waiting.items()
+                   if link.get_num_connections() == 0}
         if waiting and time.monotonic() > deadline:
             print(json.dumps({"error": f"{', '.join(waiting)}: not connected after "
-                                       f"{spec.get('connect_timeout', 30)} s"}))
+                                       f"{connect_timeout} s"}))
             return
         time.sleep(0.05)
     if drive:

@@ -85,11 +85,9 @@ def main(argv: list[str] | None = None) -> int:
             rows.append({"round": round_, **got})
             print(f"round {round_}: this {got['this']['wall_s']:.1f} s, {args.base} "
                   f"{got['base']['wall_s']:.1f} s", file=sys.stderr)
-    def at_issue(ratio: float) -> str:  # only against the commit the issue measured
-        same = args.base.startswith(ISSUE_BASE) or (len(args.base) >= 7
-                                                     and ISSUE_BASE.startswith(args.base))
-        return f"{ratio * ISSUE_BASE_S:.1f}" if same else "-"
-
+    # the issue's speed only against the commit the issue measured
+    issue_base = args.base.startswith(ISSUE_BASE) or (len(args.base) >= 7
+                                                      and ISSUE_BASE.startswith(args.base))
     cache = "an empty numba cache each run" if args.cold else "warm caches"
     print(f"The README's training, this checkout against {args.base} ({cache}):\n")
     print(f"| round | this (s) | CPU (s) | load before | within {TARGET_S:.0f} s | "
@@ -99,10 +97,11 @@ def main(argv: list[str] | None = None) -> int:
     for row in rows:
         this, then = row["this"], row["base"]
         ratio = this["wall_s"] / then["wall_s"]
+        at_issue = f"{ratio * ISSUE_BASE_S:.1f}" if issue_base else "-"
         print(f"| {row['round']} | {this['wall_s']:.1f} | {this['cpu_s']:.1f} | "
               f"{this['load']:.2f} | {'yes' if this['wall_s'] <= TARGET_S else 'no'} | "
               f"{then['wall_s']:.1f} | {then['cpu_s']:.1f} | {ratio:.2f} | "
-              f"{at_issue(ratio)} | {this['policy_sha256'][:8]} |")
+              f"{at_issue} | {this['policy_sha256'][:8]} |")
     digests = {row["this"]["policy_sha256"] for row in rows}
     print("\nthis checkout's policy.pth: " + ("the same in every round" if len(digests) == 1
                                              else f"{len(digests)} different ones"))
